@@ -1,0 +1,148 @@
+"""The registry: every spec the loaded plugins yield, with where it came from."""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import importlib.util
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+from ._errors import PluginConflictError, PluginError
+from ._kind import Kind
+from ._specs import BenchSpec, PluginSpec
+
+__all__ = ["BrokenPlugin", "Conflict", "Registered", "Registry", "Source"]
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where a plugin comes from: its distribution and the entry point or module."""
+
+    distribution: str
+    version: str
+    entry_point: str
+
+    def __str__(self) -> str:
+        return f"{self.distribution} {self.version} ({self.entry_point})"
+
+
+@dataclass(frozen=True)
+class Registered:
+    """A spec and its source."""
+
+    spec: PluginSpec
+    source: Source
+
+    @property
+    def missing_requirements(self) -> tuple[str, ...]:
+        """Modules in ``spec.requires`` that cannot be found (checked without importing)."""
+        missing = []
+        for module in self.spec.requires:
+            try:
+                found = importlib.util.find_spec(module) is not None
+            except (ImportError, ValueError):
+                found = False
+            if not found:
+                missing.append(module)
+        return tuple(missing)
+
+
+@dataclass(frozen=True)
+class BrokenPlugin:
+    """An entry point or plugin module that failed to load or register."""
+
+    name: str
+    source: Source
+    error: str
+
+
+@dataclass(frozen=True)
+class Conflict:
+    """One (kind, name) registered by more than one source."""
+
+    kind: Kind
+    name: str
+    sources: tuple[Source, ...]
+
+    def message(self) -> str:
+        who = "; ".join(str(s) for s in self.sources)
+        return f"{self.kind} plugin {self.name!r} is registered more than once, by: {who}"
+
+
+@dataclass
+class Registry:
+    """Specs by kind and name, benchmark suites, broken plugins and conflicts."""
+
+    plugins: dict[Kind, dict[str, Registered]] = field(
+        default_factory=lambda: {kind: {} for kind in Kind}
+    )
+    benchmarks: dict[str, tuple[BenchSpec, Source]] = field(default_factory=dict)
+    broken: list[BrokenPlugin] = field(default_factory=list)
+    conflicts: list[Conflict] = field(default_factory=list)
+
+    def add(self, spec: PluginSpec, source: Source) -> None:
+        existing = self.plugins[spec.kind].get(spec.name)
+        if existing is not None:
+            for conflict in self.conflicts:
+                if (conflict.kind, conflict.name) == spec.key:
+                    self.conflicts.remove(conflict)
+                    sources = (*conflict.sources, source)
+                    break
+            else:
+                sources = (existing.source, source)
+            self.conflicts.append(Conflict(spec.kind, spec.name, sources))
+            return
+        self.plugins[spec.kind][spec.name] = Registered(spec, source)
+
+    def raise_for_conflicts(self) -> None:
+        if self.conflicts:
+            raise PluginConflictError("\n".join(c.message() for c in self.conflicts))
+
+    def __iter__(self) -> Iterator[Registered]:
+        for kind in Kind:
+            for name in sorted(self.plugins[kind]):
+                yield self.plugins[kind][name]
+
+    def names(self, kind: Kind) -> list[str]:
+        return sorted(self.plugins[kind])
+
+    def get(self, kind: Kind, name: str) -> Registered:
+        """The registered plugin, or a :class:`PluginError` that says what to do instead."""
+        try:
+            return self.plugins[kind][name]
+        except KeyError:
+            raise PluginError(self.unknown_message(kind, name)) from None
+
+    def find(self, name: str) -> list[Registered]:
+        """Every plugin called ``name``, of any kind."""
+        return [kinds[name] for kinds in self.plugins.values() if name in kinds]
+
+    def unknown_message(self, kind: Kind, name: str) -> str:
+        """Why ``name`` is not a usable plugin of ``kind`` and what is close to it."""
+        parts = [f"unknown {kind} type {name!r}"]
+        for broken in self.broken:
+            if broken.name == name:
+                parts.append(
+                    f"a plugin of that name from {broken.source} failed to load: {broken.error}"
+                )
+        other_kinds = [str(r.spec.kind) for r in self.find(name)]
+        if other_kinds:
+            parts.append(f"{name!r} is a {', '.join(other_kinds)} plugin, not a {kind} plugin")
+        close = difflib.get_close_matches(name, self.names(kind), n=3, cutoff=0.5)
+        if close:
+            parts.append("did you mean " + " or ".join(repr(c) for c in close) + "?")
+        installed = self.names(kind)
+        parts.append(
+            f"installed {kind} plugins: {', '.join(installed)}" if installed
+            else f"no {kind} plugins are installed"
+        )
+        return "; ".join(parts)
+
+    def fingerprint(self) -> str:
+        """A digest of the registered specs, for caching models built from them."""
+        h = hashlib.sha256()
+        for reg in self:
+            h.update(f"{reg.spec.kind}:{reg.spec.name}:{reg.spec.config.__module__}."
+                     f"{reg.spec.config.__qualname__}:{id(reg.spec.config)}\n".encode())
+        return h.hexdigest()

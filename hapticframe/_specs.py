@@ -1,0 +1,221 @@
+"""Frozen spec records that registration hooks yield.
+
+A spec describes a plugin without importing its implementation: listing, validation and
+schema generation need only the spec and its (import-light) pydantic config model. The
+implementation is a ``"module:attribute"`` string resolved when an experiment is built.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from pydantic import BaseModel, ConfigDict
+
+from ._errors import PluginImportError
+from ._kind import Kind
+
+__all__ = [
+    "BenchSpec",
+    "ClassifierSpec",
+    "FeatureExtractorSpec",
+    "MapSpec",
+    "PlannerSpec",
+    "PluginConfig",
+    "PluginSpec",
+    "RobotSpec",
+    "SensorModelSpec",
+    "SensorSpec",
+    "resolve_reference",
+]
+
+_NAME = re.compile(r"^[a-z][a-z0-9]*(?:[-_][a-z0-9]+)*$")
+_REFERENCE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+
+
+class PluginConfig(BaseModel):
+    """Base class for plugin config models: frozen, and unknown keys are errors.
+
+    Keep config modules import-light (pydantic, stdlib): they are imported to validate
+    experiment files and to write schemas, where torch or pyserial must not load.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+def resolve_reference(reference: str, *, what: str = "", install_hint: str = "") -> Any:
+    """Import ``"package.module:attribute"`` and return the attribute.
+
+    Raises
+    ------
+    PluginImportError
+        When the module cannot be imported or lacks the attribute; the message names
+        ``what`` and the install hint.
+    """
+    module_name, _, attr_path = reference.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in attr_path.split("."):
+            obj = getattr(obj, part)
+    except ImportError as exc:
+        hint = f"; {install_hint}" if install_hint else ""
+        raise PluginImportError(f"{what or reference} cannot be imported: {exc}{hint}") from exc
+    except AttributeError as exc:
+        raise PluginImportError(f"{what or reference}: {reference!r} does not exist ({exc})") from exc
+    return obj
+
+
+@dataclass(frozen=True)
+class PluginSpec:
+    """What a plugin registers: one record per (kind, name).
+
+    Parameters
+    ----------
+    name : str
+        Registry name used as ``type:`` in experiment files: lowercase letters, digits,
+        ``-`` or ``_``.
+    summary : str
+        One line for ``hapticframe plugins``.
+    config : type of PluginConfig
+        The pydantic model validating the component's ``config`` (unknown keys rejected).
+    factory : str
+        ``"module:Attribute"`` of the implementation, called as ``factory(config, context)``.
+        Resolved only when an experiment using the plugin is built.
+    capabilities : frozenset of str
+        Tags that select conformance checks and describe behaviour (``"trainable"``,
+        ``"simulated"``, ``"needs-robot"``, ``"finite"``...).
+    install_hint : str
+        What to install when the plugin's requirements are missing.
+    requires : tuple of str
+        Top-level modules the implementation imports (``"torch"``); listing and validation
+        check they are findable without importing them.
+    inputs : tuple of Kind
+        Kinds whose components may appear in this component's ``inputs``; the default is
+        set per kind.
+    check_config : mapping or None
+        A small config (as a dict) the conformance kit builds the plugin with; None uses
+        the config model's defaults.
+    """
+
+    kind: ClassVar[Kind]
+    default_inputs: ClassVar[tuple[Kind, ...]] = ()
+
+    name: str
+    summary: str
+    config: type[PluginConfig]
+    factory: str
+    capabilities: frozenset[str] = field(default_factory=frozenset)
+    install_hint: str = ""
+    requires: tuple[str, ...] = ()
+    inputs: tuple[Kind, ...] | None = None
+    check_config: dict[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not _NAME.match(self.name):
+            raise ValueError(
+                f"plugin name {self.name!r} must be lowercase letters and digits separated "
+                "by '-' or '_'"
+            )
+        if not isinstance(self.summary, str) or not self.summary.strip() or "\n" in self.summary:
+            raise ValueError(f"plugin {self.name!r}: summary must be one non-empty line")
+        if not (isinstance(self.config, type) and issubclass(self.config, BaseModel)):
+            raise TypeError(f"plugin {self.name!r}: config must be a pydantic model class")
+        if self.config.model_config.get("extra") != "forbid":
+            raise ValueError(
+                f"plugin {self.name!r}: config model {self.config.__name__} must reject "
+                "unknown keys (derive from hapticframe.PluginConfig)"
+            )
+        if not isinstance(self.factory, str) or not _REFERENCE.match(self.factory):
+            raise ValueError(
+                f"plugin {self.name!r}: factory must be a 'module:attribute' string, "
+                f"got {self.factory!r}"
+            )
+        object.__setattr__(self, "capabilities", frozenset(self.capabilities))
+        object.__setattr__(self, "requires", tuple(self.requires))
+        inputs = self.default_inputs if self.inputs is None else tuple(Kind(k) for k in self.inputs)
+        object.__setattr__(self, "inputs", inputs)
+
+    @property
+    def key(self) -> tuple[Kind, str]:
+        return (self.kind, self.name)
+
+    def load_factory(self) -> Any:
+        """Import and return the implementation (heavy imports happen here)."""
+        return resolve_reference(
+            self.factory, what=f"{self.kind} plugin {self.name!r}", install_hint=self.install_hint
+        )
+
+
+@dataclass(frozen=True)
+class SensorSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.SENSOR
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.ROBOT,)
+
+
+@dataclass(frozen=True)
+class FeatureExtractorSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.FEATURE_EXTRACTOR
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.SENSOR, Kind.FEATURE_EXTRACTOR)
+
+
+@dataclass(frozen=True)
+class ClassifierSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.CLASSIFIER
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.SENSOR, Kind.FEATURE_EXTRACTOR)
+
+
+@dataclass(frozen=True)
+class SensorModelSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.SENSOR_MODEL
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.CLASSIFIER, Kind.ROBOT, Kind.SENSOR)
+
+
+@dataclass(frozen=True)
+class MapSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.MAP
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.SENSOR_MODEL,)
+
+
+@dataclass(frozen=True)
+class PlannerSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.PLANNER
+    default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.MAP,)
+
+
+@dataclass(frozen=True)
+class RobotSpec(PluginSpec):
+    kind: ClassVar[Kind] = Kind.ROBOT
+    default_inputs: ClassVar[tuple[Kind, ...]] = ()
+
+
+SPEC_TYPES: dict[Kind, type[PluginSpec]] = {
+    Kind.SENSOR: SensorSpec,
+    Kind.FEATURE_EXTRACTOR: FeatureExtractorSpec,
+    Kind.CLASSIFIER: ClassifierSpec,
+    Kind.SENSOR_MODEL: SensorModelSpec,
+    Kind.MAP: MapSpec,
+    Kind.PLANNER: PlannerSpec,
+    Kind.ROBOT: RobotSpec,
+}
+
+
+@dataclass(frozen=True)
+class BenchSpec:
+    """A benchmark suite run by ``hapticframe bench NAME``.
+
+    ``factory`` names a function ``run(options: BenchOptions) -> dict`` that writes its
+    report into ``options.out_dir`` and returns the headline figures.
+    """
+
+    name: str
+    summary: str
+    factory: str
+    install_hint: str = ""
+
+    def __post_init__(self) -> None:
+        if not _NAME.match(self.name):
+            raise ValueError(f"bench name {self.name!r} is not a valid name")
+        if not _REFERENCE.match(self.factory):
+            raise ValueError(f"bench {self.name!r}: factory must be a 'module:attribute' string")

@@ -1,0 +1,109 @@
+"""The base class every component derives from, and what it is built with."""
+
+from __future__ import annotations
+
+from abc import ABC
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from .._kind import Kind
+from ._records import MovementResult
+
+if TYPE_CHECKING:
+    from .._scene import Scene
+
+__all__ = ["BuildContext", "Component", "RunOutcome"]
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """Everything a component receives besides its own validated config.
+
+    Parameters
+    ----------
+    id : str
+        The component's instance name from the experiment file.
+    rng : numpy.random.Generator
+        A generator seeded from the experiment seed and the component id; use it for all
+        randomness and never touch global random state.
+    inputs : mapping of str to Component
+        The built components named in ``inputs``, in the order given.
+    scene : Scene or None
+        The simulated world, when the experiment describes one.
+    """
+
+    id: str
+    rng: np.random.Generator
+    inputs: Mapping[str, Component] = field(default_factory=dict)
+    scene: Scene | None = None
+
+    def input_of_kind(self, kind: Kind) -> list[Component]:
+        """The inputs of one kind, in the order given."""
+        return [c for c in self.inputs.values() if c.kind is kind]
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """What a component sees when a run finishes (the argument of :meth:`Component.finalize`).
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where the run writes its results; components write figures here.
+    scene : Scene or None
+    movements : tuple of MovementResult
+        Every exploratory movement, in order (empty for open-loop runs).
+    components : mapping of str to Component
+        Every built component by id.
+    wall_time_s : float
+        Wall time of the run so far.
+    """
+
+    out_dir: Path
+    scene: Scene | None
+    movements: tuple[MovementResult, ...]
+    components: Mapping[str, Component]
+    wall_time_s: float
+
+
+class Component(ABC):
+    """Base class of every plugin implementation.
+
+    A component is built as ``Implementation(config, context)`` where ``config`` is the
+    plugin's validated, frozen pydantic model and ``context`` a :class:`BuildContext`.
+    Subclasses of the kind interfaces (:class:`~hapticframe.kinds.Sensor` ...) set
+    :attr:`kind`.
+    """
+
+    kind: ClassVar[Kind]
+
+    def __init__(self, config: Any, context: BuildContext) -> None:
+        self.config = config
+        self.context = context
+
+    @property
+    def id(self) -> str:
+        return self.context.id
+
+    def reset(self) -> None:
+        """Forget streaming state (hidden states, buffers, counters). Default: nothing."""
+
+    def on_movement_end(self, result: MovementResult) -> None:
+        """Called after each exploratory movement in a closed-loop run. Default: nothing."""
+
+    def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
+        """Write figures into ``outcome.out_dir`` and return metrics for ``metrics.json``.
+
+        Metric names must be unique across components of a run. Default: no metrics.
+        """
+        return {}
+
+    def close(self) -> None:
+        """Release devices and files. Default: nothing."""
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} id={self.id!r} kind={self.kind.value}>"

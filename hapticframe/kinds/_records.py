@@ -1,0 +1,478 @@
+"""Immutable data records that flow between components.
+
+Every array is float64 unless stated, SI units throughout (REP 103): metres, seconds,
+newtons, radians. Records validate their shapes on construction so that a plugin that
+emits a malformed record fails where it emits it, not three components downstream.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "ChannelInfo",
+    "ClassProbabilities",
+    "ExploratoryMovement",
+    "LocatedMeasurement",
+    "MapEstimate",
+    "MovementResult",
+    "Observations",
+    "Region",
+    "RobotState",
+    "SampleBatch",
+    "concatenate_batches",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+def _as_float_array(value: ArrayLike, name: str, ndim: int | None = None) -> FloatArray:
+    array = np.asarray(value, dtype=np.float64)
+    if ndim is not None and array.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
+    array.setflags(write=False)
+    return array
+
+
+def _check_rows(name: str, array: np.ndarray, n: int) -> None:
+    if array.shape[0] != n:
+        raise ValueError(f"{name} has {array.shape[0]} rows, expected {n} (one per timestamp)")
+
+
+@dataclass(frozen=True)
+class ChannelInfo:
+    """What one sensor channel carries.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Shape of one sample (``()`` for a scalar, ``(19,)`` for 19 electrodes).
+    unit : str
+        SI unit (``"N"``, ``"Pa"``, ``"m"``) or ``"count"`` for raw ADC values, ``"1"`` for
+        dimensionless values.
+    rate_hz : float
+        Nominal sample rate of the channel.
+    """
+
+    shape: tuple[int, ...]
+    unit: str
+    rate_hz: float
+
+
+@dataclass(frozen=True)
+class SampleBatch:
+    """Timestamped samples of named channels: sensor readings or features.
+
+    Parameters
+    ----------
+    timestamps_s : (n,) float64
+        Strictly increasing sample times in seconds.
+    channels : mapping of str to (n, ...) float64
+        One array per channel; the first axis indexes samples.
+    valid : mapping of str to (n,) bool, optional
+        Per-channel validity (a corrupted word on a bus, a stale reading). Missing means valid.
+    """
+
+    timestamps_s: FloatArray
+    channels: Mapping[str, FloatArray]
+    valid: Mapping[str, NDArray[np.bool_]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        t = _as_float_array(self.timestamps_s, "timestamps_s", ndim=1)
+        object.__setattr__(self, "timestamps_s", t)
+        if t.size > 1 and not np.all(np.diff(t) > 0):
+            raise ValueError("timestamps_s must be strictly increasing")
+        if t.size and not np.all(np.isfinite(t)):
+            raise ValueError("timestamps_s must be finite")
+        channels = {}
+        for name, value in self.channels.items():
+            array = _as_float_array(value, f"channel {name!r}")
+            if array.ndim == 0:
+                raise ValueError(f"channel {name!r} must have a sample axis")
+            _check_rows(f"channel {name!r}", array, t.size)
+            channels[name] = array
+        valid = {}
+        for name, value in self.valid.items():
+            if name not in channels:
+                raise ValueError(f"validity given for unknown channel {name!r}")
+            mask = np.asarray(value, dtype=bool)
+            if mask.shape != (t.size,):
+                raise ValueError(f"valid[{name!r}] must have shape ({t.size},), got {mask.shape}")
+            mask.setflags(write=False)
+            valid[name] = mask
+        object.__setattr__(self, "channels", MappingProxyType(channels))
+        object.__setattr__(self, "valid", MappingProxyType(valid))
+
+    def __len__(self) -> int:
+        return int(self.timestamps_s.size)
+
+    @classmethod
+    def empty(cls, channels: Mapping[str, ChannelInfo]) -> SampleBatch:
+        """A batch with no samples and the given channel layout."""
+        return cls(
+            np.empty(0),
+            {name: np.empty((0, *info.shape)) for name, info in channels.items()},
+        )
+
+    def select(self, rows: slice | NDArray[np.intp] | NDArray[np.bool_]) -> SampleBatch:
+        """The samples at ``rows`` (a slice, index array or boolean mask)."""
+        return SampleBatch(
+            self.timestamps_s[rows],
+            {k: v[rows] for k, v in self.channels.items()},
+            {k: v[rows] for k, v in self.valid.items()},
+        )
+
+
+def concatenate_batches(batches: Sequence[SampleBatch]) -> SampleBatch:
+    """Join consecutive batches of the same channels into one."""
+    if not batches:
+        raise ValueError("need at least one batch to concatenate")
+    names = list(batches[0].channels)
+    for batch in batches[1:]:
+        if list(batch.channels) != names:
+            raise ValueError(f"channel sets differ: {names} vs {list(batch.channels)}")
+    valid_names = {k for b in batches for k in b.valid}
+    return SampleBatch(
+        np.concatenate([b.timestamps_s for b in batches]),
+        {k: np.concatenate([b.channels[k] for b in batches]) for k in names},
+        {
+            k: np.concatenate(
+                [b.valid.get(k, np.ones(len(b), dtype=bool)) for b in batches]
+            )
+            for k in valid_names
+        },
+    )
+
+
+@dataclass(frozen=True)
+class ClassProbabilities:
+    """Interaction or contact state as class probabilities, one row per timestamp.
+
+    Parameters
+    ----------
+    timestamps_s : (n,) float64
+        Times the probabilities refer to (the input's times, less any look-ahead delay).
+    probabilities : (n, k) float64
+        Rows in [0, 1] that sum to 1.
+    classes : tuple of str
+        The k class names; by convention ``classes[0]`` is the background state
+        ("free movement").
+    """
+
+    timestamps_s: FloatArray
+    probabilities: FloatArray
+    classes: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        t = _as_float_array(self.timestamps_s, "timestamps_s", ndim=1)
+        p = _as_float_array(self.probabilities, "probabilities", ndim=2)
+        object.__setattr__(self, "timestamps_s", t)
+        object.__setattr__(self, "probabilities", p)
+        object.__setattr__(self, "classes", tuple(self.classes))
+        _check_rows("probabilities", p, t.size)
+        if p.shape[1] != len(self.classes):
+            raise ValueError(f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes")
+        if p.size:
+            if not np.all(np.isfinite(p)):
+                raise ValueError("probabilities contain NaN or infinity")
+            if np.any(p < 0) or np.any(p > 1):
+                raise ValueError("probabilities must lie in [0, 1]")
+            if not np.allclose(p.sum(axis=1), 1.0, atol=1e-6):
+                raise ValueError("each row of probabilities must sum to 1")
+
+    def __len__(self) -> int:
+        return int(self.timestamps_s.size)
+
+    @property
+    def labels(self) -> NDArray[np.intp]:
+        """Index of the most probable class per row."""
+        return np.argmax(self.probabilities, axis=1)
+
+
+@dataclass(frozen=True)
+class Region:
+    """An axis-aligned rectangle in the map plane (metres)."""
+
+    x_min_m: float
+    x_max_m: float
+    y_min_m: float
+    y_max_m: float
+
+    def __post_init__(self) -> None:
+        values = (self.x_min_m, self.x_max_m, self.y_min_m, self.y_max_m)
+        if not all(np.isfinite(values)):
+            raise ValueError("region bounds must be finite")
+        if not (self.x_max_m > self.x_min_m and self.y_max_m > self.y_min_m):
+            raise ValueError("region must have positive width and height")
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        return (self.x_max_m - self.x_min_m, self.y_max_m - self.y_min_m)
+
+    @property
+    def center_m(self) -> FloatArray:
+        return np.array([(self.x_min_m + self.x_max_m) / 2, (self.y_min_m + self.y_max_m) / 2])
+
+    def contains(self, points_m: ArrayLike) -> NDArray[np.bool_]:
+        p = np.atleast_2d(np.asarray(points_m, dtype=np.float64))
+        return (
+            (p[:, 0] >= self.x_min_m)
+            & (p[:, 0] <= self.x_max_m)
+            & (p[:, 1] >= self.y_min_m)
+            & (p[:, 1] <= self.y_max_m)
+        )
+
+    def grid(self, spacing_m: float) -> tuple[FloatArray, FloatArray]:
+        """Cell-centre coordinates ``(xs, ys)`` of a regular grid covering the region."""
+        if not spacing_m > 0:
+            raise ValueError("spacing_m must be positive")
+        nx = max(1, int(np.ceil((self.x_max_m - self.x_min_m) / spacing_m)))
+        ny = max(1, int(np.ceil((self.y_max_m - self.y_min_m) / spacing_m)))
+        xs = self.x_min_m + (np.arange(nx) + 0.5) * (self.x_max_m - self.x_min_m) / nx
+        ys = self.y_min_m + (np.arange(ny) + 0.5) * (self.y_max_m - self.y_min_m) / ny
+        return xs, ys
+
+
+@dataclass(frozen=True)
+class LocatedMeasurement:
+    """Classifier output placed in the map plane: the input of a sensor model (Eq. 3.1).
+
+    Parameters
+    ----------
+    timestamps_s : (n,) float64
+    positions_m : (n, 2) float64
+        Fingertip position in the map frame.
+    headings_rad : (n,) float64
+        Direction of motion, counter-clockwise from +x.
+    probabilities : (n, k) float64
+        Class probabilities, as in :class:`ClassProbabilities`.
+    classes : tuple of str
+    depth_m : (n,) float64
+        Fingertip depth below the free surface (NaN where unknown).
+    """
+
+    timestamps_s: FloatArray
+    positions_m: FloatArray
+    headings_rad: FloatArray
+    probabilities: FloatArray
+    classes: tuple[str, ...]
+    depth_m: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        t = _as_float_array(self.timestamps_s, "timestamps_s", ndim=1)
+        n = t.size
+        pos = _as_float_array(self.positions_m, "positions_m", ndim=2)
+        if pos.shape != (n, 2):
+            raise ValueError(f"positions_m must have shape ({n}, 2), got {pos.shape}")
+        heading = _as_float_array(self.headings_rad, "headings_rad", ndim=1)
+        _check_rows("headings_rad", heading, n)
+        depth = np.full(n, np.nan) if self.depth_m is None else self.depth_m
+        depth = _as_float_array(depth, "depth_m", ndim=1)
+        _check_rows("depth_m", depth, n)
+        # Reuse the probability checks.
+        probs = ClassProbabilities(t, self.probabilities, self.classes)
+        for name, value in (
+            ("timestamps_s", t),
+            ("positions_m", pos),
+            ("headings_rad", heading),
+            ("depth_m", depth),
+            ("probabilities", probs.probabilities),
+            ("classes", probs.classes),
+        ):
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        return int(self.timestamps_s.size)
+
+    def select(self, rows: slice | NDArray[np.intp] | NDArray[np.bool_]) -> LocatedMeasurement:
+        return LocatedMeasurement(
+            self.timestamps_s[rows],
+            self.positions_m[rows],
+            self.headings_rad[rows],
+            self.probabilities[rows],
+            self.classes,
+            None if self.depth_m is None else self.depth_m[rows],
+        )
+
+
+@dataclass(frozen=True)
+class Observations:
+    """Map observations produced by a sensor model.
+
+    Parameters
+    ----------
+    points_m : (m, 2) float64
+        Locations in the map frame.
+    targets : (m,) float64
+        Occupancy targets in [0, 1] (soft labels: 1 = object, 0 = granular material only).
+    weights : (m,) float64
+        Non-negative confidence of each target (1 by default).
+    """
+
+    points_m: FloatArray
+    targets: FloatArray
+    weights: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        pts = _as_float_array(np.reshape(self.points_m, (-1, 2)), "points_m", ndim=2)
+        m = pts.shape[0]
+        tgt = _as_float_array(self.targets, "targets", ndim=1)
+        if tgt.shape != (m,):
+            raise ValueError(f"targets must have shape ({m},), got {tgt.shape}")
+        w = np.ones(m) if self.weights is None else self.weights
+        w = _as_float_array(w, "weights", ndim=1)
+        if w.shape != (m,):
+            raise ValueError(f"weights must have shape ({m},), got {w.shape}")
+        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(tgt)) and np.all(np.isfinite(w))):
+            raise ValueError("observations contain NaN or infinity")
+        if m and (tgt.min() < 0 or tgt.max() > 1):
+            raise ValueError("targets must lie in [0, 1]")
+        if m and w.min() < 0:
+            raise ValueError("weights must be non-negative")
+        object.__setattr__(self, "points_m", pts)
+        object.__setattr__(self, "targets", tgt)
+        object.__setattr__(self, "weights", w)
+
+    def __len__(self) -> int:
+        return int(self.targets.size)
+
+    @classmethod
+    def empty(cls) -> Observations:
+        return cls(np.empty((0, 2)), np.empty(0))
+
+    @classmethod
+    def concatenate(cls, parts: Sequence[Observations]) -> Observations:
+        if not parts:
+            return cls.empty()
+        return cls(
+            np.concatenate([p.points_m for p in parts]),
+            np.concatenate([p.targets for p in parts]),
+            np.concatenate([p.weights for p in parts]),  # type: ignore[misc]
+        )
+
+
+@dataclass(frozen=True)
+class MapEstimate:
+    """Occupancy at query points: probability and its standard deviation, both in [0, 1]."""
+
+    mean: FloatArray
+    std: FloatArray
+
+    def __post_init__(self) -> None:
+        mean = _as_float_array(self.mean, "mean", ndim=1)
+        std = _as_float_array(self.std, "std", ndim=1)
+        if mean.shape != std.shape:
+            raise ValueError(f"mean {mean.shape} and std {std.shape} differ in shape")
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(std))):
+            raise ValueError("map estimate contains NaN or infinity")
+        if mean.size and (mean.min() < 0 or mean.max() > 1 or std.min() < 0):
+            raise ValueError("mean must lie in [0, 1] and std must be non-negative")
+        object.__setattr__(self, "mean", mean)
+        object.__setattr__(self, "std", std)
+
+
+@dataclass(frozen=True)
+class ExploratoryMovement:
+    """A straight-line exploratory movement (EM) proposed by a planner.
+
+    Parameters
+    ----------
+    start_m, end_m : (2,) float64
+        Start and end of the path in the map frame.
+    speed_m_per_s : float
+        Commanded fingertip speed.
+    depth_m : float or None
+        Commanded depth below the free surface; None lets the robot keep its own.
+    phase : str
+        Planner phase that chose it (``"phase1"``, ``"phase2"``, ``"coverage"``).
+    label : str
+        Short human-readable description for progress lines.
+    """
+
+    start_m: FloatArray
+    end_m: FloatArray
+    speed_m_per_s: float = 0.05
+    depth_m: float | None = None
+    phase: str = ""
+    label: str = ""
+
+    def __post_init__(self) -> None:
+        start = _as_float_array(self.start_m, "start_m", ndim=1)
+        end = _as_float_array(self.end_m, "end_m", ndim=1)
+        if start.shape != (2,) or end.shape != (2,):
+            raise ValueError("start_m and end_m must have shape (2,)")
+        if not (np.all(np.isfinite(start)) and np.all(np.isfinite(end))):
+            raise ValueError("movement end points must be finite")
+        if not self.speed_m_per_s > 0:
+            raise ValueError("speed_m_per_s must be positive")
+        object.__setattr__(self, "start_m", start)
+        object.__setattr__(self, "end_m", end)
+
+    @property
+    def length_m(self) -> float:
+        return float(np.linalg.norm(self.end_m - self.start_m))
+
+    @property
+    def heading_rad(self) -> float:
+        d = self.end_m - self.start_m
+        return float(np.arctan2(d[1], d[0]))
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """The fingertip's kinematic state at one instant."""
+
+    timestamp_s: float
+    position_m: FloatArray
+    heading_rad: float
+    depth_m: float = float("nan")
+    speed_m_per_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        pos = _as_float_array(self.position_m, "position_m", ndim=1)
+        if pos.shape != (2,):
+            raise ValueError("position_m must have shape (2,)")
+        object.__setattr__(self, "position_m", pos)
+
+
+@dataclass(frozen=True)
+class MovementResult:
+    """What happened during one exploratory movement.
+
+    Parameters
+    ----------
+    index : int
+        0-based number of the movement in the run.
+    movement : ExploratoryMovement
+    halted : bool
+        True when the movement stopped before its end (interaction detected, force limit).
+    halt_reason : str
+        ``""``, ``"interaction"`` or a robot-specific reason such as ``"force_limit"``.
+    final_state : RobotState or None
+    final_class : str
+        Most probable class at the last classified sample (``""`` when nothing was classified).
+    max_force_n : float
+        Largest force magnitude seen (NaN when no force channel exists).
+    extra : mapping
+        Free-form details reported by the robot.
+    """
+
+    index: int
+    movement: ExploratoryMovement
+    halted: bool
+    halt_reason: str
+    final_state: RobotState | None
+    final_class: str = ""
+    max_force_n: float = float("nan")
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def interacted(self) -> bool:
+        """True when the movement ended in a non-background state."""
+        return self.halt_reason == "interaction"

@@ -1,0 +1,69 @@
+"""Robot interface: executes exploratory movements, simulated or real.
+
+Contract
+--------
+- :meth:`Robot.begin` starts a movement; :meth:`Robot.step` advances one control period
+  (``1 / control_rate_hz`` seconds) and returns the new :class:`RobotState`, or ``None``
+  once the movement is complete or halted. Timestamps increase strictly across steps and
+  movements.
+- :meth:`Robot.halt` stops the current movement (the run loop calls it when the classifier
+  reports an interaction); a robot may also halt by itself (a force limit) and say why in
+  :attr:`Robot.halt_reason`.
+- :meth:`Robot.execute` is the batch path: it runs one movement to its end and returns the
+  states.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from typing import ClassVar
+
+from .._kind import Kind
+from ._base import Component
+from ._records import ExploratoryMovement, RobotState
+
+__all__ = ["Robot"]
+
+
+class Robot(Component):
+    """Moves the fingertip: a simulated sandbox, an arm, a gantry."""
+
+    kind: ClassVar[Kind] = Kind.ROBOT
+
+    @property
+    @abstractmethod
+    def control_rate_hz(self) -> float:
+        """Steps per second."""
+
+    @property
+    @abstractmethod
+    def state(self) -> RobotState:
+        """The latest state."""
+
+    @abstractmethod
+    def begin(self, movement: ExploratoryMovement) -> None:
+        """Start ``movement`` from its start point."""
+
+    @abstractmethod
+    def step(self) -> RobotState | None:
+        """Advance one control period; None when the movement is over."""
+
+    @abstractmethod
+    def halt(self, reason: str) -> None:
+        """Stop the current movement now."""
+
+    @property
+    def halt_reason(self) -> str:
+        """Why the last movement stopped early (``""`` if it did not)."""
+        return ""
+
+    def execute(self, movement: ExploratoryMovement, max_steps: int = 1_000_000) -> list[RobotState]:
+        """Run ``movement`` to its end without interruption and return every state."""
+        self.begin(movement)
+        states = []
+        for _ in range(max_steps):
+            state = self.step()
+            if state is None:
+                return states
+            states.append(state)
+        raise RuntimeError(f"robot {self.id!r} did not finish a movement in {max_steps} steps")
