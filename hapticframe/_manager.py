@@ -187,7 +187,7 @@ def make_plugin_manager(
         is_core = dist_name.lower() == _CORE_DISTRIBUTION
         if ep.name in blocked_names or (not autoload and not is_core):
             continue
-        source = Source(dist_name, version, ep.name)
+        source = Source(dist_name, version, ep.name, ep.value)
         try:
             plugin = ep.load()
         except Exception as exc:
@@ -232,7 +232,7 @@ def _register_module(pm: PluginManager, module_name: str, module_dir: Path | Non
     finally:
         if added:
             sys.path.remove(str(module_dir))
-    pm.register_source(module, Source("<plugin_modules>", "", module_name))
+    pm.register_source(module, Source("<plugin_modules>", "", module_name, module_name))
 
 
 @functools.cache

@@ -22,6 +22,7 @@ class Source:
     distribution: str
     version: str
     entry_point: str
+    module: str = ""
 
     def __str__(self) -> str:
         return f"{self.distribution} {self.version} ({self.entry_point})"

@@ -94,9 +94,18 @@ class PluginSpec:
     inputs : tuple of Kind
         Kinds whose components may appear in this component's ``inputs``; the default is
         set per kind.
+    consumes : mapping of str to tuple of int
+        For feature extractors and classifiers: the input channels read, with the shape of
+        one sample (``{"force_n": (2,)}``). The conformance kit feeds synthetic samples of
+        this layout.
+    sample_rate_hz : float
+        Rate of the samples the kit feeds to ``consumes`` channels.
     check_config : mapping or None
         A small config (as a dict) the conformance kit builds the plugin with; None uses
         the config model's defaults.
+    check_inputs : tuple of str
+        Plugins the kit builds as this component's inputs, as ``"kind/name"``
+        (``("robot/sandbox",)`` for a simulated sensor mounted on the sandbox robot).
     """
 
     kind: ClassVar[Kind]
@@ -110,7 +119,10 @@ class PluginSpec:
     install_hint: str = ""
     requires: tuple[str, ...] = ()
     inputs: tuple[Kind, ...] | None = None
-    check_config: dict[str, Any] | None = None
+    consumes: dict[str, tuple[int, ...]] = field(default_factory=dict, hash=False)
+    sample_rate_hz: float = 100.0
+    check_config: dict[str, Any] | None = field(default=None, hash=False)
+    check_inputs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not _NAME.match(self.name):
@@ -134,6 +146,16 @@ class PluginSpec:
             )
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "requires", tuple(self.requires))
+        for ref in self.check_inputs:
+            kind_name, _, plugin_name = ref.partition("/")
+            if kind_name not in {k.value for k in Kind} or not plugin_name:
+                raise ValueError(
+                    f"plugin {self.name!r}: check_inputs entry {ref!r} must be 'kind/name'"
+                )
+        object.__setattr__(self, "check_inputs", tuple(self.check_inputs))
+        object.__setattr__(
+            self, "consumes", {k: tuple(int(n) for n in v) for k, v in self.consumes.items()}
+        )
         inputs = self.default_inputs if self.inputs is None else tuple(Kind(k) for k in self.inputs)
         object.__setattr__(self, "inputs", inputs)
 

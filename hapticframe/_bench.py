@@ -1,0 +1,51 @@
+"""``hapticframe bench NAME``: run a benchmark suite registered by a plugin."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ._errors import UsageError
+from ._manager import get_registry
+from ._specs import resolve_reference
+
+__all__ = ["BenchOptions", "run_bench"]
+
+
+@dataclass(frozen=True)
+class BenchOptions:
+    """What ``hapticframe bench`` passes to a suite.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Where the suite writes its report (``<name>.md``, ``<name>.json``, figures).
+    trials : int or None
+        Trials per case; None lets the suite choose its default.
+    seed : int
+        Seeds every trial.
+    quick : bool
+        Run a reduced version (minutes, not hours).
+    echo : callable
+        Prints a progress line.
+    """
+
+    out_dir: Path
+    trials: int | None = None
+    seed: int = 0
+    quick: bool = False
+    echo: Callable[[str], None] = field(default=print)
+
+
+def run_bench(name: str, options: BenchOptions) -> Any:
+    """Look up the suite ``name`` and run it."""
+    registry = get_registry()
+    if name not in registry.benchmarks:
+        available = ", ".join(sorted(registry.benchmarks)) or "none installed"
+        raise UsageError(f"unknown benchmark {name!r}; available: {available}")
+    spec, _source = registry.benchmarks[name]
+    suite = resolve_reference(spec.factory, what=f"benchmark {name!r}", install_hint=spec.install_hint)
+    options.out_dir.mkdir(parents=True, exist_ok=True)
+    return suite(options)

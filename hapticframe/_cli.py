@@ -1,0 +1,281 @@
+"""The ``hapticframe`` command line.
+
+Kept import-light: each command imports what it needs when it runs, so ``--help``,
+``plugins``, ``validate`` and ``schema`` never load torch, scikit-learn or device libraries.
+Exit status: 0 success, 1 failure while running, 2 bad input or usage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, TextIO
+
+__all__ = ["main"]
+
+
+def _out(text: str = "", stream: TextIO | None = None) -> None:
+    print(text, file=stream or sys.stdout, flush=True)
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def _one_line_warning(message: Any, category: Any, filename: str, lineno: int, file: Any = None,
+                      line: Any = None) -> None:
+    _err(f"warning: {message}")
+
+
+# --- commands --------------------------------------------------------------------------------
+
+
+def cmd_plugins(args: argparse.Namespace) -> int:
+    from ._manager import get_plugin_manager, make_plugin_manager
+
+    pm = make_plugin_manager(strict=True) if args.strict else get_plugin_manager()
+    registry = pm.registry
+    rows = []
+    for reg in registry:
+        missing = reg.missing_requirements
+        conflicted = any((c.kind, c.name) == reg.spec.key for c in registry.conflicts)
+        status = "conflict" if conflicted else (
+            f"needs {', '.join(missing)}" if missing else "ok"
+        )
+        rows.append((str(reg.spec.kind), reg.spec.name, reg.source.distribution,
+                     reg.source.version, status, reg.spec.summary))
+    if args.json:
+        import json
+
+        data = {
+            "plugins": [dict(zip(("kind", "name", "distribution", "version", "status", "summary"), r))
+                        for r in rows],
+            "benchmarks": sorted(registry.benchmarks),
+            "broken": [{"name": b.name, "source": str(b.source), "error": b.error}
+                       for b in registry.broken],
+            "conflicts": [c.message() for c in registry.conflicts],
+        }
+        _out(json.dumps(data, indent=2))
+        return 0
+    header = ("KIND", "NAME", "DISTRIBUTION", "VERSION", "STATUS", "SUMMARY")
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(5)]
+    for row in [header, *rows]:
+        _out("  ".join(str(c).ljust(w) for c, w in zip(row, widths)) + "  " + row[5])
+    for broken in registry.broken:
+        _out(f"broken   {broken.name}  from {broken.source}: {broken.error}")
+    for conflict in registry.conflicts:
+        _out(f"conflict {conflict.message()}")
+    if registry.benchmarks:
+        _out(f"benchmarks: {', '.join(sorted(registry.benchmarks))}")
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from ._config import validate_file
+    from ._errors import ExperimentError
+
+    status = 0
+    for file in args.files:
+        try:
+            experiment = validate_file(file, strict=args.strict)
+        except ExperimentError as exc:
+            _err(exc.render())
+            status = 2
+            continue
+        parts = ", ".join(f"{e.id} ({e.type})" for e in experiment.components)
+        _out(f"{file}: ok — {len(experiment.components)} components: {parts or 'none'}")
+    return status
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from ._manager import get_registry
+    from ._schema import render_schemas, schema_diff, write_schemas
+
+    registry = get_registry()
+    directory = Path(args.dir)
+    if args.check:
+        problems = schema_diff(registry, directory)
+        for problem in problems:
+            _err(problem)
+        if problems:
+            _err(f"schemas are out of date: run `hapticframe schema --write --dir {args.dir}`")
+            return 1
+        _out(f"{directory}: schemas are up to date")
+        return 0
+    if args.write:
+        written = write_schemas(registry, directory)
+        _out(f"wrote {len(written)} schema files under {directory}")
+        return 0
+    _out(render_schemas(registry)["experiment.schema.json"].rstrip())
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from ._errors import UsageError
+    from ._kind import Kind
+    from ._manager import get_registry
+    from .testing import run_checks
+
+    registry = get_registry()
+    selected = []
+    for name in args.names:
+        found = registry.find(name)
+        if args.kind:
+            found = [r for r in found if r.spec.kind is Kind(args.kind)]
+        if not found:
+            kinds = [Kind(args.kind)] if args.kind else list(Kind)
+            raise UsageError("; ".join(registry.unknown_message(k, name) for k in kinds[:1]) if args.kind
+                             else f"no plugin called {name!r} is installed; see `hapticframe plugins`")
+        selected.extend(found)
+    failures = 0
+    for reg in selected:
+        for result in run_checks(reg.spec, registry=registry):
+            _out(f"{result.status:<5} {reg.spec.kind}/{reg.spec.name}::{result.check}"
+                 + (f"  {result.message}" if result.message and result.status != "PASS" else ""))
+            failures += result.status == "FAIL"
+    _out(f"{failures} check(s) failed" if failures else "all checks passed")
+    return 1 if failures else 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from ._config import validate_file
+    from ._session import run_experiment
+
+    experiment = validate_file(args.file, strict=args.strict)
+    echo = (lambda _text: None) if args.quiet else _out
+    metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo)
+    _out(f"results in {args.out}: " + ", ".join(
+        f"{k}={_short(v)}" for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+    ))
+    return 0
+
+
+def _short(value: float) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from ._bench import BenchOptions, run_bench
+
+    options = BenchOptions(
+        out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick, echo=_out
+    )
+    run_bench(args.name, options)
+    return 0
+
+
+# --- parser ----------------------------------------------------------------------------------
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hapticframe",
+        description="Find objects buried in granular media by touch: assemble and run "
+        "experiments from plugins.",
+    )
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("plugins", help="list installed plugins (kind, name, distribution, status)")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_plugins)
+
+    p = sub.add_parser("validate", help="check experiment files without running them")
+    p.add_argument("files", nargs="+", metavar="FILE")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("schema", help="print, write or check the JSON Schemas")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--write", action="store_true", help="write the schema files")
+    group.add_argument("--check", action="store_true", help="exit 1 if the files are stale")
+    p.add_argument("--dir", default="schemas", help="schema directory (default: schemas)")
+    p.set_defaults(func=cmd_schema)
+
+    p = sub.add_parser("check", help="run the conformance kit on installed plugins")
+    p.add_argument("names", nargs="+", metavar="NAME")
+    p.add_argument("--kind", choices=[k.value for k in _kinds()], help="only plugins of this kind")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("run", help="assemble and run an experiment")
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--out", required=True, metavar="DIR", help="directory for results")
+    p.add_argument("--overwrite", action="store_true", help="replace results already in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("bench", help="run a benchmark suite (see `hapticframe plugins`)")
+    p.add_argument("name", metavar="NAME")
+    p.add_argument("--trials", type=_positive_int, default=None, help="trials per case")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="bench-out", metavar="DIR")
+    p.add_argument("--quick", action="store_true", help="a reduced run")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def _kinds() -> list[Any]:
+    from ._kind import Kind
+
+    return list(Kind)
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``hapticframe`` and ``python -m hapticframe``."""
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.version:
+        from ._version import __version__
+
+        _out(f"hapticframe {__version__}")
+        return 0
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    warnings.showwarning = _one_line_warning
+    from ._errors import HapticframeError
+
+    try:
+        return int(args.func(args))
+    except HapticframeError as exc:
+        if args.debug:
+            raise
+        _err(f"error: {exc}" if "\n" not in str(exc) else str(exc))
+        _hints(exc)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        _err("interrupted")
+        return 130
+    except Exception as exc:  # a bug: one line, the traceback with --debug
+        if args.debug:
+            raise
+        _err(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)")
+        return 1
+
+
+def _hints(exc: BaseException) -> None:
+    try:
+        from ._manager import get_plugin_manager
+
+        for hints in get_plugin_manager().hook.hapticframe_error_hints(error=exc):
+            for hint in hints or ():
+                _err(f"hint: {hint}")
+    except Exception:  # hints must never hide the error itself
+        pass
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,18 @@
+"""Experiment files: loading, the registry-built model, and validation."""
+
+from ._load import LoadedFile, load_file, load_text
+from ._model import SCHEMA_VERSION, RunSettings, build_experiment_model
+from ._validate import ComponentEntry, Experiment, validate_data, validate_file
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "ComponentEntry",
+    "Experiment",
+    "LoadedFile",
+    "RunSettings",
+    "build_experiment_model",
+    "load_file",
+    "load_text",
+    "validate_data",
+    "validate_file",
+]

@@ -1,0 +1,114 @@
+"""The experiment model, built afresh from the registry as tagged unions on ``type``."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+
+from .._kind import Kind
+from .._registry import Registry
+from .._scene import Scene
+from .._specs import PluginSpec
+
+__all__ = ["ID_PATTERN", "RunSettings", "SCHEMA_VERSION", "build_experiment_model"]
+
+SCHEMA_VERSION = 1
+ID_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]{0,63}$"
+MODULE_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
+
+_STRICT = ConfigDict(extra="forbid", frozen=True)
+
+
+class RunSettings(BaseModel):
+    """How ``hapticframe run`` drives the components."""
+
+    model_config = _STRICT
+    halt_on_interaction: bool = Field(
+        True,
+        description="Stop an exploratory movement as soon as a classifier's most probable "
+        "class is not its background class (classes[0]).",
+    )
+    max_movements: int = Field(50, ge=1, le=10_000, description="Upper bound on movements.")
+    max_steps_per_movement: int = Field(100_000, ge=1, description="Robot steps per movement.")
+    max_reads: int = Field(
+        1_000_000, ge=1, description="Sensor reads in an open-loop run (no robot)."
+    )
+    map_update_every_steps: int = Field(
+        0, ge=0,
+        description="Update maps every N steps during a movement; 0 updates once per movement.",
+    )
+    outline_level: float = Field(
+        0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
+    )
+    evaluation_map: str | None = Field(
+        None, description="Map id scored against the scene; default: the planner's map."
+    )
+    evaluation_spacing_m: float = Field(
+        0.0025, gt=0, le=0.05, description="Grid spacing for outline and centroid estimates."
+    )
+
+
+def _default_factory(config: type[BaseModel]) -> Any:
+    try:
+        config()
+    except ValidationError:
+        return ...  # required: the plugin has no usable defaults
+    return Field(default_factory=config)
+
+
+def _variant(spec: PluginSpec) -> type[BaseModel]:
+    title = "".join(part.capitalize() for part in spec.name.replace("_", "-").split("-"))
+    default = _default_factory(spec.config)
+    config_field: Any = (spec.config, default)
+    return create_model(  # type: ignore[call-overload,no-any-return]
+        f"{title}{''.join(p.capitalize() for p in spec.kind.value.split('_'))}Component",
+        __config__=_STRICT,
+        __doc__=spec.summary,
+        id=(str, Field(pattern=ID_PATTERN, description="Unique instance name.")),
+        type=(Literal[spec.name], Field(description=spec.summary)),  # type: ignore[valid-type]
+        config=config_field,
+        inputs=(list[Annotated[str, Field(pattern=ID_PATTERN)]],
+                Field(default_factory=list, description="Ids of the components this one reads.")),
+    )
+
+
+def _section_type(registry: Registry, kind: Kind) -> Any:
+    variants = [_variant(registry.plugins[kind][name].spec) for name in registry.names(kind)]
+    if not variants:
+        # No plugin of this kind is installed: the section must stay empty.
+        return (list[dict[str, Any]], Field(default_factory=list, max_length=0))
+    union = Annotated[Union[tuple(variants)], Field(discriminator="type")]  # type: ignore[valid-type]
+    return (list[union], Field(default_factory=list))  # type: ignore[valid-type]
+
+
+_CACHE: dict[str, type[BaseModel]] = {}
+
+
+def build_experiment_model(registry: Registry) -> type[BaseModel]:
+    """The root model of an experiment file for the plugins in ``registry`` (cached)."""
+    key = registry.fingerprint()
+    cached = _CACHE.get(key)
+    if cached is not None:
+        return cached
+    sections = {kind.section: _section_type(registry, kind) for kind in Kind}
+    model = create_model(  # type: ignore[call-overload]
+        "Experiment",
+        __config__=ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment"),
+        __doc__="A hapticframe experiment: the components to build and how to run them.",
+        schema_version=(Literal[SCHEMA_VERSION], Field(description="Experiment file format version.")),
+        name=(str, Field(min_length=1, max_length=200, description="Name of the experiment.")),
+        description=(str, Field("", description="Free text.")),
+        seed=(int, Field(ge=0, lt=2**63, description="Seeds every component's random generator.")),
+        plugin_modules=(
+            list[Annotated[str, Field(pattern=MODULE_PATTERN)]],
+            Field(default_factory=list,
+                  description="Lab-local plugin modules to import (trusted code), searched "
+                  "first beside the experiment file."),
+        ),
+        scene=(Scene | None, Field(None, description="What the simulated world contains.")),
+        run=(RunSettings, Field(default_factory=RunSettings)),
+        **sections,
+    )
+    _CACHE[key] = model
+    return model  # type: ignore[no-any-return]

@@ -1,0 +1,318 @@
+"""Validate an experiment file: plugin names, configs, and the component graph.
+
+Every problem is reported with the file, the line and the dotted path, and all problems
+of a file are reported at once.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from .._errors import ExperimentError, Issue, PluginImportError
+from .._kind import Kind
+from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
+from .._registry import Registered, Registry
+from ._load import LoadedFile, join_path, load_file
+from ._model import build_experiment_model
+
+__all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file"]
+
+_SECTIONS = {kind.section: kind for kind in Kind}
+_DISCRIMINATORS = ("type", "shape")
+
+
+@dataclass(frozen=True)
+class ComponentEntry:
+    """One validated component of an experiment."""
+
+    kind: Kind
+    id: str
+    type: str
+    config: BaseModel
+    inputs: tuple[str, ...]
+    registered: Registered
+    path: str  # dotted location in the file, e.g. "maps[0]"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated experiment: the root model and its components in build order."""
+
+    file: str
+    model: BaseModel
+    components: tuple[ComponentEntry, ...]
+    registry: Registry
+    plugin_manager: PluginManager
+
+    @property
+    def seed(self) -> int:
+        return int(self.model.seed)  # type: ignore[attr-defined]
+
+    def resolved_config(self) -> dict[str, Any]:
+        """The experiment with every default filled in, as JSON-ready data."""
+        return self.model.model_dump(mode="json")
+
+    def of_kind(self, kind: Kind) -> list[ComponentEntry]:
+        return [c for c in self.components if c.kind is kind]
+
+
+def validate_file(path: str | Path, *, strict: bool = False) -> Experiment:
+    """Load and validate an experiment file; raise :class:`ExperimentError` if it is invalid."""
+    loaded = load_file(path)
+    return validate_data(loaded, module_dir=Path(path).resolve().parent, strict=strict)
+
+
+def _plugin_manager(loaded: LoadedFile, module_dir: Path | None, strict: bool) -> PluginManager:
+    data = loaded.data
+    modules = data.get("plugin_modules") if isinstance(data, dict) else None
+    if not modules or not isinstance(modules, list) or not all(isinstance(m, str) for m in modules):
+        return make_plugin_manager(strict=True) if strict else get_plugin_manager()
+    try:
+        return make_plugin_manager(strict=strict, modules=modules, module_dir=module_dir)
+    except PluginImportError as exc:
+        raise ExperimentError(
+            loaded.path, [Issue("plugin_modules", str(exc), loaded.line_of("plugin_modules"))]
+        ) from None
+
+
+def validate_data(
+    loaded: LoadedFile, *, module_dir: Path | None = None, strict: bool = False,
+    plugin_manager: PluginManager | None = None,
+) -> Experiment:
+    """Validate parsed experiment data (see :func:`validate_file`)."""
+    file = loaded.path
+    data = loaded.data
+    if not isinstance(data, dict):
+        raise ExperimentError(file, [Issue(
+            "", "the top level must be a mapping with schema_version, name, seed and component "
+            f"lists, not {type(data).__name__}", 1,
+        )])
+    pm = plugin_manager or _plugin_manager(loaded, module_dir, strict)
+    registry = pm.registry
+    issues, flagged = _check_types(loaded, registry)
+    model_cls = build_experiment_model(registry)
+    model = None
+    try:
+        model = model_cls.model_validate(data)
+    except ValidationError as exc:
+        for error in exc.errors(include_url=False):
+            issue = _issue_from_pydantic(error, loaded, registry)
+            if not any(issue.path == f or issue.path.startswith(f + ".") for f in flagged):
+                issues.append(issue)
+    if model is not None and not issues:
+        entries = _entries(model, registry)
+        issues.extend(_check_graph(entries, loaded))
+        if not issues:
+            return Experiment(file, model, tuple(_build_order(entries)), registry, pm)
+    issues.sort(key=lambda i: (i.line or 0, i.path))
+    raise ExperimentError(file, _dedupe(issues))
+
+
+def _dedupe(issues: Iterable[Issue]) -> list[Issue]:
+    seen, out = set(), []
+    for issue in issues:
+        if (issue.path, issue.message) not in seen:
+            seen.add((issue.path, issue.message))
+            out.append(issue)
+    return out
+
+
+def _check_types(loaded: LoadedFile, registry: Registry) -> tuple[list[Issue], set[str]]:
+    """Unknown or unusable plugin types, with suggestions and install hints."""
+    issues: list[Issue] = []
+    flagged: set[str] = set()
+    for section, kind in _SECTIONS.items():
+        entries = loaded.data.get(section)
+        if not isinstance(entries, list):
+            continue
+        for index, entry in enumerate(entries):
+            where = join_path(section, index)
+            if not isinstance(entry, dict) or not isinstance(entry.get("type"), str):
+                continue  # the model reports the shape error
+            name = entry["type"]
+            line = loaded.line_of(join_path(where, "type"))
+            if name not in registry.plugins[kind]:
+                issues.append(Issue(f"{where}.type", registry.unknown_message(kind, name), line))
+                flagged.add(where)
+                if not registry.plugins[kind]:
+                    flagged.add(section)  # the section must stay empty: said once is enough
+                continue
+            registered = registry.plugins[kind][name]
+            conflict = [c for c in registry.conflicts if (c.kind, c.name) == (kind, name)]
+            if conflict:
+                issues.append(Issue(f"{where}.type", conflict[0].message(), line))
+            missing = registered.missing_requirements
+            if missing:
+                hint = registered.spec.install_hint or "install the missing packages"
+                issues.append(Issue(
+                    f"{where}.type",
+                    f"{kind} plugin {name!r} needs {', '.join(missing)}, which is not "
+                    f"installed: {hint}",
+                    line,
+                ))
+                flagged.add(where)
+    return issues, flagged
+
+
+def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry: Registry) -> Issue:
+    loc = list(error["loc"])
+    parts: list[str | int] = []
+    raw: Any = loaded.data
+    i = 0
+    while i < len(loc):
+        key = loc[i]
+        parts.append(key)
+        raw = raw.get(key) if isinstance(raw, dict) and isinstance(key, str) else (
+            raw[key] if isinstance(raw, list) and isinstance(key, int) and key < len(raw) else None
+        )
+        # A tagged union adds the tag to the location: skip it.
+        if (
+            isinstance(key, int) and i + 1 < len(loc) and isinstance(raw, dict)
+            and any(raw.get(d) == loc[i + 1] for d in _DISCRIMINATORS)
+        ):
+            i += 1
+        i += 1
+    dotted = ""
+    for part in parts:
+        dotted = join_path(dotted, part)
+    kind = error["type"]
+    message = str(error["msg"])
+    if kind == "extra_forbidden":
+        message = f"unknown key {parts[-1]!r}" + _key_suggestion(parts, loaded, registry)
+    elif kind == "missing":
+        message = "required key is missing"
+    elif kind == "literal_error" and parts == ["schema_version"]:
+        message = f"schema_version must be 1 (this hapticframe reads version 1), got {error.get('input')!r}"
+    elif "input" in error and kind not in ("model_type", "dict_type", "list_type"):
+        shown = repr(error["input"])
+        message = f"{message} (got {shown[:60]}{'...' if len(shown) > 60 else ''})"
+    return Issue(dotted, message, loaded.line_of(dotted))
+
+
+def _key_suggestion(parts: list[str | int], loaded: LoadedFile, registry: Registry) -> str:
+    key = str(parts[-1])
+    valid: list[str] = []
+    if len(parts) == 1:
+        valid = list(build_experiment_model(registry).model_fields)
+    elif len(parts) >= 4 and parts[2] == "config" and isinstance(parts[0], str):
+        kind = _SECTIONS.get(parts[0])
+        entry = loaded.data.get(parts[0])
+        if kind is not None and isinstance(entry, list) and isinstance(parts[1], int):
+            name = entry[parts[1]].get("type") if isinstance(entry[parts[1]], dict) else None
+            if name in registry.plugins[kind] and len(parts) == 4:
+                valid = list(registry.plugins[kind][name].spec.config.model_fields)
+    elif len(parts) == 3 and isinstance(parts[1], int):
+        valid = ["id", "type", "config", "inputs"]
+    close = difflib.get_close_matches(key, valid, n=3, cutoff=0.5)
+    if close:
+        return "; did you mean " + " or ".join(repr(c) for c in close) + "?"
+    if valid:
+        return f"; valid keys: {', '.join(valid)}"
+    return ""
+
+
+def _entries(model: BaseModel, registry: Registry) -> list[ComponentEntry]:
+    entries = []
+    for section, kind in _SECTIONS.items():
+        for index, item in enumerate(getattr(model, section)):
+            entries.append(ComponentEntry(
+                kind, item.id, item.type, item.config, tuple(item.inputs),
+                registry.plugins[kind][item.type], join_path(section, index),
+            ))
+    return entries
+
+
+def _check_graph(entries: list[ComponentEntry], loaded: LoadedFile) -> list[Issue]:
+    issues: list[Issue] = []
+    by_id: dict[str, ComponentEntry] = {}
+    for entry in entries:
+        if entry.id in by_id:
+            first = by_id[entry.id]
+            issues.append(Issue(
+                f"{entry.path}.id",
+                f"duplicate id {entry.id!r} (first used at {first.path}, line "
+                f"{loaded.line_of(first.path + '.id')})",
+                loaded.line_of(f"{entry.path}.id"),
+            ))
+        else:
+            by_id[entry.id] = entry
+    for entry in entries:
+        for j, name in enumerate(entry.inputs):
+            where = join_path(f"{entry.path}.inputs", j)
+            line = loaded.line_of(where)
+            if name not in by_id:
+                close = difflib.get_close_matches(name, list(by_id), n=3, cutoff=0.5)
+                hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+                issues.append(Issue(where, f"input {name!r} is not the id of any component{hint}", line))
+                continue
+            source = by_id[name]
+            if name == entry.id:
+                issues.append(Issue(where, f"{entry.id!r} cannot be its own input", line))
+            elif source.kind not in entry.registered.spec.inputs:
+                allowed = ", ".join(str(k) for k in entry.registered.spec.inputs) or "nothing"
+                issues.append(Issue(
+                    where,
+                    f"{entry.id!r} ({entry.kind} {entry.type!r}) cannot read {name!r}, a "
+                    f"{source.kind}; it accepts: {allowed}",
+                    line,
+                ))
+    if not issues:
+        cycle = _find_cycle(entries)
+        if cycle:
+            first = by_id[cycle[0]]
+            issues.append(Issue(
+                f"{first.path}.inputs",
+                "inputs form a cycle: " + " -> ".join(cycle + [cycle[0]]),
+                loaded.line_of(f"{first.path}.inputs"),
+            ))
+    return issues
+
+
+def _find_cycle(entries: list[ComponentEntry]) -> list[str] | None:
+    graph = {e.id: list(e.inputs) for e in entries}
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in graph.get(node, []):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in graph:
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def _build_order(entries: list[ComponentEntry]) -> list[ComponentEntry]:
+    """Inputs before their consumers; ties kept in data-flow (kind) then file order."""
+    remaining = list(entries)
+    done: set[str] = set()
+    order: list[ComponentEntry] = []
+    while remaining:
+        for entry in remaining:
+            if all(name in done for name in entry.inputs):
+                order.append(entry)
+                done.add(entry.id)
+                remaining.remove(entry)
+                break
+        else:  # pragma: no cover - cycles are rejected before
+            raise AssertionError("cycle in component graph")
+    return order

@@ -1,0 +1,86 @@
+"""The conformance kit: checks every plugin of a kind must pass.
+
+Run it on your own plugins, in pytest::
+
+    from hapticframe.testing import parametrize_with_checks
+    from my_lab_plugin.plugin import SPECS
+
+    @parametrize_with_checks(SPECS)
+    def test_conformance(spec, check):
+        check(spec)
+
+or without pytest: ``hapticframe check my-sensor``. Checks cover the interface contract
+(shapes, dtypes, units, increasing timestamps), determinism under a fixed seed, streaming
+and batch agreeing, the config's JSON Schema round trip, lazy importing, and numerical
+extremes (zero, constant, huge, tiny and NaN input give finite output or a clear error).
+"""
+
+from . import _spatial, _streams  # noqa: F401  (registers the kind checks)
+from ._common import (
+    CHECKS,
+    HEAVY_MODULES,
+    check_builds,
+    check_config_round_trip,
+    check_lazy_import,
+    check_spec_record,
+)
+from ._harness import DEFAULT_SCENE, CheckFailure, KitMap, make_component, synthetic_batch
+from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
+from ._spatial import (
+    check_deterministic,
+    check_map_contract,
+    check_map_extremes,
+    check_map_streaming_matches_batch,
+    check_planner_contract,
+    check_robot_contract,
+    check_robot_halt,
+    check_sensor_model_contract,
+    check_sensor_model_extremes,
+    check_sensor_model_streaming,
+    located_measurement,
+    map_observations,
+    planner_episode,
+)
+from ._streams import (
+    check_numerical_extremes,
+    check_sensor_contract,
+    check_stream_contract,
+    check_streaming_matches_batch,
+    drive_sensor,
+)
+
+__all__ = [
+    "CHECKS",
+    "DEFAULT_SCENE",
+    "HEAVY_MODULES",
+    "CheckFailure",
+    "CheckResult",
+    "KitMap",
+    "check_builds",
+    "check_config_round_trip",
+    "check_deterministic",
+    "check_lazy_import",
+    "check_map_contract",
+    "check_map_extremes",
+    "check_map_streaming_matches_batch",
+    "check_numerical_extremes",
+    "check_planner_contract",
+    "check_robot_contract",
+    "check_robot_halt",
+    "check_sensor_contract",
+    "check_sensor_model_contract",
+    "check_sensor_model_extremes",
+    "check_sensor_model_streaming",
+    "check_spec_record",
+    "check_stream_contract",
+    "check_streaming_matches_batch",
+    "checks_for",
+    "drive_sensor",
+    "located_measurement",
+    "make_component",
+    "map_observations",
+    "parametrize_with_checks",
+    "planner_episode",
+    "run_checks",
+    "synthetic_batch",
+]

@@ -1,0 +1,391 @@
+"""Checks for the spatial kinds: sensor models, maps, planners and robots; and determinism."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .._kind import Kind
+from .._registry import Registry
+from .._scene import Scene
+from .._specs import PluginSpec
+from ..kinds import (
+    ExploratoryMovement,
+    LocatedMeasurement,
+    Map,
+    MovementResult,
+    Observations,
+    Planner,
+    Robot,
+    RobotState,
+    SensorModel,
+)
+from ._common import check, outputs_equal
+from ._harness import (
+    DEFAULT_SCENE,
+    CheckFailure,
+    KitMap,
+    crossing_movement,
+    make_component,
+    raised_by_record_validation,
+)
+from ._streams import exercise_stream, sensor_outputs
+
+__all__ = ["KitMap", "located_measurement", "map_observations", "planner_episode"]
+
+CLASSES = ("free", "jamming", "contact")
+
+
+def located_measurement(n: int = 60, *, y: float = 0.25, depth: float = 0.044) -> LocatedMeasurement:
+    """A fingertip moving along +x: free movement, then jamming, then contact."""
+    t = 0.01 * (1 + np.arange(n))
+    x = 0.10 + 0.0005 * np.arange(n)
+    labels = np.zeros(n, dtype=int)
+    labels[int(0.7 * n):] = 1
+    labels[int(0.9 * n):] = 2
+    return LocatedMeasurement(
+        t, np.column_stack([x, np.full(n, y)]), np.zeros(n), np.eye(3)[labels], CLASSES,
+        np.full(n, depth),
+    )
+
+
+def map_observations(seed: int, n: int = 400, scene: Scene = DEFAULT_SCENE) -> Observations:
+    """Random points of the scene's region labelled by the scene (with 3 % label noise)."""
+    rng = np.random.default_rng(seed)
+    region = scene.region.to_region()
+    pts = np.column_stack([
+        rng.uniform(region.x_min_m, region.x_max_m, n),
+        rng.uniform(region.y_min_m, region.y_max_m, n),
+    ])
+    labels = scene.occupied(pts).astype(float)
+    flip = rng.random(n) < 0.03
+    labels[flip] = 1 - labels[flip]
+    return Observations(pts, labels)
+
+
+def _query_grid(the_map: Map) -> np.ndarray:
+    r = the_map.region
+    gx, gy = np.meshgrid(np.linspace(r.x_min_m, r.x_max_m, 31), np.linspace(r.y_min_m, r.y_max_m, 21))
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
+
+def _invalid(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
+    origin = "produced invalid output" if raised_by_record_validation(exc) else f"raised {type(exc).__name__}"
+    return CheckFailure(f"{spec.kind} {spec.name!r} {origin} on {what}: {exc}")
+
+
+# --- sensor models ---------------------------------------------------------------------------
+
+
+@check(Kind.SENSOR_MODEL)
+def check_sensor_model_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Observations are finite points with targets in [0, 1]; empty input gives none."""
+    model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        obs = model.observe(located_measurement())
+        if not isinstance(obs, Observations):
+            raise CheckFailure(f"observe() returned {type(obs).__name__}, not Observations")
+        if not len(obs):
+            raise CheckFailure("observe() returned no observations for 60 located samples")
+        empty = model.observe(located_measurement().select(slice(0, 0)))
+        if len(empty):
+            raise CheckFailure("observe() of an empty measurement returned observations")
+    except CheckFailure:
+        raise
+    except Exception as exc:
+        raise _invalid(spec, "a free → jamming → contact approach", exc) from exc
+    finally:
+        model.close()
+
+
+@check(Kind.SENSOR_MODEL)
+def check_sensor_model_streaming(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Observing rows one at a time equals observing them all at once."""
+    measurement = located_measurement()
+    batch_model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+    stream_model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        whole = batch_model.observe(measurement)
+        parts = [stream_model.observe(measurement.select(slice(i, i + 1))) for i in range(len(measurement))]
+    finally:
+        batch_model.close()
+        stream_model.close()
+    streamed = Observations.concatenate(parts)
+    if streamed.points_m.shape != whole.points_m.shape or not (
+        np.allclose(streamed.points_m, whole.points_m, atol=1e-9)
+        and np.allclose(streamed.targets, whole.targets, atol=1e-9)
+    ):
+        raise CheckFailure(
+            f"row-by-row observe() gave {len(streamed)} observations, all-at-once {len(whole)} "
+            "(or different values)"
+        )
+
+
+@check(Kind.SENSOR_MODEL)
+def check_sensor_model_extremes(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Single samples, far-away and stationary fingertips, unknown depth: finite or ValueError."""
+    base = located_measurement()
+    cases = {
+        "a single sample": base.select(slice(0, 1)),
+        "positions 1e6 m away": LocatedMeasurement(
+            base.timestamps_s, base.positions_m + 1e6, base.headings_rad, base.probabilities,
+            base.classes, base.depth_m),
+        "a stationary fingertip": LocatedMeasurement(
+            base.timestamps_s, np.repeat(base.positions_m[:1], len(base), axis=0),
+            base.headings_rad, base.probabilities, base.classes, base.depth_m),
+        "unknown (NaN) depth": LocatedMeasurement(
+            base.timestamps_s, base.positions_m, base.headings_rad, base.probabilities,
+            base.classes, np.full(len(base), np.nan)),
+        "a tiny depth (1e-9 m)": LocatedMeasurement(
+            base.timestamps_s, base.positions_m, base.headings_rad, base.probabilities,
+            base.classes, np.full(len(base), 1e-9)),
+    }
+    for what, measurement in cases.items():
+        model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+        try:
+            model.observe(measurement)  # Observations validates finiteness and ranges
+        except ValueError as exc:
+            if raised_by_record_validation(exc):
+                raise _invalid(spec, what, exc) from exc
+        except Exception as exc:
+            raise _invalid(spec, what, exc) from exc
+        finally:
+            model.close()
+
+
+# --- maps ------------------------------------------------------------------------------------
+
+
+@check(Kind.MAP)
+def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Queries anywhere (empty, float32, far outside) return means in [0, 1] and finite std."""
+    the_map: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        grid = _query_grid(the_map)
+        for stage in ("before any update", "after an update"):
+            if stage == "after an update":
+                the_map.update(map_observations(5))
+            estimate = the_map.query(grid)
+            if estimate.mean.shape != (len(grid),):
+                raise CheckFailure(f"query of {len(grid)} points returned shape {estimate.mean.shape} {stage}")
+            if the_map.query(np.empty((0, 2))).mean.shape != (0,):
+                raise CheckFailure(f"an empty query did not return an empty estimate {stage}")
+            the_map.query(grid.astype(np.float32))
+            the_map.query(np.array([[1e3, -1e3], [-50.0, 50.0]]))
+    except CheckFailure:
+        raise
+    except Exception as exc:
+        raise _invalid(spec, "queries", exc) from exc
+    finally:
+        the_map.close()
+
+
+@check(Kind.MAP)
+def check_map_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Two updates give (close to) the map fitted on both batches at once."""
+    first, second = map_observations(6), map_observations(7)
+    streamed: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+    batch: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        streamed.update(first)
+        streamed.update(second)
+        batch.fit(Observations.concatenate([first, second]))
+        grid = _query_grid(batch)
+        diff = float(np.max(np.abs(streamed.query(grid).mean - batch.query(grid).mean)))
+    finally:
+        streamed.close()
+        batch.close()
+    tolerance = 1e-9 if "exact-updates" in spec.capabilities else 0.1
+    if diff > tolerance:
+        raise CheckFailure(
+            f"sequential updates and one fit differ by {diff:.3g} in mean occupancy "
+            f"(allowed {tolerance:g})"
+        )
+
+
+@check(Kind.MAP)
+def check_map_extremes(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Empty, one-sided, single-point and far-away observations keep the map finite."""
+    obs = map_observations(8, n=50)
+    cases = {
+        "no observations": Observations.empty(),
+        "only free space (all targets 0)": Observations(obs.points_m, np.zeros(len(obs))),
+        "only occupied space (all targets 1)": Observations(obs.points_m, np.ones(len(obs))),
+        "a single observation": Observations(obs.points_m[:1], obs.targets[:1]),
+        "observations 1e6 m outside the region": Observations(obs.points_m + 1e6, obs.targets),
+        "repeated identical observations": Observations(
+            np.repeat(obs.points_m[:1], 200, axis=0), np.ones(200)),
+    }
+    for what, observations in cases.items():
+        the_map: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+        try:
+            the_map.update(observations)
+            the_map.query(_query_grid(the_map))
+            try:
+                the_map.query(np.array([[np.nan, 0.1]]))
+            except ValueError as exc:
+                if raised_by_record_validation(exc):
+                    raise _invalid(spec, "a NaN query point", exc) from exc
+        except CheckFailure:
+            raise
+        except Exception as exc:
+            raise _invalid(spec, what, exc) from exc
+        finally:
+            the_map.close()
+
+
+# --- planners --------------------------------------------------------------------------------
+
+
+def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray]:
+    d = b - a
+    length2 = float(d @ d)
+    s = 0.0 if length2 == 0 else float(np.clip((point - a) @ d / length2, 0, 1))
+    nearest = a + s * d
+    return float(np.linalg.norm(point - nearest)), nearest
+
+
+def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[ExploratoryMovement]:
+    """Feed a planner results as if its movements met the scene's first object."""
+    center = scene.objects[0].centroid_m
+    maps = [m for m in planner.context.inputs.values() if isinstance(m, Map)]
+    movements: list[ExploratoryMovement] = []
+    t = 0.0
+    for index in range(planner.max_movements + 1):
+        movement = planner.propose()
+        if movement is None:
+            return movements
+        if not isinstance(movement, ExploratoryMovement):
+            raise CheckFailure(f"propose() returned {type(movement).__name__}, not ExploratoryMovement")
+        movements.append(movement)
+        distance, nearest = _segment_distance(center, movement.start_m, movement.end_m)
+        hit = distance < 0.06
+        t += movement.length_m / movement.speed_m_per_s
+        state = RobotState(t, nearest if hit else movement.end_m, movement.heading_rad)
+        if hit:
+            for the_map in maps:
+                the_map.update(Observations(nearest[None, :], np.ones(1)))
+        planner.on_movement_end(MovementResult(
+            index, movement, hit, "interaction" if hit else "", state,
+            "jamming" if hit else "free",
+        ))
+    raise CheckFailure(f"the planner proposed more than max_movements={planner.max_movements} movements")
+
+
+@check(Kind.PLANNER)
+def check_planner_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Movements lie in the search region and the search ends within ``max_movements``."""
+    planner: Planner = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        movements = planner_episode(planner)
+    finally:
+        planner.close()
+    if not movements:
+        raise CheckFailure("the planner proposed no movement at all")
+    region = DEFAULT_SCENE.region.to_region()
+    tolerance = 0.01
+    for m in movements:
+        for end in (m.start_m, m.end_m):
+            inside = (region.x_min_m - tolerance <= end[0] <= region.x_max_m + tolerance
+                      and region.y_min_m - tolerance <= end[1] <= region.y_max_m + tolerance)
+            if not inside:
+                raise CheckFailure(f"movement {m.label or m} leaves the search region at {end.tolist()}")
+
+
+# --- robots ----------------------------------------------------------------------------------
+
+
+def _robot_states(robot: Robot, movement: ExploratoryMovement) -> list[RobotState]:
+    try:
+        return robot.execute(movement, max_steps=200_000)
+    except RuntimeError as exc:
+        raise CheckFailure(str(exc)) from exc
+
+
+@check(Kind.ROBOT)
+def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Movements start at their start, advance at about the commanded speed, times increase."""
+    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        movement = crossing_movement(DEFAULT_SCENE)
+        states = _robot_states(robot, movement)
+        if not states:
+            raise CheckFailure("execute() returned no states for a 0.7 m movement")
+        t = np.array([s.timestamp_s for s in states])
+        if np.any(np.diff(t) <= 0):
+            raise CheckFailure("state timestamps are not strictly increasing")
+        pos = np.vstack([s.position_m for s in states])
+        if not np.all(np.isfinite(pos)):
+            raise CheckFailure("states contain NaN positions")
+        if np.linalg.norm(pos[0] - movement.start_m) > 0.01:
+            raise CheckFailure(f"the first state {pos[0].tolist()} is not at the start {movement.start_m.tolist()}")
+        step_max = movement.speed_m_per_s / robot.control_rate_hz * 1.5 + 1e-9
+        if len(pos) > 1 and np.max(np.linalg.norm(np.diff(pos, axis=0), axis=1)) > step_max:
+            raise CheckFailure("the fingertip moves faster than the commanded speed")
+        if not robot.halt_reason and np.linalg.norm(pos[-1] - movement.end_m) > 0.01:
+            raise CheckFailure("the movement ended early without a halt_reason")
+        again = _robot_states(robot, movement)
+        if again and again[0].timestamp_s <= t[-1]:
+            raise CheckFailure("timestamps restart in the next movement; they must keep increasing")
+    finally:
+        robot.close()
+
+
+@check(Kind.ROBOT)
+def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """``halt()`` ends the movement at once; a zero-length movement ends promptly."""
+    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        robot.begin(crossing_movement(DEFAULT_SCENE))
+        for _ in range(3):
+            robot.step()
+        robot.halt("kit")
+        if robot.step() is not None:
+            raise CheckFailure("step() returned a state after halt(); it must return None")
+        point = DEFAULT_SCENE.region.to_region().center_m + np.array([0.2, 0.0])
+        states = robot.execute(ExploratoryMovement(point, point), max_steps=1000)
+        if len(states) > 10:
+            raise CheckFailure(f"a zero-length movement took {len(states)} steps")
+    except RuntimeError as exc:
+        raise CheckFailure(f"a zero-length movement did not end: {exc}") from exc
+    finally:
+        robot.close()
+
+
+# --- determinism -----------------------------------------------------------------------------
+
+
+def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
+    component = make_component(spec, registry=registry, seed=11)
+    try:
+        if spec.kind is Kind.SENSOR:
+            return sensor_outputs(component)  # type: ignore[arg-type]
+        if spec.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
+            return exercise_stream(component, spec)
+        if spec.kind is Kind.SENSOR_MODEL:
+            obs = component.observe(located_measurement())  # type: ignore[attr-defined]
+            return [obs.points_m, obs.targets, obs.weights]
+        if spec.kind is Kind.MAP:
+            component.update(map_observations(9))  # type: ignore[attr-defined]
+            est = component.query(_query_grid(component))  # type: ignore[attr-defined]
+            return [est.mean, est.std]
+        if spec.kind is Kind.PLANNER:
+            return [(m.start_m, m.end_m, m.phase) for m in planner_episode(component)]  # type: ignore[arg-type]
+        states = _robot_states(component, crossing_movement(DEFAULT_SCENE))  # type: ignore[arg-type]
+        return [np.array([s.timestamp_s for s in states]), np.vstack([s.position_m for s in states])]
+    finally:
+        component.close()
+
+
+@check()
+def check_deterministic(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Two components built with the same seed behave identically."""
+    first = _exercise(spec, registry)
+    second = _exercise(spec, registry)
+    if not outputs_equal(first, second):
+        raise CheckFailure(
+            "two components built with the same seed gave different outputs: draw randomness "
+            "from context.rng only, never from global state"
+        )
+

@@ -1,0 +1,167 @@
+"""A lab-local plugin module used by the core's tests (loaded through ``plugin_modules``).
+
+It is small but real: a finite sensor that replays a fingertip sweep over a buried disc, a
+threshold classifier, a point sensor model and a cell-averaging map, so an open-loop
+experiment runs end to end without any bundled plugin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+
+import numpy as np
+from numpy.typing import ArrayLike
+from pydantic import Field
+
+from hapticframe import ClassifierSpec, MapSpec, PluginConfig, SensorModelSpec, SensorSpec, hookimpl
+from hapticframe.kinds import (
+    ChannelInfo,
+    ClassProbabilities,
+    Classifier,
+    LocatedMeasurement,
+    Map,
+    MapEstimate,
+    Observations,
+    Region,
+    SampleBatch,
+    Sensor,
+    SensorModel,
+)
+
+
+class SweepConfig(PluginConfig):
+    samples: int = Field(400, ge=1, description="Samples in the recording.")
+    chunk: int = Field(25, ge=1, description="Samples per read.")
+    noise_n: float = Field(0.2, ge=0, description="Force noise (N).")
+
+
+class SweepSensor(Sensor):
+    """Replays a straight sweep at y = 0.25 m across a disc at x = 0.4 m (finite source)."""
+
+    def __init__(self, config: SweepConfig, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        n = config.samples
+        self._t = 0.01 * (1 + np.arange(n))
+        x = np.linspace(0.05, 0.70, n)
+        self._pos = np.column_stack([x, np.full(n, 0.25)])
+        near = np.exp(-((x - 0.40) / 0.03) ** 2)
+        force = 5.0 + 40.0 * near + config.noise_n * context.rng.standard_normal(n)
+        self._force = np.column_stack([force, np.zeros(n)])
+        self._next = 0
+
+    @property
+    def channels(self) -> Mapping[str, ChannelInfo]:
+        return {"force_n": ChannelInfo((2,), "N", 100.0), "position_m": ChannelInfo((2,), "m", 100.0)}
+
+    @property
+    def exhausted(self) -> bool:
+        return self._next >= len(self._t)
+
+    def read(self) -> SampleBatch:
+        rows = slice(self._next, self._next + self.config.chunk)
+        self._next = min(self._next + self.config.chunk, len(self._t))
+        return SampleBatch(self._t[rows], {"force_n": self._force[rows], "position_m": self._pos[rows]})
+
+
+class ThresholdConfig(PluginConfig):
+    threshold_n: float = Field(20.0, gt=0, description="Force magnitude meaning contact.")
+    width_n: float = Field(2.0, gt=0, description="Softness of the decision (N).")
+
+
+class ThresholdClassifier(Classifier):
+    """Contact when the force magnitude exceeds a threshold (stateless)."""
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return ("free", "contact")
+
+    def update(self, batch: SampleBatch) -> ClassProbabilities:
+        force = np.linalg.norm(batch.channels["force_n"], axis=1)
+        if np.any(~np.isfinite(force)):
+            raise ValueError("force samples must be finite")
+        from scipy.special import expit
+
+        p = expit((force - self.config.threshold_n) / self.config.width_n)
+        return ClassProbabilities(batch.timestamps_s, np.column_stack([1 - p, p]), self.classes)
+
+
+class PointConfig(PluginConfig):
+    pass
+
+
+class PointSensorModel(SensorModel):
+    """One observation at the fingertip: the contact probability."""
+
+    def observe(self, measurement: LocatedMeasurement) -> Observations:
+        contact = measurement.probabilities[:, -1]
+        return Observations(measurement.positions_m, contact)
+
+
+class CellConfig(PluginConfig):
+    cell_m: float = Field(0.02, gt=0, description="Cell size.")
+
+
+class CellMap(Map):
+    """Mean target per cell; 0.5 where nothing was observed."""
+
+    def __init__(self, config: CellConfig, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        self._region = Region(0.0, 0.75, 0.0, 0.5)
+        self.reset()
+
+    @property
+    def region(self) -> Region:
+        return self._region
+
+    def reset(self) -> None:
+        nx, ny = int(np.ceil(0.75 / self.config.cell_m)), int(np.ceil(0.5 / self.config.cell_m))
+        self._sum = np.zeros((ny, nx))
+        self._n = np.zeros((ny, nx))
+
+    def _cells(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ix = np.floor(p[:, 0] / self.config.cell_m).astype(np.int64)
+        iy = np.floor(p[:, 1] / self.config.cell_m).astype(np.int64)
+        ok = (ix >= 0) & (iy >= 0) & (ix < self._sum.shape[1]) & (iy < self._sum.shape[0])
+        return ix, iy, ok
+
+    def update(self, observations: Observations) -> None:
+        ix, iy, ok = self._cells(observations.points_m)
+        np.add.at(self._sum, (iy[ok], ix[ok]), observations.targets[ok])
+        np.add.at(self._n, (iy[ok], ix[ok]), 1.0)
+
+    def query(self, points_m: ArrayLike) -> MapEstimate:
+        p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
+        if not np.all(np.isfinite(p)):
+            raise ValueError("query points must be finite")
+        ix, iy, ok = self._cells(p)
+        mean = np.full(len(p), 0.5)
+        n = np.zeros(len(p))
+        n[ok] = self._n[iy[ok], ix[ok]]
+        seen = n > 0
+        idx = np.flatnonzero(ok)[seen[ok]]
+        mean[idx] = self._sum[iy[idx], ix[idx]] / n[idx]
+        return MapEstimate(mean, np.sqrt(mean * (1 - mean) / (1 + n)))
+
+
+@hookimpl
+def hapticframe_sensors() -> Iterator[SensorSpec]:
+    yield SensorSpec("lab-sweep", "Replays a fingertip sweep over a disc.", SweepConfig,
+                     f"{__name__}:SweepSensor", capabilities=frozenset({"finite"}))
+
+
+@hookimpl
+def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
+    yield ClassifierSpec("lab-threshold", "Force threshold contact classifier.", ThresholdConfig,
+                         f"{__name__}:ThresholdClassifier", consumes={"force_n": (2,)})
+
+
+@hookimpl
+def hapticframe_sensor_models() -> Iterator[SensorModelSpec]:
+    yield SensorModelSpec("lab-point", "Contact probability at the fingertip.", PointConfig,
+                          f"{__name__}:PointSensorModel")
+
+
+@hookimpl
+def hapticframe_maps() -> Iterator[MapSpec]:
+    yield MapSpec("lab-cells", "Mean target per cell.", CellConfig, f"{__name__}:CellMap",
+                  capabilities=frozenset({"exact-updates"}))
