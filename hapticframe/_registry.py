@@ -132,7 +132,7 @@ class Registry:
             parts.append(f"{name!r} is a {', '.join(other_kinds)} plugin, not a {kind} plugin")
         close = difflib.get_close_matches(name, self.names(kind), n=3, cutoff=0.5)
         if close:
-            parts.append("did you mean " + " or ".join(repr(c) for c in close) + "?")
+            parts.append("did you mean " + " or ".join(repr(c) for c in close))
         installed = self.names(kind)
         parts.append(
             f"installed {kind} plugins: {', '.join(installed)}" if installed

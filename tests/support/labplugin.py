@@ -13,11 +13,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import Field
 
-from hapticframe import ClassifierSpec, MapSpec, PluginConfig, SensorModelSpec, SensorSpec, hookimpl
+from hapticframe import ClassifierSpec, FeatureExtractorSpec, MapSpec, PluginConfig, SensorModelSpec, SensorSpec, hookimpl
 from hapticframe.kinds import (
     ChannelInfo,
     ClassProbabilities,
     Classifier,
+    FeatureExtractor,
     LocatedMeasurement,
     Map,
     MapEstimate,
@@ -61,6 +62,24 @@ class SweepSensor(Sensor):
         rows = slice(self._next, self._next + self.config.chunk)
         self._next = min(self._next + self.config.chunk, len(self._t))
         return SampleBatch(self._t[rows], {"force_n": self._force[rows], "position_m": self._pos[rows]})
+
+
+class ScaleConfig(PluginConfig):
+    factor: float = Field(1.0, description="Multiplies every force sample.")
+
+
+class ScaleExtractor(FeatureExtractor):
+    """Scales the force channel (stateless, so streaming trivially equals batch)."""
+
+    @property
+    def output_channels(self) -> Mapping[str, ChannelInfo]:
+        return {"force_n": ChannelInfo((2,), "N", 100.0)}
+
+    def update(self, batch: SampleBatch) -> SampleBatch:
+        force = batch.channels["force_n"]
+        if not np.all(np.isfinite(force)):
+            raise ValueError("force samples must be finite")
+        return SampleBatch(batch.timestamps_s, {"force_n": self.config.factor * force})
 
 
 class ThresholdConfig(PluginConfig):
@@ -147,6 +166,12 @@ class CellMap(Map):
 def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec("lab-sweep", "Replays a fingertip sweep over a disc.", SweepConfig,
                      f"{__name__}:SweepSensor", capabilities=frozenset({"finite"}))
+
+
+@hookimpl
+def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
+    yield FeatureExtractorSpec("lab-scale", "Scales the force channel.", ScaleConfig,
+                               f"{__name__}:ScaleExtractor", consumes={"force_n": (2,)})
 
 
 @hookimpl

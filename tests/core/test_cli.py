@@ -1,0 +1,88 @@
+"""The command line: exit codes, outputs of a run, and what it refuses."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hapticframe._cli import main
+
+
+def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
+    out = lab_dir / "run"
+    assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["object_found"] is True and metrics["centroid_error_m"] < 0.01
+    record = json.loads((out / "run.json").read_text())
+    assert record["status"] == "ok" and record["seed"] == 3
+    assert record["resolved_config"]["sensors"][0]["config"]["chunk"] == 20
+    assert {p["type"] for p in record["plugins"]} == {"lab-sweep", "lab-threshold", "lab-point", "lab-cells"}
+    assert record["plugins"][0]["distribution"] == "<plugin_modules>"
+    with np.load(out / "trace.npz", allow_pickle=False) as trace:
+        assert trace["sensor/sweep/force_n"].shape == (300, 2)
+        assert trace["classifier/contact/probabilities"].shape == (300, 2)
+        assert trace["sensor_model/point/targets"].shape == (300,)
+
+
+def test_runs_are_reproducible(lab_dir):
+    first, second = lab_dir / "a", lab_dir / "b"
+    for out in (first, second):
+        assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+    with np.load(first / "trace.npz") as a, np.load(second / "trace.npz") as b:
+        assert set(a.files) == set(b.files)
+        for key in a.files:
+            assert np.array_equal(a[key], b[key])
+
+
+def test_run_refuses_to_overwrite_a_previous_run(lab_dir, capsys):
+    out = lab_dir / "run"
+    args = ["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]
+    assert main(args) == 0
+    before = (out / "run.json").read_text()
+    assert main(args) == 2
+    assert "already holds a run" in capsys.readouterr().err
+    assert (out / "run.json").read_text() == before
+    assert main([*args, "--overwrite"]) == 0
+
+
+def test_failure_while_running_exits_1_and_records_it(lab_dir, capsys):
+    path = lab_dir / "lab-open-loop.yaml"
+    # A sensor model without a classifier input builds, but cannot run.
+    text = path.read_text().replace("inputs: [contact]}", "inputs: []}")
+    broken = lab_dir / "norun.yaml"
+    broken.write_text(text)
+    out = lab_dir / "run"
+    assert main(["run", str(broken), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "needs exactly one classifier" in err and "Traceback" not in err
+    assert json.loads((out / "run.json").read_text())["status"] == "failed"
+
+
+def test_debug_shows_the_traceback(lab_dir, capsys):
+    args = ["run", str(lab_dir / "missing.yaml"), "--out", str(lab_dir / "o")]
+    assert main(args) == 2
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(Exception, match="no such file"):
+        main(["--debug", *args])
+
+
+def test_usage_errors_exit_2(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["run"])
+    assert info.value.code == 2
+    assert main([]) == 2
+    assert main(["bench", "no-such-suite"]) == 2
+    assert "unknown benchmark" in capsys.readouterr().err
+
+
+def test_check_command_runs_the_kit(lab_dir, capsys, monkeypatch):
+    assert main(["check", "no-such-plugin"]) == 2
+
+
+def test_python_dash_m_and_version():
+    proc = subprocess.run([sys.executable, "-m", "hapticframe", "--version"], capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout.startswith("hapticframe ")

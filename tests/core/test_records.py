@@ -1,0 +1,87 @@
+"""Records reject malformed data where it is produced."""
+
+import numpy as np
+import pytest
+
+from hapticframe.kinds import (
+    ClassProbabilities,
+    ExploratoryMovement,
+    LocatedMeasurement,
+    MapEstimate,
+    Observations,
+    Region,
+    SampleBatch,
+    concatenate_batches,
+)
+
+
+def test_sample_batch_requires_increasing_time_and_matching_rows():
+    SampleBatch([0.0, 0.01], {"f": np.zeros((2, 3))})
+    with pytest.raises(ValueError, match="strictly increasing"):
+        SampleBatch([0.0, 0.0], {"f": np.zeros((2, 3))})
+    with pytest.raises(ValueError, match="rows"):
+        SampleBatch([0.0, 0.01], {"f": np.zeros((3, 3))})
+    with pytest.raises(ValueError, match="finite"):
+        SampleBatch([0.0, np.inf], {})
+
+
+def test_sample_batch_is_read_only_float64():
+    batch = SampleBatch([0.0, 1.0], {"f": np.array([[1], [2]], dtype=np.int32)})
+    assert batch.channels["f"].dtype == np.float64
+    with pytest.raises(ValueError):
+        batch.channels["f"][0, 0] = 5.0
+
+
+def test_concatenate_keeps_validity():
+    a = SampleBatch([0.0], {"f": [[1.0]]}, {"f": [False]})
+    b = SampleBatch([1.0], {"f": [[2.0]]})
+    joined = concatenate_batches([a, b])
+    assert joined.valid["f"].tolist() == [False, True]
+    with pytest.raises(ValueError, match="channel sets differ"):
+        concatenate_batches([a, SampleBatch([2.0], {"g": [[1.0]]})])
+
+
+@pytest.mark.parametrize(
+    "probs, message",
+    [
+        ([[0.5, np.nan]], "NaN"),
+        ([[1.2, -0.2]], r"\[0, 1\]"),
+        ([[0.5, 0.6]], "sum to 1"),
+        ([[1.0]], "columns"),
+    ],
+)
+def test_class_probabilities_rejects_invalid(probs, message):
+    with pytest.raises(ValueError, match=message):
+        ClassProbabilities([0.0], probs, ("free", "contact"))
+
+
+def test_located_measurement_shapes():
+    m = LocatedMeasurement([0.0, 1.0], [[0, 0], [1, 1]], [0, 0], [[1, 0], [0, 1]], ("a", "b"))
+    assert np.all(np.isnan(m.depth_m)) and len(m.select(slice(1, 2))) == 1
+    with pytest.raises(ValueError, match="positions_m"):
+        LocatedMeasurement([0.0], [[0, 0, 0]], [0], [[1, 0]], ("a", "b"))
+
+
+def test_observations_and_estimates_reject_nan_and_ranges():
+    with pytest.raises(ValueError, match="NaN"):
+        Observations([[np.nan, 0.0]], [0.5])
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        Observations([[0.0, 0.0]], [1.5])
+    with pytest.raises(ValueError, match="NaN"):
+        MapEstimate([np.nan], [0.1])
+    with pytest.raises(ValueError, match="std"):
+        MapEstimate([0.5], [-0.1])
+    assert len(Observations.concatenate([])) == 0
+
+
+def test_region_and_movement():
+    region = Region(0, 2, 0, 1)
+    assert region.contains([[1, 0.5], [3, 0.5]]).tolist() == [True, False]
+    xs, ys = region.grid(0.5)
+    assert len(xs) == 4 and len(ys) == 2
+    with pytest.raises(ValueError):
+        Region(0, 0, 0, 1)
+    move = ExploratoryMovement((0, 0), (3, 4))
+    assert move.length_m == pytest.approx(5.0)
+    with pytest.raises(ValueError):
+        ExploratoryMovement((0, 0), (np.nan, 1))
