@@ -5,6 +5,8 @@ the ``hapticframe`` entry-point group, validates experiment files, assembles the
 components and runs them. Everything scientific lives in plugins.
 """
 
+from ._bench import BenchOptions
+from ._config import Experiment, RunSettings, validate_file, validate_mapping
 from ._errors import (
     ExperimentError,
     HapticframeError,
@@ -18,6 +20,7 @@ from ._errors import (
 from ._kind import Kind
 from ._manager import get_plugin_manager, get_registry, make_plugin_manager
 from ._registry import BrokenPlugin, Registered, Registry, Source
+from ._session import RunSummary, run_experiment
 from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
 from ._specs import (
     BenchSpec,
@@ -35,11 +38,13 @@ from ._version import __version__
 from .hookspecs import hookimpl
 
 __all__ = [
+    "BenchOptions",
     "BenchSpec",
     "BrokenPlugin",
     "Circle",
     "ClassifierSpec",
     "Ellipse",
+    "Experiment",
     "ExperimentError",
     "FeatureExtractorSpec",
     "HapticframeError",
@@ -59,6 +64,8 @@ __all__ = [
     "Registry",
     "RobotSpec",
     "RunError",
+    "RunSettings",
+    "RunSummary",
     "Scene",
     "SensorModelSpec",
     "SensorSpec",
@@ -69,4 +76,7 @@ __all__ = [
     "get_registry",
     "hookimpl",
     "make_plugin_manager",
+    "run_experiment",
+    "validate_file",
+    "validate_mapping",
 ]

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
-from scipy.spatial.distance import directed_hausdorff
 
 __all__ = [
     "blob_centroid",
@@ -133,6 +131,8 @@ def blob_centroid(
     (2,) float64 or None
         None when no cell reaches ``level``.
     """
+    from scipy import ndimage  # imported on use: keeps `import hapticframe` fast
+
     x, y, v = _check_grid(xs, ys, values)
     mask = v >= level
     if not mask.any():
@@ -160,6 +160,8 @@ def directed_hausdorff_both(estimate: ArrayLike, truth: ArrayLike) -> tuple[floa
     (estimate_to_truth, truth_to_estimate) : tuple of float
         The first measures false structure, the second missed structure.
     """
+    from scipy.spatial.distance import directed_hausdorff
+
     a = np.asarray(estimate, dtype=np.float64).reshape(-1, 2)
     b = np.asarray(truth, dtype=np.float64).reshape(-1, 2)
     if len(a) == 0 or len(b) == 0:

@@ -2,7 +2,7 @@
 
 from ._load import LoadedFile, load_file, load_text
 from ._model import SCHEMA_VERSION, RunSettings, build_experiment_model
-from ._validate import ComponentEntry, Experiment, validate_data, validate_file
+from ._validate import ComponentEntry, Experiment, validate_data, validate_file, validate_mapping
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -15,4 +15,5 @@ __all__ = [
     "load_text",
     "validate_data",
     "validate_file",
+    "validate_mapping",
 ]

@@ -21,7 +21,7 @@ from .._registry import Registered, Registry
 from ._load import LoadedFile, join_path, load_file
 from ._model import build_experiment_model
 
-__all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file"]
+__all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
 
 _SECTIONS = {kind.section: kind for kind in Kind}
 _DISCRIMINATORS = ("type", "shape")
@@ -66,6 +66,13 @@ def validate_file(path: str | Path, *, strict: bool = False) -> Experiment:
     """Load and validate an experiment file; raise :class:`ExperimentError` if it is invalid."""
     loaded = load_file(path)
     return validate_data(loaded, module_dir=Path(path).resolve().parent, strict=strict)
+
+
+def validate_mapping(
+    data: Mapping[str, Any], *, source: str = "<experiment>", strict: bool = False
+) -> Experiment:
+    """Validate an experiment given as a mapping (built in code rather than read from a file)."""
+    return validate_data(LoadedFile(source, dict(data), {}), strict=strict)
 
 
 def _plugin_manager(loaded: LoadedFile, module_dir: Path | None, strict: bool) -> PluginManager:

@@ -16,8 +16,10 @@ from hapticframe.kinds import (
     MovementResult,
     Observations,
 )
+from hapticframe.testing import parametrize_with_checks
 from hapticframe_failure_zone import FailureZoneAngleWarning, FailureZoneConfig, FailureZoneKernel
 from hapticframe_failure_zone import _functional as fz
+from hapticframe_failure_zone import plugin as fz_plugin
 
 CLASSES = ("free", "jamming", "contact")
 ONE_HOT = {"free": [1.0, 0.0, 0.0], "jamming": [0.0, 1.0, 0.0], "contact": [0.0, 0.0, 1.0]}
@@ -372,7 +374,9 @@ def test_shear_band_angle_sources() -> None:
 
 def test_empty_measurement() -> None:
     model = make_model()
-    empty = LocatedMeasurement(np.empty(0), np.empty((0, 2)), np.empty(0), np.empty((0, 3)), CLASSES)
+    empty = LocatedMeasurement(
+        np.empty(0), np.empty((0, 2)), np.empty(0), np.empty((0, 3)), CLASSES
+    )
     obs = model.observe(empty)
     assert len(obs) == 0 and obs.points_m.shape == (0, 2)
 
@@ -424,3 +428,11 @@ def test_registration() -> None:
     assert spec.load_factory() is FailureZoneKernel
     schema = spec.config.model_json_schema()
     assert all("description" in p for p in schema["properties"].values())
+
+
+# --- the conformance kit ------------------------------------------------------------------------
+
+
+@parametrize_with_checks(list(fz_plugin.hapticframe_sensor_models()))
+def test_conformance(spec, check) -> None:
+    check(spec)

@@ -1,0 +1,281 @@
+"""Pure array functions of the failure-zone sensor model (dissertation section 3.4.3.1).
+
+Everything here is stateless numpy: the rupture distance of a raking plate, the Arthur
+angle, the two parameter schedules (Table 3.1's empirical one and the analytic one), the
+three-state kernel targets of Eqs. 3.3-3.4 and the sampling of the sector of Eq. 3.2.
+
+Units are SI (metres, radians, m^-2) unless a name says otherwise; the two published
+empirical formulas are stated in centimetres and degrees and are converted explicitly.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "FailureZoneAngleWarning",
+    "STATES",
+    "analytic_side_angle",
+    "arthur_angle_deg",
+    "depth_schedule",
+    "empirical_gamma",
+    "empirical_side_angle",
+    "kernel_targets",
+    "mixture_targets",
+    "range_from_gamma",
+    "rupture_distance",
+    "rupture_gamma",
+    "sector_offsets",
+]
+
+FloatArray = NDArray[np.float64]
+
+#: The three environmental interaction states of Eq. 3.4, in kernel order k = 0, 1, 2.
+STATES: tuple[str, str, str] = ("free", "jamming", "contact")
+
+_LN2 = math.log(2.0)
+_CM_PER_M = 100.0
+
+
+class FailureZoneAngleWarning(UserWarning):
+    """The analytic side-crescent formula left the domain of arcsin and was clipped."""
+
+
+def arthur_angle_deg(friction_angle_deg: float, dilation_angle_deg: float) -> float:
+    """Shear-band angle from the Arthur angle, β = 45° − (φ + ψ)/4 (Table 3.1, note †).
+
+    >>> arthur_angle_deg(42.0, 12.0)
+    31.5
+    """
+    return 45.0 - (float(friction_angle_deg) + float(dilation_angle_deg)) / 4.0
+
+
+def rupture_distance(
+    depth_m: ArrayLike, rake_angle_rad: float, shear_band_angle_rad: float
+) -> FloatArray:
+    """Distance ahead of the plate where the shear band meets the free surface.
+
+    ``r = d (cot α + cot β)`` (Wick & Perumpral): the failure wedge of a plate at depth
+    ``d`` and angle ``α`` to the free surface, bounded by a shear band at angle ``β``.
+    Negative results (a plate leaning far back) are returned as 0.
+
+    Parameters
+    ----------
+    depth_m : array_like
+        Plate (fingertip) depth below the free surface, metres; must be finite.
+    rake_angle_rad : float
+        α in (0, π); π/2 for a vertical fingertip.
+    shear_band_angle_rad : float
+        β in (0, π/2).
+    """
+    d = np.asarray(depth_m, dtype=np.float64)
+    if not np.all(np.isfinite(d)):
+        raise ValueError("depth_m must be finite")
+    if not 0.0 < rake_angle_rad < math.pi:
+        raise ValueError(f"rake angle must lie in (0, pi), got {rake_angle_rad}")
+    if not 0.0 < shear_band_angle_rad < math.pi / 2:
+        raise ValueError(f"shear-band angle must lie in (0, pi/2), got {shear_band_angle_rad}")
+    # cos/sin rather than 1/tan: exact 0 for a vertical plate instead of 6e-17.
+    factor = math.cos(rake_angle_rad) / math.sin(rake_angle_rad) + 1.0 / math.tan(
+        shear_band_angle_rad
+    )
+    return np.maximum(d * factor, 0.0)
+
+
+def rupture_gamma(range_m: ArrayLike) -> FloatArray:
+    """Kernel bandwidth γ_r = ln 2 / r² (m⁻²) so that the kernel halves at the range ``r``."""
+    r = np.asarray(range_m, dtype=np.float64)
+    if np.any(~np.isfinite(r)) or np.any(r <= 0):
+        raise ValueError("range_m must be finite and positive")
+    return _LN2 / r**2
+
+
+def range_from_gamma(gamma_per_m2: ArrayLike) -> FloatArray:
+    """The range where ``exp(-γ r²) = 1/2``: ``r = sqrt(ln 2 / γ)`` (inverse of rupture_gamma)."""
+    g = np.asarray(gamma_per_m2, dtype=np.float64)
+    if np.any(~np.isfinite(g)) or np.any(g <= 0):
+        raise ValueError("gamma must be finite and positive")
+    return np.sqrt(_LN2 / g)
+
+
+def empirical_gamma(
+    pair_count: int, scale_cm2: float = 72.0, ratio: float = 0.82
+) -> float:
+    """Table 3.1's bandwidth γ_r = 1 / (72 · 0.82ⁿ) cm⁻², returned in m⁻².
+
+    Parameters
+    ----------
+    pair_count : int
+        n, the number of pairwise interactions with the buried object so far.
+    scale_cm2, ratio : float
+        The published constants 72 cm² and 0.82.
+    """
+    n = _check_count(pair_count)
+    if not (scale_cm2 > 0 and ratio > 0):
+        raise ValueError("scale_cm2 and ratio must be positive")
+    gamma_per_cm2 = 1.0 / (scale_cm2 * ratio**n)
+    return gamma_per_cm2 * _CM_PER_M**2
+
+
+def empirical_side_angle(
+    pair_count: int, base_deg: float = 50.0, step_deg: float = 7.0
+) -> float:
+    """Table 3.1's side-crescent angle η = (50 + 7n)°, in radians, clipped to [0, π].
+
+    Beyond n = 18 the published line exceeds 180°, where a half-angle stops meaning
+    anything; the clip keeps the sector a (full) disc.
+    """
+    n = _check_count(pair_count)
+    return float(np.clip(math.radians(base_deg + step_deg * n), 0.0, math.pi))
+
+
+def analytic_side_angle(range_m: float, rake_angle_rad: float) -> tuple[float, float]:
+    """Side-crescent angle η = asin((6.03 + 0.460 r + 0.0904 α) / r), clipped to [−1, 1].
+
+    The empirical line is published with ``r`` in centimetres and ``α`` in degrees; both
+    are converted here. For the dissertation's own numbers the argument exceeds 1 (r =
+    7.1 cm, α = 90°: 17.4 / 7.1 ≈ 2.45), so arcsin would be undefined; the argument is
+    clipped and the caller decides how to report it.
+
+    Returns
+    -------
+    eta_rad : float
+        η in [−π/2, π/2], never NaN.
+    argument : float
+        The unclipped argument of arcsin (finite), so callers can tell when it was clipped.
+    """
+    if not (math.isfinite(range_m) and range_m > 0):
+        raise ValueError(f"range_m must be finite and positive, got {range_m}")
+    r_cm = range_m * _CM_PER_M
+    alpha_deg = math.degrees(rake_angle_rad)
+    argument = (6.03 + 0.460 * r_cm + 0.0904 * alpha_deg) / r_cm
+    return math.asin(min(1.0, max(-1.0, argument))), argument
+
+
+def depth_schedule(
+    interacting_movements: int,
+    initial_depth_m: float = 0.044,
+    first_decrement_m: float = 0.01,
+    decrement_ratio: float = 0.5,
+    min_depth_m: float = 0.001,
+) -> float:
+    """Raking depth after ``k`` interacting movements: 4.4 cm, then −1, −0.5, −0.25 cm...
+
+    ``d_k = d_0 − δ (1 − ρᵏ) / (1 − ρ)`` (a geometric series of decrements; ``k δ`` when
+    ``ρ = 1``), never below ``min_depth_m``.
+    """
+    k = _check_count(interacting_movements)
+    if decrement_ratio == 1.0:
+        removed = first_decrement_m * k
+    else:
+        removed = first_decrement_m * (1.0 - decrement_ratio**k) / (1.0 - decrement_ratio)
+    return max(initial_depth_m - removed, min_depth_m)
+
+
+def kernel_targets(distance_m: ArrayLike, gamma_per_m2: float, state: int) -> FloatArray:
+    """Occupancy targets of one state's kernel, Eq. 3.3: ``a_k − exp(−γ ||x − x_t||²)``.
+
+    ``a_k = (2 + k) / 2``: free movement rises from 0 at the fingertip to 1/2 at the
+    rupture distance, jamming from 1/2 to 1, contact is 1 at the fingertip. Targets are
+    clipped to [0, 1] (beyond the range the jamming and contact kernels would exceed 1).
+    """
+    if state not in (0, 1, 2):
+        raise ValueError(f"state must be 0, 1 or 2, got {state}")
+    if not (math.isfinite(gamma_per_m2) and gamma_per_m2 >= 0):
+        raise ValueError("gamma must be finite and non-negative")
+    d = np.asarray(distance_m, dtype=np.float64)
+    a_k = 0.5 * (2 + state)
+    return np.clip(a_k - np.exp(-gamma_per_m2 * d**2), 0.0, 1.0)
+
+
+def mixture_targets(
+    distance_m: ArrayLike,
+    gamma_per_m2: float,
+    theta: ArrayLike,
+    ranges_m: ArrayLike,
+) -> tuple[FloatArray, FloatArray]:
+    """The three-state mixture of Eq. 3.4 at points ``distance_m`` from the fingertip.
+
+    Each state ``k`` speaks only about points within its own range ``r_k`` (contact has
+    range 0). A point covered by the set ``K(x)`` of states gets the θ-weighted mean of
+    their kernels, renormalised over ``K(x)``, and a weight equal to the mass
+    ``Σ_{k∈K(x)} θ_k``: with one-hot θ this is exactly Eq. 3.4 (weight 1 where the active
+    state reaches, nothing elsewhere); with soft θ a point beyond the contact point is not
+    pulled towards "free" merely because contact claims part of the probability.
+
+    Parameters
+    ----------
+    distance_m : (m,) array
+        Distances ``||x − x_t||`` of the sector points.
+    gamma_per_m2 : float
+        Bandwidth γ_r shared by the free and jamming kernels.
+    theta : (3,) array
+        State probabilities (free, jamming, contact), non-negative.
+    ranges_m : (3,) array
+        Range of each state.
+
+    Returns
+    -------
+    targets : (m,) float64 in [0, 1]
+    weights : (m,) float64 in [0, 1]
+        Zero where no state with positive θ reaches the point.
+    """
+    d = np.asarray(distance_m, dtype=np.float64).reshape(-1)
+    th = np.asarray(theta, dtype=np.float64).reshape(-1)
+    rk = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+    if th.shape != (3,) or rk.shape != (3,):
+        raise ValueError("theta and ranges_m must have three entries (free, jamming, contact)")
+    if not (np.all(np.isfinite(th)) and np.all(th >= 0)):
+        raise ValueError("theta must be finite and non-negative")
+    # A small tolerance so the sector's outermost ring (at exactly r) stays covered.
+    covered = d[:, None] <= rk[None, :] * (1 + 1e-12) + 1e-12
+    mass = covered.astype(np.float64) @ th
+    weighted = np.zeros_like(d)
+    for k in range(3):
+        if th[k] > 0:
+            weighted += np.where(covered[:, k], th[k] * kernel_targets(d, gamma_per_m2, k), 0.0)
+    targets = np.divide(weighted, mass, out=np.zeros_like(d), where=mass > 0)
+    return np.clip(targets, 0.0, 1.0), mass
+
+
+def sector_offsets(range_m: float, half_angle_rad: float, spacing_m: float) -> FloatArray:
+    """Points of the sector of Eq. 3.2 in the fingertip frame (+x = direction of motion).
+
+    A polar grid: rings every ≤ ``spacing_m`` from the fingertip out to exactly ``range_m``,
+    each ring sampled every ≤ ``spacing_m`` of arc between ``−η`` and ``+η`` (both edges
+    included). The fingertip itself is the first point. A range of 0 gives only it.
+
+    Returns
+    -------
+    (m, 2) float64
+    """
+    if not (math.isfinite(range_m) and range_m >= 0):
+        raise ValueError(f"range_m must be finite and non-negative, got {range_m}")
+    if not (math.isfinite(half_angle_rad) and 0 <= half_angle_rad <= math.pi):
+        raise ValueError(f"half angle must lie in [0, pi], got {half_angle_rad}")
+    if not (math.isfinite(spacing_m) and spacing_m > 0):
+        raise ValueError(f"spacing_m must be finite and positive, got {spacing_m}")
+    parts = [np.zeros((1, 2))]
+    if range_m > 0:
+        n_rings = max(1, math.ceil(range_m / spacing_m))
+        full_circle = half_angle_rad >= math.pi
+        for rho in np.linspace(0.0, range_m, n_rings + 1)[1:]:
+            n_arcs = max(1, math.ceil(2.0 * half_angle_rad * rho / spacing_m))
+            if half_angle_rad == 0:  # a ray straight ahead
+                phi = np.zeros(1)
+            elif full_circle:  # -π and +π are one point
+                phi = np.linspace(-math.pi, math.pi, n_arcs, endpoint=False)
+            else:
+                phi = np.linspace(-half_angle_rad, half_angle_rad, n_arcs + 1)
+            parts.append(rho * np.column_stack([np.cos(phi), np.sin(phi)]))
+    return np.concatenate(parts)
+
+
+def _check_count(value: int) -> int:
+    n = int(value)
+    if n != value or n < 0:
+        raise ValueError(f"a count must be a non-negative integer, got {value!r}")
+    return n
