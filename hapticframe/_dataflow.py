@@ -11,7 +11,7 @@ from collections import defaultdict
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ._config import ComponentEntry, Experiment
 from ._errors import RunError
@@ -60,24 +60,32 @@ class TraceRecorder:
 
 
 class PoseHistory:
-    """Fingertip poses over time, interpolated at the times of classifier outputs."""
+    """Fingertip poses over time, interpolated at the times of classifier outputs.
+
+    Poses are kept in growable arrays, so interpolation costs no copying per tick.
+    """
 
     def __init__(self) -> None:
-        self.t: list[float] = []
-        self.xy: list[NDArray[np.float64]] = []
-        self.heading: list[float] = []
-        self.depth: list[float] = []
+        self._n = 0
+        self._t = np.empty(256)
+        self._pose = np.empty((256, 4))  # x, y, heading (unwrapped), depth
 
     def add_state(self, state: RobotState) -> None:
         self.add(state.timestamp_s, state.position_m, state.heading_rad, state.depth_m)
 
-    def add(self, t: float, xy: NDArray[np.float64], heading: float, depth: float) -> None:
-        if self.t and t <= self.t[-1]:
+    def add(self, t: float, xy: ArrayLike, heading: float, depth: float) -> None:
+        if self._n and t <= self._t[self._n - 1]:
             return  # a repeated or stale pose adds nothing
-        self.t.append(float(t))
-        self.xy.append(np.asarray(xy, dtype=np.float64))
-        self.heading.append(float(heading))
-        self.depth.append(float(depth))
+        if self._n == len(self._t):
+            self._t = np.concatenate([self._t, np.empty(len(self._t))])
+            self._pose = np.concatenate([self._pose, np.empty_like(self._pose)])
+        if self._n:  # unwrap so that interpolation never swings through ±pi
+            previous = self._pose[self._n - 1, 2]
+            heading = previous + (heading - previous + np.pi) % (2 * np.pi) - np.pi
+        x, y = np.asarray(xy, dtype=np.float64)
+        self._t[self._n] = t
+        self._pose[self._n] = (x, y, heading, depth)
+        self._n += 1
 
     def add_batch(self, batch: SampleBatch) -> None:
         """Poses from a sensor's ``position_m`` (and optional heading/depth) channels."""
@@ -85,7 +93,7 @@ class PoseHistory:
         if "heading_rad" in batch.channels:
             heading = batch.channels["heading_rad"].reshape(-1)
         else:
-            prev = self.xy[-1] if self.xy else (pos[0] if len(pos) else np.zeros(2))
+            prev = self._pose[self._n - 1, :2] if self._n else (pos[0] if len(pos) else np.zeros(2))
             steps = np.diff(np.vstack([prev, pos]), axis=0)
             heading = np.arctan2(steps[:, 1], steps[:, 0])
         depth = batch.channels["depth_m"].reshape(-1) if "depth_m" in batch.channels else np.full(len(batch), np.nan)
@@ -93,17 +101,16 @@ class PoseHistory:
             self.add(batch.timestamps_s[i], pos[i], heading[i], depth[i])
 
     def at(self, times: NDArray[np.float64]) -> tuple[NDArray[np.float64], ...]:
-        if not self.t:
+        if not self._n:
             raise RunError("a sensor model needs fingertip poses, but none were recorded yet")
-        t = np.asarray(self.t)
-        xy = np.vstack(self.xy)
-        x = np.interp(times, t, xy[:, 0])
-        y = np.interp(times, t, xy[:, 1])
-        heading = np.interp(times, t, np.unwrap(np.asarray(self.heading)))
-        depth_known = np.asarray(self.depth)
-        depth = np.interp(times, t, depth_known) if np.all(np.isfinite(depth_known)) else np.full(
-            len(times), np.nan
-        )
+        t = self._t[: self._n]
+        pose = self._pose[: self._n]
+        x, y, heading = (np.interp(times, t, pose[:, k]) for k in range(3))
+        depth_known = pose[:, 3]
+        if np.all(np.isfinite(depth_known)):
+            depth = np.interp(times, t, depth_known)
+        else:
+            depth = np.full(len(times), np.nan)
         return np.column_stack([x, y]), heading, depth
 
 
