@@ -33,7 +33,9 @@ FloatArray = NDArray[np.float64]
 
 
 def _as_float_array(value: ArrayLike, name: str, ndim: int | None = None) -> FloatArray:
-    array = np.asarray(value, dtype=np.float64)
+    # A read-only view: the record cannot be changed through it, the caller's array stays
+    # writable, and no data is copied when it already is float64.
+    array = np.asarray(value, dtype=np.float64).view()
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
     array.setflags(write=False)
@@ -101,7 +103,7 @@ class SampleBatch:
         for name, value in self.valid.items():
             if name not in channels:
                 raise ValueError(f"validity given for unknown channel {name!r}")
-            mask = np.asarray(value, dtype=bool)
+            mask = np.asarray(value, dtype=bool).view()
             if mask.shape != (t.size,):
                 raise ValueError(f"valid[{name!r}] must have shape ({t.size},), got {mask.shape}")
             mask.setflags(write=False)

@@ -1,0 +1,37 @@
+"""Force/force-rate classifier of granular jamming and direct contact (thesis Figure 3.4).
+
+Registers the classifier ``force-rate-jamming``. Importing this package is cheap; the
+classifier and calibration code (scipy) load on first attribute access.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from ._config import ForceRateJammingConfig
+
+__all__ = [
+    "CLASSES",
+    "DetectionReport",
+    "ForceRateJammingClassifier",
+    "ForceRateJammingConfig",
+    "ForceRateTracker",
+    "calibrate_thresholds",
+    "evaluate_detection",
+]
+
+_LAZY = {
+    "CLASSES": "._classifier",
+    "ForceRateJammingClassifier": "._classifier",
+    "ForceRateTracker": "._classifier",
+    "DetectionReport": "._calibration",
+    "calibrate_thresholds": "._calibration",
+    "evaluate_detection": "._calibration",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name], __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,219 @@
+"""Force/force-rate classifier of free movement, granular jamming and direct contact.
+
+The force magnitude is low-pass filtered (Butterworth, second-order sections with explicit
+state) and differentiated over the sample timestamps; the pair (filtered force, force rate)
+is placed against the thresholds of thesis Figure 3.4.
+
+Invalid samples
+---------------
+A sample whose force is NaN or infinite, or that the batch marks invalid, is replaced by the
+last valid force (sample-and-hold), so the filter and the rate carry on smoothly. Samples
+before the first valid one get uniform probabilities (arg-max: "free") and leave the filter
+uninitialised. The filter starts at rest on the first valid force, so a classifier switched
+on mid-movement does not see a spurious step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import signal
+
+from hapticframe.kinds import (
+    BuildContext,
+    Classifier,
+    ClassProbabilities,
+    MovementResult,
+    SampleBatch,
+)
+
+from . import _functional as F
+from ._config import ForceRateJammingConfig
+
+__all__ = ["CLASSES", "ForceRateJammingClassifier", "ForceRateTracker"]
+
+CLASSES = ("free", "jamming", "contact")
+DEFAULT_SAMPLE_RATE_HZ = 100.0
+
+
+class ForceRateTracker:
+    """Streaming low-pass filter and rate of a force magnitude, chunking-invariant.
+
+    Parameters
+    ----------
+    sos : (k, 6) array
+        Second-order sections of the low-pass filter.
+    """
+
+    def __init__(self, sos: NDArray[np.float64]) -> None:
+        self._sos = sos
+        self.reset()
+
+    def reset(self) -> None:
+        self._zi: NDArray[np.float64] | None = None
+        self._held: float | None = None  # last valid raw magnitude
+        self._last_y: float | None = None
+        self._last_t: float | None = None  # time of the last filtered sample
+        self._last_seen_t = -np.inf  # time of the last sample of any kind
+
+    def process(
+        self,
+        timestamps_s: NDArray[np.float64],
+        magnitude: NDArray[np.float64],
+        valid: NDArray[np.bool_],
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """Filtered force, force rate and an "initialised" mask for the next samples.
+
+        Rows before the first valid sample ever seen are NaN in both outputs and False in
+        the mask.
+        """
+        t = np.asarray(timestamps_s, dtype=np.float64)
+        n = t.size
+        if n == 0:
+            return np.empty(0), np.empty(0), np.zeros(0, dtype=bool)
+        if t[0] <= self._last_seen_t:
+            raise ValueError(
+                f"timestamps must increase across updates: {t[0]} follows {self._last_seen_t}; "
+                "call reset() before replaying a recording"
+            )
+        self._last_seen_t = float(t[-1])
+        ok = valid & np.isfinite(magnitude)
+        # Forward-fill: each row takes the latest valid value at or before it.
+        source = np.maximum.accumulate(np.where(ok, np.arange(n), -1))
+        before = np.nan if self._held is None else self._held
+        held = np.where(source >= 0, magnitude[np.maximum(source, 0)], before)
+        initialised = np.isfinite(held)
+        force = np.full(n, np.nan)
+        rate = np.full(n, np.nan)
+        if not initialised.any():
+            return force, rate, initialised
+        start = int(np.argmax(initialised))  # initialised rows form a suffix
+        if self._zi is None:
+            # Start at rest on the first valid value: no step response from zero.
+            self._zi = signal.sosfilt_zi(self._sos) * held[start]
+        y, self._zi = signal.sosfilt(self._sos, held[start:], zi=self._zi)
+        previous_y = y[0] if self._last_y is None else self._last_y
+        previous_t = t[start] - 1.0 if self._last_t is None else self._last_t
+        force[start:] = y
+        rate[start:] = np.diff(np.concatenate([[previous_y], y])) / np.diff(
+            np.concatenate([[previous_t], t[start:]])
+        )
+        self._held = float(held[-1])
+        self._last_y = float(y[-1])
+        self._last_t = float(t[-1])
+        return force, rate, initialised
+
+
+class ForceRateJammingClassifier(Classifier):
+    """Classifies free movement, granular jamming and direct contact from force and force rate.
+
+    Parameters
+    ----------
+    config : ForceRateJammingConfig
+    context : BuildContext
+        An input sensor, if given, supplies the sample rate when the config leaves it unset.
+    """
+
+    def __init__(self, config: ForceRateJammingConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+        self._sample_rate_hz = self._resolve_sample_rate(config, context)
+        self._build()
+
+    @staticmethod
+    def _resolve_sample_rate(config: ForceRateJammingConfig, context: BuildContext) -> float:
+        if config.sample_rate_hz is not None:
+            return float(config.sample_rate_hz)
+        for component in context.inputs.values():
+            channels = getattr(component, "channels", None)
+            if channels is not None and config.force_channel in channels:
+                return float(channels[config.force_channel].rate_hz)
+        return DEFAULT_SAMPLE_RATE_HZ
+
+    def _build(self) -> None:
+        cfg = self.config
+        try:
+            sos = F.butterworth_sos(cfg.cutoff_hz, self._sample_rate_hz, cfg.filter_order)
+        except ValueError as exc:
+            raise ValueError(f"classifier {self.id!r}: {exc}") from exc
+        self._tracker = ForceRateTracker(sos)
+
+    # --- Classifier interface ------------------------------------------------------------
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return CLASSES
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Rate the low-pass filter was designed for."""
+        return self._sample_rate_hz
+
+    @property
+    def thresholds(self) -> F.Thresholds:
+        """(jamming force, jamming rate, contact force, contact rate)."""
+        cfg = self.config
+        return (
+            cfg.jamming_force_n,
+            cfg.jamming_rate_n_per_s,
+            cfg.contact_force_n,
+            cfg.contact_rate_n_per_s,
+        )
+
+    def reset(self) -> None:
+        self._tracker.reset()
+
+    def on_movement_end(self, result: MovementResult) -> None:
+        # Each exploratory movement is a fresh approach: the last one's force says nothing.
+        self.reset()
+
+    def update(self, batch: SampleBatch) -> ClassProbabilities:
+        force, rate, initialised = self._track(batch)
+        probabilities = np.full((len(batch), len(CLASSES)), 1.0 / len(CLASSES))
+        if initialised.any():
+            probabilities[initialised] = F.state_probabilities(
+                force[initialised],
+                rate[initialised],
+                self.thresholds,
+                self.config.force_scale_n,
+                self.config.rate_scale_n_per_s,
+            )
+        return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
+
+    def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:
+        """Learn the four thresholds from labelled recordings, one per exploratory movement.
+
+        See :func:`hapticframe_jamming.calibrate_thresholds` (event objective).
+        """
+        from ._calibration import calibrate_thresholds
+
+        self.config = calibrate_thresholds(
+            batches, labels, base_config=self.config, sample_rate_hz=self._sample_rate_hz
+        )
+        self._build()
+
+    # --- extras ----------------------------------------------------------------------------
+
+    def force_and_rate(self, batch: SampleBatch) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Filtered force and force rate of a whole recording, from a fresh state (batch path).
+
+        Rows before the first valid sample are NaN.
+        """
+        self.reset()
+        force, rate, _ = self._track(batch)
+        self.reset()
+        return force, rate
+
+    def _track(
+        self, batch: SampleBatch
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        name = self.config.force_channel
+        if name not in batch.channels:
+            raise ValueError(
+                f"classifier {self.id!r}: input has no channel {name!r} "
+                f"(channels: {sorted(batch.channels)}); set config.force_channel"
+            )
+        magnitude = F.force_magnitude(batch.channels[name]) if len(batch) else np.empty(0)
+        valid = np.asarray(batch.valid.get(name, np.ones(len(batch), dtype=bool)), dtype=bool)
+        return self._tracker.process(batch.timestamps_s, magnitude, valid)

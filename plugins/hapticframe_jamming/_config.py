@@ -1,0 +1,70 @@
+"""Config of the force/force-rate jamming classifier (import-light)."""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from hapticframe import PluginConfig
+
+__all__ = ["ForceRateJammingConfig"]
+
+
+class ForceRateJammingConfig(PluginConfig):
+    """Thresholds in the 2-D space of filtered force and force rate (thesis Figure 3.4).
+
+    A sample is "jamming" when both the filtered force magnitude and its rate exceed the
+    jamming thresholds, and "contact" when both exceed the contact thresholds (contact wins).
+    Probabilities are a softmax of the threshold margins divided by the scale fields. The
+    defaults suit the ``sandbox`` simulator's defaults at 5 cm/s: its free-movement force
+    rate stays below about 24 N/s, while jamming drives it to 40–55 N/s before contact. Rates
+    scale with speed: recalibrate (``fit``) for other speeds or real sensors.
+    """
+
+    force_channel: str = Field("force_n", description="Input channel holding the force (N).")
+    sample_rate_hz: float | None = Field(
+        None,
+        gt=0,
+        description="Rate the low-pass filter is designed for; None takes the input sensor's "
+        "channel rate, or 100 Hz without an input.",
+    )
+    cutoff_hz: float = Field(3.0, gt=0, description="Butterworth low-pass cutoff frequency.")
+    filter_order: int = Field(2, ge=1, le=4, description="Butterworth filter order.")
+    jamming_force_n: float = Field(
+        6.0, allow_inf_nan=False, description="Filtered force above which jamming is possible."
+    )
+    jamming_rate_n_per_s: float = Field(
+        27.0,
+        allow_inf_nan=False,
+        description="Filtered force rate above which jamming is possible.",
+    )
+    contact_force_n: float = Field(
+        30.0,
+        allow_inf_nan=False,
+        description="Filtered force above which direct contact is possible.",
+    )
+    contact_rate_n_per_s: float = Field(
+        70.0,
+        allow_inf_nan=False,
+        description="Filtered force rate above which direct contact is possible.",
+    )
+    force_scale_n: float = Field(
+        2.0,
+        gt=0,
+        allow_inf_nan=False,
+        description="Softness of the force thresholds: margin per unit of logit.",
+    )
+    rate_scale_n_per_s: float = Field(
+        5.0,
+        gt=0,
+        allow_inf_nan=False,
+        description="Softness of the rate thresholds: margin per unit of logit.",
+    )
+
+    @model_validator(mode="after")
+    def _finite_nyquist(self) -> ForceRateJammingConfig:
+        if self.sample_rate_hz is not None and self.cutoff_hz >= self.sample_rate_hz / 2:
+            raise ValueError(
+                f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
+                f"({self.sample_rate_hz / 2} Hz)"
+            )
+        return self

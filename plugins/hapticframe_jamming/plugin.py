@@ -1,0 +1,23 @@
+"""Registration of the force/force-rate jamming classifier (import-light)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import ClassifierSpec, hookimpl
+
+from ._config import ForceRateJammingConfig
+
+
+@hookimpl
+def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
+    yield ClassifierSpec(
+        name="force-rate-jamming",
+        summary="Free / granular jamming / contact from filtered force and force rate (Fig. 3.4).",
+        config=ForceRateJammingConfig,
+        factory="hapticframe_jamming._classifier:ForceRateJammingClassifier",
+        capabilities=frozenset({"trainable"}),
+        requires=("scipy",),
+        consumes={"force_n": (2,)},
+        sample_rate_hz=100.0,
+    )

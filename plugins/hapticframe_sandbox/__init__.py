@@ -1,0 +1,38 @@
+"""Simulated sandbox: a plate raked through sand towards buried objects, and its force sensor.
+
+Registers the robot ``sandbox`` and the sensor ``sandbox-force``. Importing this package is
+cheap; the simulator classes load on first attribute access.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from ._config import SandboxForceSensorConfig, SandboxRobotConfig
+
+__all__ = [
+    "GroundTruthLog",
+    "MovementTruth",
+    "SandboxForceSensor",
+    "SandboxForceSensorConfig",
+    "SandboxRobot",
+    "SandboxRobotConfig",
+    "approach_movement",
+    "record_movements",
+]
+
+_LAZY = {
+    "GroundTruthLog": "._robot",
+    "MovementTruth": "._robot",
+    "SandboxRobot": "._robot",
+    "SandboxForceSensor": "._sensor",
+    "approach_movement": "._scenarios",
+    "record_movements": "._scenarios",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name], __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,111 @@
+"""Config models of the simulated sandbox robot and its force sensor (import-light)."""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from hapticframe import PluginConfig
+
+__all__ = ["SandboxForceSensorConfig", "SandboxRobotConfig"]
+
+
+class SandboxRobotConfig(PluginConfig):
+    """A rigid plate raked vertically through a simulated sand mixture.
+
+    Defaults follow the thesis's real-robot experiment (section 3.5.3): 4.4 cm depth, vertical
+    raking (α = 90°), an 80 N force limit, and the depth schedule of section 3.5.1.
+    """
+
+    control_rate_hz: float = Field(100.0, gt=0, description="Control steps per second.")
+    depth_m: float = Field(0.044, gt=0, description="Initial raking depth below the free surface.")
+    depth_reduction_m: float = Field(
+        0.01,
+        ge=0,
+        description="Depth lost after the first exploratory movement that reaches the object "
+        "(displaced soil); later reductions shrink by depth_reduction_ratio.",
+    )
+    depth_reduction_ratio: float = Field(
+        0.5, ge=0, le=1, description="Factor between successive depth reductions (1, 0.5, 0.25 cm)."
+    )
+    min_depth_m: float = Field(0.005, gt=0, description="The depth schedule never goes below this.")
+    rake_angle_deg: float = Field(
+        90.0, gt=0, lt=180, description="Plate angle α to the free surface (90 = vertical)."
+    )
+    shear_band_angle_deg: float | None = Field(
+        None,
+        gt=0,
+        lt=90,
+        description="Shear-band angle β; None takes the scene material's Arthur angle.",
+    )
+    side_crescent_angle_deg: float | None = Field(
+        None,
+        gt=0,
+        le=90,
+        description="Failure-zone half-angle η; None uses (50 + 7n)° with n the number of "
+        "completed pairs of object interactions (Table 3.1), capped at 90°.",
+    )
+    plate_width_m: float = Field(0.02, gt=0, description="Width of the fingertip plate.")
+    drag_coefficient_n_per_m2: float = Field(
+        7750.0,
+        ge=0,
+        description="Free plate drag F = c d²; 7750 gives about 15 N at 4.4 cm (Figure 3.6).",
+    )
+    shear_cycle_length_fraction: float = Field(
+        0.5,
+        gt=0,
+        description="Mean length of one shear-band nucleation cycle, as a fraction of the "
+        "rupture distance.",
+    )
+    shear_cycle_amplitude: float = Field(
+        0.2,
+        ge=0,
+        lt=1,
+        description="Mean peak-to-peak drag swing of a cycle, relative to the drag.",
+    )
+    shear_cycle_jitter: float = Field(
+        0.25,
+        ge=0,
+        lt=1,
+        description="Relative spread (uniform ±) of each cycle's length and amplitude.",
+    )
+    drag_fluctuation_fraction: float = Field(
+        0.03, ge=0, description="Std of the slow random drag fluctuation, relative to the drag."
+    )
+    drag_fluctuation_time_s: float = Field(
+        0.3, gt=0, description="Correlation time of that fluctuation."
+    )
+    jamming_gain_n_per_m: float = Field(
+        1200.0,
+        ge=0,
+        description="Jamming surge when the plate reaches the object, per metre of depth "
+        "(1200 gives about 53 N at 4.4 cm).",
+    )
+    jamming_exponent: float = Field(
+        1.5, gt=0, description="Shape p of the surge g d ((r − s)/r)^p as the plate approaches."
+    )
+    contact_stiffness_n_per_m: float = Field(
+        3000.0, ge=0, description="Force per metre pushed into an object after direct contact."
+    )
+    force_limit_n: float = Field(
+        80.0, gt=0, description="The robot halts itself above this true force magnitude."
+    )
+    sector_radial_samples: int = Field(
+        40, ge=2, description="Samples per ray when locating objects in the failure zone."
+    )
+    sector_angular_samples: int = Field(
+        21, ge=1, description="Rays across the failure zone (odd keeps one on the axis)."
+    )
+
+    @model_validator(mode="after")
+    def _depths_consistent(self) -> SandboxRobotConfig:
+        if self.min_depth_m > self.depth_m:
+            raise ValueError("min_depth_m must not exceed depth_m")
+        return self
+
+
+class SandboxForceSensorConfig(PluginConfig):
+    """A 2-D force sensor on the simulated fingertip: the true force plus white noise."""
+
+    noise_std_n: float = Field(
+        0.3, ge=0, description="Standard deviation of the noise added to each force axis."
+    )

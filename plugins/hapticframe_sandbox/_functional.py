@@ -1,0 +1,281 @@
+"""Plate-drag geometry and force pieces of the simulated sandbox, as pure array functions.
+
+The failure zone ahead of a plate raked through dry granular material (Wick and Perumpral;
+Kobayakawa et al.; thesis section 3.3.1 and Figure 3.2) is a central wedge bounded by two
+side crescents. In the map plane it is modelled as the circular sector of radius ``r`` (the
+rupture distance) and half-angle ``eta`` (the side-crescent angle) centred on the direction
+of motion (Eq. 3.2). Everything here is stateless; the robot class strings it together.
+
+Units: metres, seconds, newtons, radians, except parameters whose names end in ``_deg``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "arthur_angle_deg",
+    "contact_force_n",
+    "first_hit_distances",
+    "free_drag_n",
+    "jamming_force_n",
+    "plate_edge_points",
+    "rupture_distance_m",
+    "sector_ray_points",
+    "shear_cycle_factor",
+    "side_crescent_angle_deg",
+    "startup_factor",
+    "unit_vector",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+def arthur_angle_deg(friction_angle_deg: float, dilation_angle_deg: float) -> float:
+    """Shear-band angle from the Arthur angle, β = 45° − (φ + ψ)/4.
+
+    Parameters
+    ----------
+    friction_angle_deg : float
+        Internal friction angle φ in degrees (42° for the thesis's sand mixture).
+    dilation_angle_deg : float
+        Dilation angle ψ in degrees (12° for the thesis's sand mixture).
+
+    Returns
+    -------
+    float
+        β in degrees (31.5° for the thesis's values).
+    """
+    return 45.0 - (float(friction_angle_deg) + float(dilation_angle_deg)) / 4.0
+
+
+def rupture_distance_m(depth_m: ArrayLike, rake_angle_deg: float, shear_band_angle_deg: float):
+    """Distance ahead of the plate where the shear band meets the free surface.
+
+    ``r = d (cot α + cot β)`` (Figure 3.2), with ``α`` the plate angle to the free surface
+    (90° for vertical raking) and ``β`` the shear-band angle.
+
+    Parameters
+    ----------
+    depth_m : float or array
+        Raking depth ``d`` (non-negative).
+    rake_angle_deg, shear_band_angle_deg : float
+        α and β in degrees, each in (0, 180) and (0, 90) respectively.
+
+    Returns
+    -------
+    float or ndarray
+        ``r`` in metres, same shape as ``depth_m``.
+    """
+    if not 0.0 < rake_angle_deg < 180.0:
+        raise ValueError(f"rake_angle_deg must lie in (0, 180), got {rake_angle_deg}")
+    if not 0.0 < shear_band_angle_deg < 90.0:
+        raise ValueError(f"shear_band_angle_deg must lie in (0, 90), got {shear_band_angle_deg}")
+    d = np.asarray(depth_m, dtype=np.float64)
+    if np.any(~np.isfinite(d)) or np.any(d < 0):
+        raise ValueError("depth_m must be finite and non-negative")
+    cot_alpha = 1.0 / np.tan(np.radians(rake_angle_deg))
+    cot_beta = 1.0 / np.tan(np.radians(shear_band_angle_deg))
+    # cot(90°) evaluates to ~6e-17, not 0; snap it so vertical raking is exact.
+    if abs(cot_alpha) < 1e-12:
+        cot_alpha = 0.0
+    r = d * (cot_alpha + cot_beta)
+    return float(r) if r.ndim == 0 else r
+
+
+def side_crescent_angle_deg(pairwise_interactions: int, max_deg: float = 90.0) -> float:
+    """Empirical side-crescent angle η = (50 + 7n)° of Table 3.1, capped at ``max_deg``.
+
+    The cap keeps the failure zone ahead of the plate: a sector wider than ±90° would reach
+    behind it.
+    """
+    if pairwise_interactions < 0:
+        raise ValueError("pairwise_interactions must be non-negative")
+    return float(min(50.0 + 7.0 * pairwise_interactions, max_deg))
+
+
+def unit_vector(angle_rad: ArrayLike) -> FloatArray:
+    """``(..., 2)`` unit vectors at ``angle_rad`` counter-clockwise from +x."""
+    a = np.asarray(angle_rad, dtype=np.float64)
+    return np.stack([np.cos(a), np.sin(a)], axis=-1)
+
+
+def sector_ray_points(
+    position_m: ArrayLike,
+    heading_rad: float,
+    radius_m: float,
+    half_angle_rad: float,
+    n_radial: int,
+    n_angular: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Sample the failure-zone sector on rays fanning out from the fingertip.
+
+    Parameters
+    ----------
+    position_m : (2,)
+        Fingertip position (the sector's apex).
+    heading_rad : float
+        Direction of motion (the sector's axis).
+    radius_m : float
+        Sector radius (the rupture distance).
+    half_angle_rad : float
+        Sector half-angle η.
+    n_radial, n_angular : int
+        Samples per ray (including the apex) and number of rays (≥ 1; one ray is the axis).
+
+    Returns
+    -------
+    points : (n_angular, n_radial, 2)
+        Sample points, ray by ray, from the apex outwards.
+    radii : (n_radial,)
+        Distance of each sample from the apex.
+    ray_angles : (n_angular,)
+        Absolute direction of each ray.
+    """
+    if n_radial < 2 or n_angular < 1:
+        raise ValueError("need n_radial >= 2 and n_angular >= 1")
+    radii = np.linspace(0.0, float(radius_m), n_radial)
+    if n_angular == 1:
+        offsets = np.zeros(1)
+    else:
+        offsets = np.linspace(-half_angle_rad, half_angle_rad, n_angular)
+    ray_angles = heading_rad + offsets
+    directions = unit_vector(ray_angles)  # (n_angular, 2)
+    points = (
+        np.asarray(position_m, dtype=np.float64) + radii[None, :, None] * directions[:, None, :]
+    )
+    return points, radii, ray_angles
+
+
+def first_hit_distances(
+    position_m: ArrayLike,
+    ray_angles_rad: FloatArray,
+    radii_m: FloatArray,
+    occupied: Callable[[FloatArray], NDArray[np.bool_]],
+    refine_iterations: int = 12,
+) -> FloatArray:
+    """Distance along each ray to the first occupied point, ``inf`` where a ray hits nothing.
+
+    The rays are sampled at ``radii_m`` (ascending, starting at 0); the first occupied sample
+    brackets the boundary, which bisection then refines. Refinement keeps the distance a
+    continuous function of the fingertip position, so the simulated force has no staircase.
+
+    Parameters
+    ----------
+    position_m : (2,)
+    ray_angles_rad : (m,)
+    radii_m : (k,)
+        Ascending sample distances along each ray; ``radii_m[0]`` should be 0.
+    occupied : callable
+        Maps ``(p, 2)`` points to a ``(p,)`` bool mask (``Scene.occupied``).
+    refine_iterations : int
+        Bisection steps; the error is the radial spacing divided by ``2**refine_iterations``.
+    """
+    origin = np.asarray(position_m, dtype=np.float64)
+    directions = unit_vector(ray_angles_rad)
+    m, k = directions.shape[0], radii_m.size
+    pts = origin + radii_m[None, :, None] * directions[:, None, :]
+    mask = np.asarray(occupied(pts.reshape(-1, 2)), dtype=bool).reshape(m, k)
+    hit = mask.any(axis=1)
+    out = np.full(m, np.inf)
+    if not hit.any():
+        return out
+    first = np.argmax(mask, axis=1)
+    rays = np.flatnonzero(hit)
+    at_apex = first[rays] == 0
+    out[rays[at_apex]] = 0.0
+    rays = rays[~at_apex]
+    if rays.size == 0:
+        return out
+    lo = radii_m[first[rays] - 1].copy()  # free
+    hi = radii_m[first[rays]].copy()  # occupied
+    dirs = directions[rays]
+    for _ in range(refine_iterations):
+        mid = 0.5 * (lo + hi)
+        inside = np.asarray(occupied(origin + mid[:, None] * dirs), dtype=bool)
+        hi = np.where(inside, mid, hi)
+        lo = np.where(inside, lo, mid)
+    out[rays] = hi
+    return out
+
+
+def plate_edge_points(
+    position_m: ArrayLike, heading_rad: float, plate_width_m: float, n: int = 9
+) -> FloatArray:
+    """``(n, 2)`` points across the plate face, perpendicular to the direction of motion."""
+    normal = unit_vector(heading_rad + np.pi / 2)
+    offsets = np.linspace(-plate_width_m / 2, plate_width_m / 2, n)
+    return np.asarray(position_m, dtype=np.float64) + offsets[:, None] * normal
+
+
+def free_drag_n(depth_m: ArrayLike, drag_coefficient_n_per_m2: float) -> FloatArray | float:
+    """Steady plate-drag force for free movement, ``F = c d²``.
+
+    Passive-earth-pressure theory gives a drag proportional to ``γ w d²`` for a plate of
+    width ``w`` in material of unit weight ``γ``; the coefficient ``c`` lumps those together
+    and is calibrated so that ``d = 4.4 cm`` gives the 10–20 N of Figure 3.6.
+    """
+    d = np.asarray(depth_m, dtype=np.float64)
+    f = drag_coefficient_n_per_m2 * d * d
+    return float(f) if f.ndim == 0 else f
+
+
+def startup_factor(travelled_m: ArrayLike, rupture_distance: float) -> FloatArray | float:
+    """Fraction of the steady drag reached after the plate has moved ``travelled_m``.
+
+    The failure zone needs about one rupture distance of travel to develop from rest; a
+    linear build-up over that distance keeps the start-up force rate at its lowest.
+    """
+    s = np.asarray(travelled_m, dtype=np.float64)
+    if rupture_distance <= 0:
+        out = np.ones_like(s)
+    else:
+        out = np.clip(s / rupture_distance, 0.0, 1.0)
+    return float(out) if out.ndim == 0 else out
+
+
+def shear_cycle_factor(phase: ArrayLike, amplitude: ArrayLike) -> FloatArray | float:
+    """Sawtooth multiplier of the drag over one shear-band nucleation cycle.
+
+    Within a cycle (``phase`` in [0, 1)) the drag builds linearly from ``1 − A/2`` to
+    ``1 + A/2`` as the shear band steepens, then drops when a new band nucleates.
+    """
+    p = np.asarray(phase, dtype=np.float64)
+    a = np.asarray(amplitude, dtype=np.float64)
+    out = 1.0 + a * (np.clip(p, 0.0, 1.0) - 0.5)
+    return float(out) if out.ndim == 0 else out
+
+
+def jamming_force_n(
+    hit_distance_m: ArrayLike,
+    rupture_distance: float,
+    gain_n_per_m: float,
+    depth_m: float,
+    exponent: float,
+) -> FloatArray | float:
+    """Extra force once the failure zone reaches an object (granular jamming).
+
+    The force chains of the failure zone press on the object and back on the plate. The
+    surge is ``g d ((r − s)/r)^p`` for an object at distance ``s ≤ r`` ahead: zero as the zone
+    first touches it, growing as the plate approaches, ``g d`` when the plate reaches it.
+    It scales with depth ``d`` because the jammed wedge does; with ``p > 1`` the force rate
+    grows too as the plate approaches.
+    """
+    s = np.asarray(hit_distance_m, dtype=np.float64)
+    if rupture_distance <= 0:
+        engaged = np.where(s <= 0, 1.0, 0.0)
+    else:
+        engaged = np.clip((rupture_distance - s) / rupture_distance, 0.0, 1.0)
+        engaged = np.where(np.isfinite(s), engaged, 0.0)
+    out = gain_n_per_m * depth_m * engaged**exponent
+    return float(out) if out.ndim == 0 else out
+
+
+def contact_force_n(penetration_m: ArrayLike, stiffness_n_per_m: float) -> FloatArray | float:
+    """Force of direct contact: a stiff spring on the distance pushed into the object."""
+    p = np.clip(np.asarray(penetration_m, dtype=np.float64), 0.0, None)
+    out = stiffness_n_per_m * p
+    return float(out) if out.ndim == 0 else out

@@ -1,0 +1,33 @@
+"""Registration of the simulated sandbox robot and force sensor (import-light)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import Kind, RobotSpec, SensorSpec, hookimpl
+
+from ._config import SandboxForceSensorConfig, SandboxRobotConfig
+
+
+@hookimpl
+def hapticframe_robots() -> Iterator[RobotSpec]:
+    yield RobotSpec(
+        name="sandbox",
+        summary="Simulated plate raked through sand: plate drag, granular jamming, contact.",
+        config=SandboxRobotConfig,
+        factory="hapticframe_sandbox._robot:SandboxRobot",
+        capabilities=frozenset({"simulated"}),
+    )
+
+
+@hookimpl
+def hapticframe_sensors() -> Iterator[SensorSpec]:
+    yield SensorSpec(
+        name="sandbox-force",
+        summary="2-D fingertip force of the simulated sandbox robot, with sensor noise.",
+        config=SandboxForceSensorConfig,
+        factory="hapticframe_sandbox._sensor:SandboxForceSensor",
+        capabilities=frozenset({"simulated", "needs-robot"}),
+        inputs=(Kind.ROBOT,),
+        check_inputs=("robot/sandbox",),
+    )

@@ -1,0 +1,143 @@
+"""Plate-drag geometry and force pieces of the sandbox against the thesis's numbers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hapticframe_sandbox import _functional as F
+
+from hapticframe import Circle, Material, Scene
+
+BETA_DEG = 31.5
+# Table 3.1: rupture distance for the reduced raking depths 4.4, 3.4, 2.9, 2.65 cm.
+THESIS_DEPTHS_CM = (4.4, 3.4, 2.9, 2.65)
+THESIS_RUPTURE_CM = (7.1, 5.5, 4.7, 4.3)
+
+
+def test_arthur_angle_of_the_thesis_sand_mixture():
+    assert F.arthur_angle_deg(42.0, 12.0) == pytest.approx(31.5, abs=1e-12)
+    assert Material().shear_band_angle_deg == pytest.approx(31.5, abs=1e-12)
+    # β falls as the material gets stronger or more dilatant.
+    assert F.arthur_angle_deg(30.0, 0.0) == pytest.approx(37.5)
+
+
+@pytest.mark.parametrize("depth_cm, rupture_cm", list(zip(THESIS_DEPTHS_CM, THESIS_RUPTURE_CM)))
+def test_rupture_distance_matches_table_3_1(depth_cm, rupture_cm):
+    r_cm = 100 * F.rupture_distance_m(depth_cm / 100, 90.0, BETA_DEG)
+    # The table truncates to millimetres (4.4 cot 31.5° = 7.18 is listed as 7.1).
+    assert math.floor(r_cm * 10 + 1e-9) / 10 == pytest.approx(rupture_cm)
+    tolerance = 0.1 if depth_cm == 4.4 else 0.05
+    assert abs(r_cm - rupture_cm) < tolerance
+
+
+def test_rupture_distance_of_an_inclined_plate_and_arrays():
+    d = np.array([0.0, 0.01, 0.044])
+    r = F.rupture_distance_m(d, 60.0, BETA_DEG)
+    expected = d * (1 / math.tan(math.radians(60)) + 1 / math.tan(math.radians(BETA_DEG)))
+    np.testing.assert_allclose(r, expected, rtol=1e-12)
+    assert r[0] == 0.0
+    # Vertical raking: cot 90° is exactly zero.
+    assert F.rupture_distance_m(0.044, 90.0, 45.0) == pytest.approx(0.044, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"depth_m": -0.01, "rake_angle_deg": 90.0, "shear_band_angle_deg": 31.5},
+        {"depth_m": np.nan, "rake_angle_deg": 90.0, "shear_band_angle_deg": 31.5},
+        {"depth_m": 0.04, "rake_angle_deg": 0.0, "shear_band_angle_deg": 31.5},
+        {"depth_m": 0.04, "rake_angle_deg": 90.0, "shear_band_angle_deg": 90.0},
+    ],
+)
+def test_rupture_distance_rejects_bad_input(kwargs):
+    with pytest.raises(ValueError):
+        F.rupture_distance_m(**kwargs)
+
+
+def test_side_crescent_angle_table_3_1_and_cap():
+    assert [F.side_crescent_angle_deg(n) for n in range(4)] == [50.0, 57.0, 64.0, 71.0]
+    assert F.side_crescent_angle_deg(10) == 90.0
+    with pytest.raises(ValueError):
+        F.side_crescent_angle_deg(-1)
+
+
+def test_sector_points_span_radius_and_half_angle():
+    points, radii, angles = F.sector_ray_points((0.1, 0.2), 0.3, 0.05, math.radians(50), 11, 5)
+    assert points.shape == (5, 11, 2)
+    assert radii[0] == 0.0 and radii[-1] == pytest.approx(0.05)
+    np.testing.assert_allclose(angles, 0.3 + np.radians([-50, -25, 0, 25, 50]))
+    dist = np.linalg.norm(points - np.array([0.1, 0.2]), axis=-1)
+    np.testing.assert_allclose(dist, np.broadcast_to(radii, (5, 11)), atol=1e-15)
+    rel = points[:, -1] - np.array([0.1, 0.2])
+    np.testing.assert_allclose(np.arctan2(rel[:, 1], rel[:, 0]), angles, atol=1e-12)
+
+
+def test_first_hit_distance_matches_analytic_ray_circle_intersection():
+    centre, radius = np.array([0.10, 0.02]), 0.04
+    scene = Scene(objects=[Circle(center_m=tuple(centre), radius_m=radius)])
+    angles = np.radians([-40.0, -10.0, 0.0, 11.3, 30.0, 80.0])
+    radii = np.linspace(0.0, 0.12, 40)
+    hits = F.first_hit_distances((0.0, 0.0), angles, radii, scene.occupied)
+    for angle, hit in zip(angles, hits):
+        u = np.array([math.cos(angle), math.sin(angle)])
+        # |t u - c|² = R²  →  t = u·c − sqrt((u·c)² − |c|² + R²)
+        b = u @ centre
+        disc = b * b - centre @ centre + radius * radius
+        t = b - math.sqrt(disc) if disc >= 0 else math.inf
+        if t > radii[-1]:
+            t = math.inf
+        if math.isinf(t):
+            assert math.isinf(hit)
+        else:
+            assert hit == pytest.approx(t, abs=1e-5)
+    # Some rays must hit and some miss for this check to mean anything.
+    assert np.isfinite(hits).any() and np.isinf(hits).any()
+
+
+def test_first_hit_distance_is_zero_inside_an_object():
+    scene = Scene(objects=[Circle(center_m=(0.0, 0.0), radius_m=0.05)])
+    hits = F.first_hit_distances((0.01, 0.0), np.zeros(3), np.linspace(0, 0.1, 10), scene.occupied)
+    np.testing.assert_array_equal(hits, 0.0)
+
+
+def test_plate_edge_points_are_perpendicular_to_motion():
+    pts = F.plate_edge_points((1.0, 2.0), math.pi / 2, 0.02, n=5)
+    np.testing.assert_allclose(pts[:, 1], 2.0, atol=1e-15)
+    np.testing.assert_allclose(
+        pts[:, 0], 1.0 + np.array([0.01, 0.005, 0.0, -0.005, -0.01]), atol=1e-15
+    )
+
+
+def test_free_drag_grows_with_depth_squared_and_is_fig_3_6_sized():
+    c = 7750.0
+    assert 10.0 <= F.free_drag_n(0.044, c) <= 20.0
+    assert F.free_drag_n(0.022, c) == pytest.approx(F.free_drag_n(0.044, c) / 4)
+    np.testing.assert_allclose(F.free_drag_n(np.array([0.0, 0.01]), c), [0.0, 0.775])
+
+
+def test_startup_and_shear_cycle_factors():
+    np.testing.assert_allclose(F.startup_factor([0.0, 0.035, 0.07, 1.0], 0.07), [0, 0.5, 1, 1])
+    assert F.startup_factor(0.01, 0.0) == 1.0
+    phases = np.linspace(0, 1, 101)
+    saw = F.shear_cycle_factor(phases, 0.2)
+    assert saw[0] == pytest.approx(0.9) and saw[-1] == pytest.approx(1.1)
+    assert np.all(np.diff(saw) > 0)  # the drag builds through a cycle
+    assert saw.mean() == pytest.approx(1.0)
+
+
+def test_jamming_force_grows_as_the_plate_approaches():
+    r, d, gain = 0.07, 0.044, 1200.0
+    s = np.array([np.inf, 0.2, r, 0.05, 0.03, 0.01, 0.0])
+    f = F.jamming_force_n(s, r, gain, d, 1.5)
+    assert f[0] == f[1] == f[2] == 0.0
+    assert np.all(np.diff(f[2:]) > 0)
+    assert f[-1] == pytest.approx(gain * d)
+    # With an exponent above 1 the force *rate* grows too (convex in the approach distance).
+    increments = np.diff(F.jamming_force_n(np.linspace(r, 0, 8), r, gain, d, 1.5))
+    assert np.all(np.diff(increments) > 0)
+
+
+def test_contact_force_is_a_spring_on_penetration():
+    np.testing.assert_allclose(F.contact_force_n([-0.01, 0.0, 0.002], 3000.0), [0.0, 0.0, 6.0])
