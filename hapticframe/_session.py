@@ -218,7 +218,10 @@ class Session:
                 spacing_m=self.settings.evaluation_spacing_m,
             ))
             out["evaluated_map"] = map_id
-        outcome = RunOutcome(self.out_dir, scene, tuple(self.movements), self.components, wall_time_s)
+        outcome = RunOutcome(
+            self.out_dir, scene, tuple(self.movements), self.components, wall_time_s,
+            figures=self.settings.figures,
+        )
         for cid, component in self.components.items():
             for key, value in dict(component.finalize(outcome)).items():
                 if key in out:

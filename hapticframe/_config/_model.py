@@ -44,6 +44,9 @@ class RunSettings(BaseModel):
     evaluation_map: str | None = Field(
         None, description="Map id scored against the scene; default: the planner's map."
     )
+    figures: bool = Field(
+        True, description="Let components write their figures (benchmarks switch this off)."
+    )
     evaluation_spacing_m: float = Field(
         0.0025, gt=0, le=0.05, description="Grid spacing for outline and centroid estimates."
     )

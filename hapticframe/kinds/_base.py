@@ -61,6 +61,8 @@ class RunOutcome:
         Every built component by id.
     wall_time_s : float
         Wall time of the run so far.
+    figures : bool
+        Whether to draw figures (``run.figures``; benchmarks switch them off).
     """
 
     out_dir: Path
@@ -68,6 +70,7 @@ class RunOutcome:
     movements: tuple[MovementResult, ...]
     components: Mapping[str, Component]
     wall_time_s: float
+    figures: bool = True
 
 
 class Component(ABC):

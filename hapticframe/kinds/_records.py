@@ -88,9 +88,9 @@ class SampleBatch:
     def __post_init__(self) -> None:
         t = _as_float_array(self.timestamps_s, "timestamps_s", ndim=1)
         object.__setattr__(self, "timestamps_s", t)
-        if t.size > 1 and not np.all(np.diff(t) > 0):
+        if t.size > 1 and not (t[1:] > t[:-1]).all():
             raise ValueError("timestamps_s must be strictly increasing")
-        if t.size and not np.all(np.isfinite(t)):
+        if t.size and not np.isfinite(t).all():
             raise ValueError("timestamps_s must be finite")
         channels = {}
         for name, value in self.channels.items():
@@ -181,11 +181,11 @@ class ClassProbabilities:
         if p.shape[1] != len(self.classes):
             raise ValueError(f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes")
         if p.size:
-            if not np.all(np.isfinite(p)):
+            if not np.isfinite(p).all():
                 raise ValueError("probabilities contain NaN or infinity")
-            if np.any(p < 0) or np.any(p > 1):
+            if p.min() < 0 or p.max() > 1:
                 raise ValueError("probabilities must lie in [0, 1]")
-            if not np.allclose(p.sum(axis=1), 1.0, atol=1e-6):
+            if np.abs(p.sum(axis=1) - 1.0).max() > 1e-6:
                 raise ValueError("each row of probabilities must sum to 1")
 
     def __len__(self) -> int:
@@ -331,7 +331,7 @@ class Observations:
         w = _as_float_array(w, "weights", ndim=1)
         if w.shape != (m,):
             raise ValueError(f"weights must have shape ({m},), got {w.shape}")
-        if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(tgt)) and np.all(np.isfinite(w))):
+        if not (np.isfinite(pts).all() and np.isfinite(tgt).all() and np.isfinite(w).all()):
             raise ValueError("observations contain NaN or infinity")
         if m and (tgt.min() < 0 or tgt.max() > 1):
             raise ValueError("targets must lie in [0, 1]")

@@ -112,6 +112,8 @@ class LinePlanner(Planner):
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         """Write ``paths.png`` and return the number of movements per phase."""
         results = list(outcome.movements) or list(self._finished)
+        if not outcome.figures:
+            return self.phase_metrics()
         plot_paths(
             Path(outcome.out_dir) / "paths.png",
             self.search_bounds,

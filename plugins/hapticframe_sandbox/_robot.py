@@ -238,11 +238,12 @@ class SandboxRobot(Robot):
 
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         self._close_movement()
-        from ._plots import plot_movement_forces
+        if outcome.figures:
+            from ._plots import plot_movement_forces
 
-        plot_movement_forces(
-            self.ground_truth, self._movements, Path(outcome.out_dir) / "forces.png"
-        )
+            plot_movement_forces(
+                self.ground_truth, self._movements, Path(outcome.out_dir) / "forces.png"
+            )
         return {
             "max_force_n": float(self._max_force),
             "object_interactions": int(sum(m.interacted for m in self._movements)),
