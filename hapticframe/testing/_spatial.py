@@ -196,7 +196,7 @@ def check_map_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | 
     finally:
         streamed.close()
         batch.close()
-    tolerance = 1e-9 if "exact-updates" in spec.capabilities else 0.1
+    tolerance = 1e-9 if "exact-update" in spec.capabilities else 0.1
     if diff > tolerance:
         raise CheckFailure(
             f"sequential updates and one fit differ by {diff:.3g} in mean occupancy "

@@ -217,7 +217,7 @@ GOOD = [
     FeatureExtractorSpec("lab-scale", "ok", ScaleConfig, "tests.support.labplugin:ScaleExtractor", consumes={"force_n": (2,)}),
     ClassifierSpec("lab-threshold", "ok", ThresholdConfig, "tests.support.labplugin:ThresholdClassifier", consumes={"force_n": (2,)}),
     SensorModelSpec("lab-point", "ok", PointConfig, "tests.support.labplugin:PointSensorModel"),
-    MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap", capabilities=frozenset({"exact-updates"})),
+    MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap", capabilities=frozenset({"exact-update"})),
     RobotSpec("lab-line", "ok", LineRobotConfig, f"{M}:LineRobot"),
 ]
 

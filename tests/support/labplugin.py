@@ -189,4 +189,4 @@ def hapticframe_sensor_models() -> Iterator[SensorModelSpec]:
 @hookimpl
 def hapticframe_maps() -> Iterator[MapSpec]:
     yield MapSpec("lab-cells", "Mean target per cell.", CellConfig, f"{__name__}:CellMap",
-                  capabilities=frozenset({"exact-updates"}))
+                  capabilities=frozenset({"exact-update"}))

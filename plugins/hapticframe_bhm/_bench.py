@@ -1,0 +1,154 @@
+"""Timing benchmark of the BHM on the synthetic two-object scene of the mapping notes (§7).
+
+Scene: 0.75 x 0.50 m, a disc of radius 6 cm at (0.25, 0.25) m and a 10 x 4 cm rectangle
+centred at (0.55, 0.30) m; labelled points uniform in the region, 3 % of labels flipped.
+Timings are medians over repeats with BLAS limited to one thread (threadpoolctl) when
+available; absolute numbers depend on the CPU and BLAS build.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import platform
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.stats import rankdata
+
+from hapticframe import Circle, Polygon, Scene
+from hapticframe.kinds import BuildContext, Observations
+
+from ._config import BayesianHilbertMapConfig
+from ._map import BayesianHilbertMap
+
+__all__ = ["benchmark_bhm", "two_object_scene", "labelled_points"]
+
+
+def two_object_scene() -> Scene:
+    """The §7 scene: a 6 cm disc and a 10 x 4 cm rectangle in a 75 x 50 cm region."""
+    rectangle = [(-0.05, -0.02), (0.05, -0.02), (0.05, 0.02), (-0.05, 0.02)]
+    return Scene(
+        objects=[
+            Circle(center_m=(0.25, 0.25), radius_m=0.06),
+            Polygon(center_m=(0.55, 0.30), vertices_m=rectangle),
+        ]
+    )
+
+
+def labelled_points(
+    scene: Scene, count: int, rng: np.random.Generator, flip_fraction: float = 0.03
+) -> Observations:
+    """``count`` uniform points with 0/1 occupancy labels, a fraction of them flipped."""
+    r = scene.region
+    low = np.array([r.x_min_m, r.y_min_m])
+    size = np.array([r.x_max_m - r.x_min_m, r.y_max_m - r.y_min_m])
+    points = low + rng.random((count, 2)) * size
+    labels = scene.occupied(points).astype(np.float64)
+    flip = rng.random(count) < flip_fraction
+    labels[flip] = 1.0 - labels[flip]
+    return Observations(points, labels)
+
+
+def roc_auc(labels: NDArray[np.bool_], scores: NDArray[np.float64]) -> float:
+    """Area under the ROC curve via the Mann–Whitney rank statistic (ties averaged)."""
+    labels = np.asarray(labels, dtype=bool)
+    positives, negatives = int(labels.sum()), int((~labels).sum())
+    if positives == 0 or negatives == 0:
+        raise ValueError("AUC needs both classes")
+    ranks = rankdata(scores)
+    return float((ranks[labels].sum() - positives * (positives + 1) / 2) / (positives * negatives))
+
+
+@contextlib.contextmanager
+def _single_blas_thread() -> Iterator[str]:
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        yield "not limited (threadpoolctl is not installed)"
+        return
+    with threadpool_limits(limits=1):
+        yield "1 (threadpoolctl)"
+
+
+def _timed_ms(
+    run: Callable[[], Any], repeats: int, setup: Callable[[], Any] | None = None
+) -> tuple[float, float]:
+    """Median and minimum wall time of ``run`` in milliseconds (``setup`` is not timed)."""
+    times = []
+    for _ in range(repeats):
+        if setup is not None:
+            setup()
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times) * 1e3), float(np.min(times) * 1e3)
+
+
+def _build(config: BayesianHilbertMapConfig, seed: int, scene: Scene) -> BayesianHilbertMap:
+    context = BuildContext(id="bhm-bench", rng=np.random.default_rng(seed), scene=scene)
+    return BayesianHilbertMap(config, context)
+
+
+def benchmark_bhm(rng_seed: int = 0, repeats: int = 15) -> dict[str, Any]:
+    """Time fit (3,000 points), sequential update (+200 points) and a 15,000-point grid.
+
+    Parameters
+    ----------
+    rng_seed : int
+        Seed of the data and of the maps' Monte-Carlo samples.
+    repeats : int
+        Timed repetitions per figure (the median is reported).
+
+    Returns
+    -------
+    dict
+        Median times ``fit_3000_ms``, ``update_200_ms``, ``grid_15000_mean_std_ms``
+        (:meth:`probability_grid` at 5 mm) and ``query_15000_mean_std_ms`` (generic
+        :meth:`query` on the same points), each also as ``*_min_ms`` (fastest repeat), with
+        one length scale (as the targets assume) and with region-dependent smoothing
+        (``rds_*``); iteration counts, whether the update triggered a refit, the AUC on
+        20,000 fresh points, and the BLAS thread setting.
+    """
+    rng = np.random.default_rng(rng_seed)
+    scene = two_object_scene()
+    train = labelled_points(scene, 3000, rng)
+    extra = labelled_points(scene, 200, rng)
+    test = labelled_points(scene, 20_000, rng, flip_fraction=0.0)
+    results: dict[str, Any] = {"platform": platform.processor() or platform.machine()}
+
+    with _single_blas_thread() as threads:
+        results["blas_threads"] = threads
+        for prefix, smoothing in (("", False), ("rds_", True)):
+            config = BayesianHilbertMapConfig(region_dependent_smoothing=smoothing)
+            bhm = _build(config, rng_seed, scene)
+            bhm.fit(train)  # warm-up, and the iteration count of the first batch
+            results[f"{prefix}fit_iterations"] = bhm.last_update_info.iterations
+            timings = {
+                "fit_3000": _timed_ms(lambda: bhm.fit(train), repeats),
+                "update_200": _timed_ms(
+                    lambda: bhm.update(extra), repeats, setup=lambda: bhm.fit(train)
+                ),
+            }
+            bhm.fit(train)
+            refits_before = bhm.refits
+            bhm.update(extra)
+            results[f"{prefix}update_iterations"] = bhm.last_update_info.iterations
+            results[f"{prefix}update_refitted"] = bhm.refits > refits_before
+            grid_points = np.stack(
+                np.meshgrid(*scene.region.to_region().grid(0.005), indexing="xy"), axis=-1
+            ).reshape(-1, 2)
+            results[f"{prefix}grid_points"] = int(grid_points.shape[0])
+            timings["grid_15000_mean_std"] = _timed_ms(lambda: bhm.probability_grid(0.005), repeats)
+            timings["query_15000_mean_std"] = _timed_ms(
+                lambda: bhm.query(grid_points), max(3, repeats // 3)
+            )
+            for name, (median, fastest) in timings.items():
+                results[f"{prefix}{name}_ms"] = median
+                results[f"{prefix}{name}_min_ms"] = fastest
+            estimate = bhm.query(test.points_m)
+            results[f"{prefix}auc"] = roc_auc(test.targets > 0.5, estimate.mean)
+    results["targets_ms"] = {"fit_3000": 25.0, "update_200": 2.0, "grid_15000_mean_std": 40.0}
+    return results

@@ -1,0 +1,117 @@
+"""Configuration of the ``bayesian-hilbert-map`` map (import-light: pydantic only)."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from hapticframe import PluginConfig, RegionConfig
+
+__all__ = ["BayesianHilbertMapConfig", "length_scale_from_bandwidth_per_cm2"]
+
+
+def length_scale_from_bandwidth_per_cm2(gamma_per_cm2: float) -> float:
+    """Length scale in metres of an RBF bandwidth ``gamma`` in cm^-2: ``sqrt(1/(2 gamma))``."""
+    return math.sqrt(1.0 / (2.0 * gamma_per_cm2)) / 100.0
+
+
+#: Table 3.1 of the thesis: gamma_m = 0.1 cm^-2 for free movement (l = 2.24 cm) and
+#: 0.04 cm^-2 for interaction with the object (l = 3.54 cm).
+_FREE_LENGTH_SCALE_M = length_scale_from_bandwidth_per_cm2(0.1)
+_INTERACTION_LENGTH_SCALE_M = length_scale_from_bandwidth_per_cm2(0.04)
+
+
+class BayesianHilbertMapConfig(PluginConfig):
+    """Settings of the Bayesian Hilbert map (full-covariance variational BHM)."""
+
+    region: RegionConfig | None = Field(
+        None,
+        description=(
+            "Mapped rectangle in metres. Default: the scene's region when the experiment has "
+            "a scene, else the thesis's 0.75 x 0.50 m search area."
+        ),
+    )
+    hinge_spacing_m: float = Field(
+        0.05,
+        gt=0,
+        le=10.0,
+        description="Spacing of the RBF hinge grid (Table 3.1: 5 cm). Hinges cover the region "
+        "with both edges included plus one spacing of padding on every side.",
+    )
+    length_scale_free_m: float = Field(
+        _FREE_LENGTH_SCALE_M,
+        ge=1e-6,
+        le=1e3,
+        description="Kernel length scale l of hinges in free-movement areas, and of every hinge "
+        "when region_dependent_smoothing is off (gamma = 1/(2 l^2); Table 3.1's "
+        "0.1 cm^-2 gives 2.24 cm).",
+    )
+    length_scale_interaction_m: float = Field(
+        _INTERACTION_LENGTH_SCALE_M,
+        ge=1e-6,
+        le=1e3,
+        description="Kernel length scale of hinges in interaction areas (Table 3.1's "
+        "0.04 cm^-2 gives 3.54 cm).",
+    )
+    region_dependent_smoothing: bool = Field(
+        True,
+        description="Give hinges near interaction observations, or whose occupancy estimate "
+        "exceeds 0.5, the interaction length scale (see the module docstring of "
+        "hapticframe_bhm._map); false uses length_scale_free_m everywhere.",
+    )
+    interaction_radius_m: float = Field(
+        0.05,
+        ge=0,
+        description="A hinge within this distance of an observation with target > 0.5 "
+        "switches to the interaction length scale (region_dependent_smoothing only).",
+    )
+    bias: bool = Field(True, description="Append a constant bias feature to the hinge features.")
+    prior_variance: float = Field(
+        10.0,
+        gt=0,
+        le=1e8,
+        description="Variance of the zero-mean Gaussian prior of every weight (bias included).",
+    )
+    max_iterations_first: int = Field(
+        10,
+        ge=1,
+        le=1000,
+        description="Cap on variational EM iterations for the first batch (and for refits).",
+    )
+    max_iterations_update: int = Field(
+        3, ge=1, le=1000, description="Cap on variational EM iterations for later batches."
+    )
+    tolerance: float = Field(
+        0.05,
+        gt=0,
+        description="Stop iterating when the relative change of the local variational "
+        "parameters xi, ||xi_new - xi|| / ||xi||, is at most this.",
+    )
+    std_method: Literal["monte_carlo", "surrogate"] = Field(
+        "monte_carlo",
+        description="Occupancy standard deviation: sample std of sigma(w^T phi) over seeded "
+        "weight samples (thesis Eq. 3.8), or the deterministic p(1-p) kappa sqrt(var).",
+    )
+    monte_carlo_samples: int = Field(
+        100,
+        ge=2,
+        le=100_000,
+        description="Weight samples K for the Monte-Carlo standard deviation.",
+    )
+
+    blas_threads: int | None = Field(
+        1,
+        ge=1,
+        description="BLAS threads used inside map updates and queries (via threadpoolctl when "
+        "installed). The matrices are small (D ~ 235), where one thread is fastest and "
+        "avoids oversubscription stalls; null leaves the BLAS setting alone.",
+    )
+
+    @model_validator(mode="after")
+    def _finite(self) -> BayesianHilbertMapConfig:
+        for name in ("hinge_spacing_m", "interaction_radius_m", "tolerance"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be finite")
+        return self
