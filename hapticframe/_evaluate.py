@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ._scene import Scene
 from .geometry import blob_centroid, directed_hausdorff_both, main_outline, sample_grid
@@ -13,11 +14,19 @@ from .kinds import Map
 __all__ = ["evaluate_map"]
 
 
-def evaluate_map(the_map: Map, scene: Scene, *, level: float = 0.6, spacing_m: float = 0.0025) -> dict[str, Any]:
+def evaluate_map(
+    the_map: Map,
+    scene: Scene,
+    *,
+    level: float = 0.6,
+    spacing_m: float = 0.0025,
+    near_m: ArrayLike | None = None,
+) -> dict[str, Any]:
     """Compare the map's estimated object with the nearest true object.
 
-    The estimate is the connected region where the occupancy mean reaches ``level``
-    holding the most occupancy; its centroid and its ``level`` curve are compared with the
+    The estimate is the connected region where the occupancy mean reaches ``level``: the
+    one closest to ``near_m`` (where the robot met the object) when given, else the one
+    holding the most occupancy. Its centroid and its ``level`` curve are compared with the
     true object's centroid and outline. Distances are directed Hausdorff distances in both
     directions. When nothing reaches ``level`` the object counts as not found and the
     distances are None.
@@ -34,7 +43,7 @@ def evaluate_map(the_map: Map, scene: Scene, *, level: float = 0.6, spacing_m: f
         "hausdorff_est_to_true_m": None,
         "hausdorff_true_to_est_m": None,
     }
-    centroid = blob_centroid(xs, ys, mean, level)
+    centroid = blob_centroid(xs, ys, mean, level, near_m=near_m)
     if centroid is None:
         return out
     truths = [obj.centroid_m for obj in scene.objects]

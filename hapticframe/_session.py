@@ -211,11 +211,15 @@ class Session:
         scene = self.experiment.model.scene  # type: ignore[attr-defined]
         map_id = self._evaluation_map()
         if scene is not None and scene.objects and map_id is not None:
+            # The robot knows where it met the object: the estimate is the blob nearest there.
+            met = [r.final_state.position_m for r in self.movements
+                   if r.interacted and r.final_state is not None]
             out.update(evaluate_map(
                 self.components[map_id],  # type: ignore[arg-type]
                 scene,
                 level=self.settings.outline_level,
                 spacing_m=self.settings.evaluation_spacing_m,
+                near_m=np.mean(met, axis=0) if met else None,
             ))
             out["evaluated_map"] = map_id
         outcome = RunOutcome(
