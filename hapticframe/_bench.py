@@ -28,6 +28,8 @@ class BenchOptions:
         Seeds every trial.
     quick : bool
         Run a reduced version (minutes, not hours).
+    workers : int or None
+        Processes a suite may use for independent trials (None: one per CPU).
     echo : callable
         Prints a progress line.
     """
@@ -36,6 +38,7 @@ class BenchOptions:
     trials: int | None = None
     seed: int = 0
     quick: bool = False
+    workers: int | None = None
     echo: Callable[[str], None] = field(default=print)
 
 

@@ -161,7 +161,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from ._bench import BenchOptions, run_bench
 
     options = BenchOptions(
-        out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick, echo=_out
+        out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
+        workers=args.workers, echo=_out,
     )
     run_bench(args.name, options)
     return 0
@@ -216,6 +217,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="bench-out", metavar="DIR")
     p.add_argument("--quick", action="store_true", help="a reduced run")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="processes for independent trials (default: one per CPU)")
     p.set_defaults(func=cmd_bench)
     return parser
 

@@ -1,0 +1,345 @@
+"""``hapticframe bench search``: the simulated haptic-search study of Table 3.2.
+
+Protocol (Jia 2022, section 3.5.2.1): for each of two shapes, a circle of 8 cm diameter
+and a 9 x 5 cm ellipse, ``N`` trials bury the object at a random position and orientation
+fully inside the 75 x 50 cm region and run a complete haptic search. Every placement is
+searched twice, by the thesis's two-phase planner and by the exhaustive ``coverage``
+baseline, each through the core's public :func:`hapticframe.run_experiment`.
+
+Outputs in ``options.out_dir``:
+
+* ``trials/<shape>-<i>-<planner>/``: every run's own files (figures only for trial 0 of
+  each shape: later trials run with ``run.figures: false``),
+* ``search.json``: the summary (see :func:`run_suite`),
+* ``search.md``: a table in the form of Table 3.2 beside the thesis's figures,
+* ``search.png``: per-trial centroid error and Hausdorff distance.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import subprocess
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import hapticframe
+from hapticframe import BenchOptions, RunError, run_experiment, validate_mapping
+
+from ._aggregate import aggregate_trials, trial_figures
+from ._placements import SHAPES, Placement, draw_placements
+from ._report import THESIS_TABLE_3_2, render_markdown, save_trial_figure
+from ._template import REGION_HEIGHT_M, REGION_WIDTH_M, search_experiment
+
+__all__ = [
+    "BASELINE_PLANNER",
+    "DEFAULT_TRIALS",
+    "QUICK_TRIALS",
+    "SEARCH_PLANNER",
+    "run_search",
+    "run_suite",
+    "trial_seed",
+    "trials_for",
+]
+
+#: Trials per shape in the thesis, and in a quick run.
+DEFAULT_TRIALS = 25
+QUICK_TRIALS = 5
+#: The planner under test and the baseline it is compared with.
+SEARCH_PLANNER = "two-phase-coverage"
+BASELINE_PLANNER = "coverage"
+
+ExperimentFactory = Callable[[Sequence[Mapping[str, Any]], str, int, str], dict[str, Any]]
+
+
+def trial_seed(seed: int, shape: str, index: int) -> int:
+    """The experiment seed of one trial: fixed by the suite's seed, the shape and the index.
+
+    Both planners of a trial share it. Derived with :class:`numpy.random.SeedSequence`, so
+    it does not depend on the number of trials.
+    """
+    shape_number = SHAPES.index(shape) if shape in SHAPES else len(SHAPES)
+    state = np.random.SeedSequence([int(seed), shape_number, int(index)]).generate_state(1)
+    return int(state[0])
+
+
+def trials_for(options: BenchOptions) -> int:
+    """Trials per shape: ``options.trials``, else 5 for a quick run, else the thesis's 25.
+
+    Raises
+    ------
+    ValueError
+        When ``options.trials`` is not a positive int.
+    """
+    trials = options.trials if options.trials is not None else (
+        QUICK_TRIALS if options.quick else DEFAULT_TRIALS)
+    if not isinstance(trials, int) or isinstance(trials, bool) or trials < 1:
+        raise ValueError(f"trials must be a positive int, got {trials!r}")
+    return trials
+
+
+def _git_commit() -> str | None:
+    """The commit of a hapticframe source checkout (``-dirty`` with local changes), else None."""
+    where = Path(hapticframe.__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=where, capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        status = subprocess.run(["git", "status", "--porcelain"], cwd=where,
+                                capture_output=True, text=True, timeout=10, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return None  # an installed package, or no git: the versions must do
+    return f"{head}-dirty" if status.strip() else head
+
+
+def _versions(experiment: hapticframe.Experiment) -> dict[str, Any]:
+    versions: dict[str, Any] = {
+        "hapticframe": hapticframe.__version__,
+        "git_commit": _git_commit(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+    }
+    for package in ("scipy", "pydantic", "matplotlib"):
+        try:
+            versions[package] = importlib.metadata.version(package)
+        except importlib.metadata.PackageNotFoundError:
+            versions[package] = None
+    versions["plugins"] = {
+        f"{entry.kind.value}/{entry.type}": f"{entry.registered.source.distribution} "
+        f"{entry.registered.source.version}"
+        for entry in experiment.components
+    }
+    return versions
+
+
+def _force_limit_n(experiment: hapticframe.Experiment) -> float | None:
+    """The sandbox robot's force limit as configured (None for another robot)."""
+    for robot in experiment.resolved_config().get("robots", []):
+        limit = robot.get("config", {}).get("force_limit_n")
+        if limit is not None:
+            return float(limit)
+    return None
+
+
+def _command(options: BenchOptions, trials: int) -> str:
+    parts = ["hapticframe", "bench", "search", "--trials", str(trials), "--seed",
+             str(options.seed), "--out", str(options.out_dir)]
+    if options.quick:
+        parts.append("--quick")
+    return " ".join(parts)
+
+
+def _progress(record: Mapping[str, Any], done: int, total: int) -> str:
+    head = (f"[{done:>3}/{total}] {record['shape']:<7} trial {record['index']:<3} "
+            f"{record['planner']:<19}")
+    if record["status"] != "ok":
+        return f"{head} FAILED after {record['wall_time_s']:.1f} s: {record['error']}"
+    f = record["figures"]
+
+    def cm(key: str) -> str:
+        value = f.get(key)
+        return "   –   " if value is None else f"{value * 100:5.1f} cm"
+
+    force = f.get("max_force_n")
+    return (
+        f"{head} {'found    ' if f['object_found'] else 'NOT FOUND'}"
+        f" centroid {cm('centroid_error_m')}"
+        f"  Hausdorff {cm('hausdorff_m')}  EMs {f.get('ems_phase1')}+{f.get('ems_phase2')}"
+        f"  max force {'–' if force is None else f'{force:.0f} N'}"
+        f"  {record['wall_time_s']:.1f} s"
+    )
+
+
+def _run_trial(
+    placement: Placement,
+    role: str,
+    planner: str,
+    seed: int,
+    trials_dir: Path,
+    factory: ExperimentFactory,
+    keep_figures: bool,
+) -> tuple[dict[str, Any], dict[str, Any], float | None, float]:
+    name = f"{placement.shape}-{placement.index}-{planner}"
+    data = factory([placement.scene_object()], planner, seed, name)
+    # Figures only for the first trial of each shape: drawing costs more than a fast search.
+    data.setdefault("run", {})["figures"] = keep_figures
+    experiment = validate_mapping(data, source=f"<bench search {name}>")
+    run_dir = trials_dir / name
+    record: dict[str, Any] = {
+        "shape": placement.shape,
+        "index": placement.index,
+        "role": role,
+        "planner": planner,
+        "seed": seed,
+        "placement": placement.to_dict(),
+        "run_dir": str(Path("trials") / name),
+        "status": "ok",
+        "error": None,
+        "figures": None,
+    }
+    started = time.perf_counter()
+    try:
+        metrics = run_experiment(experiment, run_dir, overwrite=True, echo=lambda _line: None)
+        record["figures"] = trial_figures(metrics)
+    except RunError as exc:
+        record["status"] = "failed"
+        record["error"] = str(exc)
+    finally:
+        record["wall_time_s"] = time.perf_counter() - started
+    return record, _versions(experiment), _force_limit_n(experiment), (
+        experiment.resolved_config()["run"]["outline_level"])
+
+
+def _run_job(job: tuple[Any, ...]) -> tuple[dict[str, Any], dict[str, Any], float | None, float]:
+    return _run_trial(*job)
+
+
+def _map_jobs(jobs: list[tuple[Any, ...]], workers: int) -> Any:
+    """Run the trials, in worker processes when there is more than one worker.
+
+    Trials are independent and seeded, so results do not depend on the number of workers.
+    """
+    if workers <= 1:
+        yield from map(_run_job, jobs)
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(_run_job, job) for job in jobs]
+        for future in as_completed(futures):
+            yield future.result()
+
+
+def _summarise(
+    records: Sequence[Mapping[str, Any]], shapes: Sequence[str], force_limit_n: float | None
+) -> dict[str, Any]:
+    def group(shape: str, role: str) -> dict[str, Any]:
+        chosen = [r for r in records if r["shape"] == shape and r["role"] == role]
+        return aggregate_trials(chosen, force_limit_n)
+
+    out: dict[str, Any] = {shape: group(shape, "search") for shape in shapes}
+    out["baseline"] = {shape: group(shape, "baseline") for shape in shapes}
+    return out
+
+
+def _json_ready(value: Any) -> Any:
+    """Plain JSON data with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, Mapping):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, (np.generic,)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def run_suite(
+    options: BenchOptions,
+    *,
+    experiment_factory: ExperimentFactory = search_experiment,
+    shapes: Sequence[str] = SHAPES,
+) -> dict[str, Any]:
+    """Run the search benchmark and write its report (see the module docstring).
+
+    Parameters
+    ----------
+    options : hapticframe.BenchOptions
+        ``trials`` per shape (default 25, or 5 with ``quick``), ``seed`` (placements come
+        from ``numpy.random.default_rng(seed)``), ``out_dir`` and ``echo`` (one line per
+        run).
+    experiment_factory : callable
+        Builds one trial's experiment mapping as
+        ``factory(scene_objects, planner_type, seed, name)``; the default is the thesis's
+        set-up, :func:`~hapticframe_bench._template.search_experiment`.
+    shapes : sequence of str
+        Shapes to bury (default: circle and ellipse).
+
+    Returns
+    -------
+    dict
+        The summary written to ``search.json``: one aggregate (see
+        :func:`~hapticframe_bench._aggregate.aggregate_trials`) per shape for the two-phase
+        planner at the top level, the same under ``"baseline"`` for the coverage planner,
+        ``wall_time_s``, ``trials``, ``seed``, ``versions``, ``machine``, ``command``,
+        ``planners``, ``thesis`` (Table 3.2) and ``runs`` (every run's record).
+    """
+    trials = trials_for(options)
+    shapes = tuple(shapes)
+    out_dir = Path(options.out_dir)
+    trials_dir = out_dir / "trials"
+    trials_dir.mkdir(parents=True, exist_ok=True)
+    placements = draw_placements(
+        np.random.default_rng(options.seed), trials, (0.0, REGION_WIDTH_M, 0.0, REGION_HEIGHT_M),
+        shapes,
+    )
+    planners = {"search": SEARCH_PLANNER, "baseline": BASELINE_PLANNER}
+    total = trials * len(shapes) * len(planners)
+    records: list[dict[str, Any]] = []
+    versions: dict[str, Any] = {}
+    force_limit_n: float | None = None
+    outline_level: float | None = None
+    started = time.perf_counter()
+    options.echo(f"search benchmark: {trials} trials x {len(shapes)} shapes x "
+                 f"{len(planners)} planners = {total} runs into {trials_dir}")
+    jobs = [
+        (placements[shape][index], role, planner, trial_seed(options.seed, shape, index),
+         trials_dir, experiment_factory, index == 0)
+        for index in range(trials) for shape in shapes for role, planner in planners.items()
+    ]
+    workers = min(options.workers or os.cpu_count() or 1, len(jobs))
+    for record, run_versions, limit, level in _map_jobs(jobs, workers):
+        if not versions:
+            versions, force_limit_n, outline_level = run_versions, limit, level
+        else:  # the baseline's planner joins the plugin list
+            versions["plugins"].update(run_versions["plugins"])
+        records.append(record)
+        options.echo(_progress(record, len(records), total))
+    order = {(j[0].shape, j[0].index, j[1]): k for k, j in enumerate(jobs)}
+    records.sort(key=lambda r: order[(r["shape"], r["index"], r["role"])])
+    wall_time_s = time.perf_counter() - started
+    summary: dict[str, Any] = _summarise(records, shapes, force_limit_n)
+    summary.update({
+        "wall_time_s": wall_time_s,
+        "trials": trials,
+        "seed": options.seed,
+        "quick": options.quick,
+        "shapes": list(shapes),
+        "planners": planners,
+        "outline_level": outline_level,
+        "force_limit_n": force_limit_n,
+        "versions": versions,
+        "machine": {
+            "platform": platform.platform(),
+            "processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(),
+            "python": platform.python_version(),
+        },
+        "command": _command(options, trials),
+        "thesis": {shape: {k: list(v) for k, v in row.items()}
+                   for shape, row in THESIS_TABLE_3_2.items()},
+        "runs": records,
+    })
+    summary = _json_ready(summary)
+    text = json.dumps(summary, indent=2, sort_keys=False, allow_nan=False)
+    (out_dir / "search.json").write_text(text + "\n", encoding="utf-8")
+    (out_dir / "search.md").write_text(render_markdown(summary), encoding="utf-8")
+    if not save_trial_figure(out_dir / "search.png", summary):
+        options.echo("search.png skipped: matplotlib is not installed")
+    options.echo(f"search benchmark done in {wall_time_s:.1f} s: {out_dir / 'search.md'}")
+    return summary
+
+
+def run_search(options: BenchOptions) -> dict[str, Any]:
+    """``hapticframe bench search``: Table 3.2's protocol with the bundled plugins.
+
+    See :func:`run_suite` for the options used and the summary returned.
+    """
+    return run_suite(options)
