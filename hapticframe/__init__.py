@@ -5,37 +5,56 @@ the ``hapticframe`` entry-point group, validates experiment files, assembles the
 components and runs them. Everything scientific lives in plugins.
 """
 
-from ._bench import BenchOptions
-from ._config import Experiment, RunSettings, validate_file, validate_mapping
-from ._errors import (
-    ExperimentError,
-    HapticframeError,
-    Issue,
-    PluginConflictError,
-    PluginError,
-    PluginImportError,
-    RunError,
-    UsageError,
-)
-from ._kind import Kind
-from ._manager import get_plugin_manager, get_registry, make_plugin_manager
-from ._registry import BrokenPlugin, Registered, Registry, Source
-from ._session import RunSummary, run_experiment
-from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
-from ._specs import (
-    BenchSpec,
-    ClassifierSpec,
-    FeatureExtractorSpec,
-    MapSpec,
-    PlannerSpec,
-    PluginConfig,
-    PluginSpec,
-    RobotSpec,
-    SensorModelSpec,
-    SensorSpec,
-)
-from ._version import __version__
-from .hookspecs import hookimpl
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+# Public names resolve on first use (PEP 562), so that `hapticframe --help` and the light
+# commands pay only for what they touch.
+_LAZY = {
+    "BenchOptions": "._bench",
+    "BenchSpec": "._specs",
+    "BrokenPlugin": "._registry",
+    "Circle": "._scene",
+    "ClassifierSpec": "._specs",
+    "Ellipse": "._scene",
+    "Experiment": "._config",
+    "ExperimentError": "._errors",
+    "FeatureExtractorSpec": "._specs",
+    "HapticframeError": "._errors",
+    "Issue": "._errors",
+    "Kind": "._kind",
+    "MapSpec": "._specs",
+    "Material": "._scene",
+    "PlannerSpec": "._specs",
+    "PluginConfig": "._specs",
+    "PluginConflictError": "._errors",
+    "PluginError": "._errors",
+    "PluginImportError": "._errors",
+    "PluginSpec": "._specs",
+    "Polygon": "._scene",
+    "RegionConfig": "._scene",
+    "Registered": "._registry",
+    "Registry": "._registry",
+    "RobotSpec": "._specs",
+    "RunError": "._errors",
+    "RunSettings": "._config",
+    "RunSummary": "._session",
+    "Scene": "._scene",
+    "SensorModelSpec": "._specs",
+    "SensorSpec": "._specs",
+    "Source": "._registry",
+    "UsageError": "._errors",
+    "__version__": "._version",
+    "get_plugin_manager": "._manager",
+    "get_registry": "._manager",
+    "hookimpl": ".hookspecs",
+    "make_plugin_manager": "._manager",
+    "run_experiment": "._session",
+    "validate_file": "._config",
+    "validate_mapping": "._config",
+}
 
 __all__ = [
     "BenchOptions",
@@ -80,3 +99,30 @@ __all__ = [
     "validate_file",
     "validate_mapping",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hapticframe' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static type checkers see the real imports
+    from ._bench import BenchOptions
+    from ._config import Experiment, RunSettings, validate_file, validate_mapping
+    from ._errors import ExperimentError, HapticframeError, Issue, PluginConflictError, PluginError, PluginImportError, RunError, UsageError
+    from ._kind import Kind
+    from ._manager import get_plugin_manager, get_registry, make_plugin_manager
+    from ._registry import BrokenPlugin, Registered, Registry, Source
+    from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
+    from ._session import RunSummary, run_experiment
+    from ._specs import BenchSpec, ClassifierSpec, FeatureExtractorSpec, MapSpec, PlannerSpec, PluginConfig, PluginSpec, RobotSpec, SensorModelSpec, SensorSpec
+    from ._version import __version__
+    from .hookspecs import hookimpl
