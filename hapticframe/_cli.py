@@ -126,9 +126,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         if args.kind:
             found = [r for r in found if r.spec.kind is Kind(args.kind)]
         if not found:
-            kinds = [Kind(args.kind)] if args.kind else list(Kind)
-            raise UsageError("; ".join(registry.unknown_message(k, name) for k in kinds[:1]) if args.kind
-                             else f"no plugin called {name!r} is installed; see `hapticframe plugins`")
+            if args.kind:
+                raise UsageError(registry.unknown_message(Kind(args.kind), name))
+            raise UsageError(f"no plugin called {name!r} is installed; see `hapticframe plugins`")
         selected.extend(found)
     failures = 0
     for reg in selected:

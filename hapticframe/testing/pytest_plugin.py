@@ -10,7 +10,7 @@ unless ``--hardware`` is given), and fixtures for building components the way th
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -47,7 +47,7 @@ def hapticframe_registry() -> Registry:
 
 
 @pytest.fixture
-def build_component(hapticframe_registry: Registry) -> Callable[..., Any]:
+def build_component(hapticframe_registry: Registry) -> Iterator[Callable[..., Any]]:
     """``build_component(kind, name, **overrides)`` builds a plugin as the kit does."""
     from .._kind import Kind
 

@@ -86,3 +86,22 @@ def test_check_command_runs_the_kit(lab_dir, capsys, monkeypatch):
 def test_python_dash_m_and_version():
     proc = subprocess.run([sys.executable, "-m", "hapticframe", "--version"], capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stdout.startswith("hapticframe ")
+
+
+def test_session_hooks_and_run_metadata_reach_lab_plugins(lab_dir):
+    import labplugin  # imported from beside the experiment by plugin_modules
+
+    out = lab_dir / "run"
+    assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+    assert labplugin.SESSIONS[-2:] == [("start", "lab-open-loop"), ("finish", "ok")]
+    record = json.loads((out / "run.json").read_text())
+    assert record["plugin_metadata"] == {"lab_rig": "sandbox-2"}
+
+
+def test_a_known_plugin_with_missing_requirements_gets_its_install_hint(lab_dir, capsys):
+    path = lab_dir / "lab-open-loop.yaml"
+    path.write_text(path.read_text().replace("type: lab-sweep", "type: lab-needs-driver"))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "needs no_such_vendor_driver" in err and "pip install lab-vendor-driver" in err
+    assert f"{path}:11:" in err

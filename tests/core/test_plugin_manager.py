@@ -116,3 +116,19 @@ def test_plugins_command_lists_kinds_and_broken(site, capsys):
         assert main(["plugins", "--strict"]) == 1
     finally:
         get_plugin_manager.cache_clear()
+
+
+def test_error_hints_from_plugins_are_printed(site, capsys):
+    make_dist(site, "lab-hints", "1.0", {"hints": "hf_test_hints"}, {"hf_test_hints": """
+        from hapticframe import hookimpl
+        @hookimpl
+        def hapticframe_error_hints(error):
+            return ["check the rig's cable"] if "no such file" in str(error) else []
+    """})
+    get_plugin_manager.cache_clear()
+    try:
+        assert main(["run", str(site / "missing.yaml"), "--out", str(site / "o")]) == 2
+        err = capsys.readouterr().err
+        assert "no such file" in err and "hint: check the rig's cable" in err
+    finally:
+        get_plugin_manager.cache_clear()

@@ -166,6 +166,27 @@ class CellMap(Map):
 def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec("lab-sweep", "Replays a fingertip sweep over a disc.", SweepConfig,
                      f"{__name__}:SweepSensor", capabilities=frozenset({"finite"}))
+    yield SensorSpec("lab-needs-driver", "A device whose driver is not installed.", SweepConfig,
+                     f"{__name__}:SweepSensor", requires=("no_such_vendor_driver",),
+                     install_hint="pip install lab-vendor-driver")
+
+
+SESSIONS: list[tuple[str, str]] = []
+
+
+@hookimpl
+def hapticframe_session_start(session) -> None:  # type: ignore[no-untyped-def]
+    SESSIONS.append(("start", session.experiment.model.name))
+
+
+@hookimpl
+def hapticframe_session_finish(session, status) -> None:  # type: ignore[no-untyped-def]
+    SESSIONS.append(("finish", status))
+
+
+@hookimpl
+def hapticframe_run_metadata(session) -> dict[str, str]:  # type: ignore[no-untyped-def]
+    return {"lab_rig": "sandbox-2"}
 
 
 @hookimpl
