@@ -23,7 +23,7 @@ import numpy as np
 from ._config import Experiment, RunSettings
 from ._dataflow import Dataflow, TraceRecorder
 from ._errors import ExperimentError, HapticframeError, Issue, RunError, UsageError
-from ._evaluate import evaluate_map
+from ._evaluate import evaluate_map, save_outline_figure
 from ._kind import Kind
 from ._version import __version__
 from .kinds import (
@@ -214,14 +214,21 @@ class Session:
             # The robot knows where it met the object: the estimate is the blob nearest there.
             met = [r.final_state.position_m for r in self.movements
                    if r.interacted and r.final_state is not None]
+            the_map: Map = self.components[map_id]  # type: ignore[assignment]
             out.update(evaluate_map(
-                self.components[map_id],  # type: ignore[arg-type]
+                the_map,
                 scene,
                 level=self.settings.outline_level,
                 spacing_m=self.settings.evaluation_spacing_m,
                 near_m=np.mean(met, axis=0) if met else None,
             ))
+            outline = out.pop("_outline")
             out["evaluated_map"] = map_id
+            if self.settings.figures:
+                save_outline_figure(
+                    self.out_dir / "outline.png", the_map.region, scene, self.movements, outline,
+                    out["estimated_centroid_m"], self.settings.outline_level,
+                )
         outcome = RunOutcome(
             self.out_dir, scene, tuple(self.movements), self.components, wall_time_s,
             figures=self.settings.figures,
