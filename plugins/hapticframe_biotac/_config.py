@@ -1,0 +1,93 @@
+"""Config model of the BioTac sensor (import-light: pydantic and hapticframe only)."""
+
+from __future__ import annotations
+
+import re
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from hapticframe import PluginConfig
+
+__all__ = ["BioTacSensorConfig"]
+
+_REFERENCE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+
+
+class BioTacSensorConfig(PluginConfig):
+    """A SynTouch BioTac (or BioTac SP) fingertip: one row per frame of raw 12-bit counts.
+
+    Three sources: ``synthetic`` trials of the granular-media generator (with ground truth),
+    ``replay`` of a recording (the project's ``.npz`` format or a BioTac ``.csv``), and ``spi``
+    words decoded from an SPI-batch backend (``emulator`` without hardware).
+    """
+
+    source: Literal["synthetic", "replay", "spi"] = Field(
+        "synthetic", description="Where frames come from: the synthetic generator, a recording, or the SPI word stream."
+    )
+    variant: Literal["biotac", "biotac_sp"] = Field(
+        "biotac",
+        description="BioTac (44-word frame: 22 pac, 19 electrodes, 100 Hz) or BioTac SP (54-word "
+        "frame: 27 pac, 24 electrodes, about 81.5 Hz).",
+    )
+    frames_per_read: int = Field(1, ge=1, le=10_000, description="Frames delivered by each read().")
+
+    # -- replay ------------------------------------------------------------------------------
+    path: str | None = Field(
+        None, description="Replay: the recording, a hapticframe .npz or a BioTac .csv file."
+    )
+
+    # -- synthetic ---------------------------------------------------------------------------
+    medium: Literal["poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads"] = Field(
+        "poppy_seed", description="Synthetic: the granular medium (Table 2.1 of the thesis)."
+    )
+    speed_m_per_s: float = Field(0.04, ge=0.005, le=0.2, description="Synthetic: fingertip speed (0.04 or 0.02 in the thesis).")
+    orientation_deg: float = Field(0.0, ge=-45, le=45, description="Synthetic: fingertip orientation (0 or 20 in the thesis).")
+    object_offset_m: float = Field(
+        0.0, ge=-0.05, le=0.05, description="Synthetic: object offset along the path (0 or 0.035 in the thesis)."
+    )
+    has_object: bool = Field(True, description="Synthetic: whether a buried object lies on the path.")
+    fingertip_depth_m: float = Field(0.05, ge=0.01, le=0.12, description="Synthetic: fingertip depth below the surface.")
+    n_trials: int = Field(1, ge=1, le=100_000, description="Synthetic: trials generated one after another.")
+    trial_gap_s: float = Field(
+        0.5, gt=0, description="Synthetic: time between the last frame of a trial and the first of the next."
+    )
+
+    # -- spi ---------------------------------------------------------------------------------
+    spi_backend: str = Field(
+        "emulator",
+        description="SPI: 'emulator', or 'package.module:factory' of a real adapter backend, "
+        "called as factory(variant) and returning an SpiBatchBackend.",
+    )
+    emulator_frames: int | None = Field(
+        None, ge=0, description="SPI emulator: end after this many frames (None: endless resting signal)."
+    )
+    parity_error_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per word of a parity error.")
+    stale_word_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per word of a stale ('E-') word.")
+    dropped_frame_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per frame that it is lost.")
+    jitter_s: float = Field(
+        0.0005, ge=0, lt=0.005, description="SPI emulator: late reporting of each transfer's completion time, up to this."
+    )
+    on_dropped_frame: Literal["mark", "skip"] = Field(
+        "mark",
+        description="SPI: deliver a dropped frame as a row holding the last values with every channel "
+        "invalid ('mark', keeps a regular grid) or leave it out ('skip').",
+    )
+
+    @field_validator("spi_backend")
+    @classmethod
+    def _backend_name(cls, value: str) -> str:
+        if value != "emulator" and not _REFERENCE.match(value):
+            raise ValueError(f"spi_backend must be 'emulator' or 'module:factory', got {value!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _source_needs(self) -> BioTacSensorConfig:
+        if self.source == "replay":
+            if not self.path:
+                raise ValueError("source 'replay' needs a path to a .npz or .csv recording")
+            if not self.path.lower().endswith((".npz", ".csv")):
+                raise ValueError(f"replay path {self.path!r} must end in .npz or .csv")
+        if self.source == "synthetic" and self.variant != "biotac":
+            raise ValueError("the synthetic generator models the 19-electrode BioTac only; use variant 'biotac'")
+        return self
