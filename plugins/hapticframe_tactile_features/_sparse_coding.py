@@ -1,0 +1,273 @@
+"""The ``sparse-coding`` feature extractor: feature tensors in, sparse codes out."""
+
+from __future__ import annotations
+
+import json
+import platform
+from collections.abc import Mapping, Sequence
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
+
+from ._config import Modality, SparseCodingConfig, feature_channel
+from ._sparse import (
+    encode_rows,
+    learn_dictionary,
+    normalise_rows,
+    random_dictionary,
+    sparsity_penalty,
+)
+
+__all__ = ["DICTIONARY_FORMAT", "SparseCodingExtractor"]
+
+#: ``format`` field of the JSON metadata written by :meth:`SparseCodingExtractor.save`.
+DICTIONARY_FORMAT = "hapticframe-sparse-dictionaries"
+_FORMAT_VERSION = 1
+
+
+def _version_of(distribution: str) -> str | None:
+    try:
+        return version(distribution)
+    except PackageNotFoundError:
+        return None
+
+
+def _code_channel(modality: Modality) -> str:
+    return f"{modality}_code"
+
+
+class SparseCodingExtractor(FeatureExtractor):
+    """Sparse codes of the flattened feature tensors (dissertation Figure 2.2d).
+
+    Each configured modality's tensor (``pac_imfs`` (8, 22), ``pdc_imfs`` (5, 5),
+    ``electrodes_window`` (19, 5)) is flattened to m values, centred and scaled to unit
+    ℓ2 norm, and encoded by the lasso ``min_u 0.5 ||z - D^T u||^2 + λ ||u||_1`` with
+    λ = 1.2 / sqrt(m) over a dictionary D of k atoms (200, 100, 100), giving ``pac_code``,
+    ``pdc_code`` and ``electrodes_code``.
+
+    Encoding uses :func:`sklearn.decomposition.sparse_encode` with
+    ``algorithm="lasso_cd"`` and ``alpha=λ``. The transform of
+    ``MiniBatchDictionaryLearning`` / ``SparseCoder`` defaults to OMP, which ignores α
+    (it keeps m/10 non-zeros whatever λ is), so it is never used.
+
+    Dictionaries
+    ------------
+    - Before :meth:`fit` (and without ``dictionary_file``) each modality has k random unit
+      atoms with Gaussian entries drawn from ``context.rng``: deterministic for a seed, so
+      the component runs and can be checked before training, but the codes carry no learned
+      structure.
+    - :meth:`fit` learns each dictionary with ``MiniBatchDictionaryLearning`` (α = λ, the
+      random atoms as ``dict_init``, a seed drawn from ``context.rng``).
+    - :meth:`save` / :meth:`load` write and read ``.npz`` arrays (``allow_pickle=False``)
+      plus ``.json`` metadata with versions and settings; config ``dictionary_file`` loads
+      one at build time.
+
+    A tensor holding NaN or infinity, or flagged invalid in the input's ``valid``, gets the
+    zero code and ``valid = False``; a constant tensor gets the zero code (it has no
+    direction) and stays valid.
+    """
+
+    def __init__(self, config: SparseCodingConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+        self.modalities: tuple[Modality, ...] = tuple(config.modalities)
+        self.dictionaries: dict[Modality, NDArray[np.float64]] = {
+            m: random_dictionary(self.n_atoms(m), self.dimension(m), context.rng)
+            for m in self.modalities
+        }
+        self._seed = int(context.rng.integers(2**31 - 1))
+        self.fitted = False
+        self.fit_stats: dict[str, Any] = {}
+        self._refresh()
+        if config.dictionary_file is not None:
+            self.load(config.dictionary_file)
+
+    # -- settings ----------------------------------------------------------------------
+
+    def tensor_shape(self, modality: Modality) -> tuple[int, int]:
+        """Shape of the input tensor of ``modality``."""
+        shapes = {
+            "pac": self.config.pac_shape,
+            "pdc": self.config.pdc_shape,
+            "electrodes": self.config.electrodes_shape,
+        }
+        return tuple(shapes[modality])  # type: ignore[return-value]
+
+    def dimension(self, modality: Modality) -> int:
+        """m: the length of the flattened tensor."""
+        rows, cols = self.tensor_shape(modality)
+        return rows * cols
+
+    def n_atoms(self, modality: Modality) -> int:
+        """k: the dictionary size of ``modality``."""
+        return {
+            "pac": self.config.pac_atoms,
+            "pdc": self.config.pdc_atoms,
+            "electrodes": self.config.electrodes_atoms,
+        }[modality]
+
+    def penalty(self, modality: Modality) -> float:
+        """λ = lambda_scale / sqrt(m)."""
+        return sparsity_penalty(self.dimension(modality), self.config.lambda_scale)
+
+    def _refresh(self) -> None:
+        self._grams = {m: d @ d.T for m, d in self.dictionaries.items()}
+
+    @property
+    def output_channels(self) -> Mapping[str, ChannelInfo]:
+        return {
+            _code_channel(m): ChannelInfo((self.n_atoms(m),), "1", self.config.frame_rate_hz)
+            for m in self.modalities
+        }
+
+    # -- streaming -----------------------------------------------------------------------
+
+    def _rows(
+        self, batch: SampleBatch, modality: Modality
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        name = feature_channel(modality)
+        if name not in batch.channels:
+            raise ValueError(
+                f"sparse-coding is configured for {list(self.modalities)} but the input lacks "
+                f"{name!r}; got {sorted(batch.channels)}"
+            )
+        tensors = batch.channels[name]
+        if tensors.shape[1:] != self.tensor_shape(modality):
+            raise ValueError(
+                f"{name!r} tensors have shape {tensors.shape[1:]}, "
+                f"expected {self.tensor_shape(modality)}"
+            )
+        rows = tensors.reshape(len(batch), self.dimension(modality))
+        ok = np.isfinite(rows).all(axis=1)
+        if name in batch.valid:
+            ok &= batch.valid[name]
+        return np.where(ok[:, np.newaxis], rows, 0.0), ok
+
+    def update(self, batch: SampleBatch) -> SampleBatch:
+        codes: dict[str, NDArray[np.float64]] = {}
+        valid: dict[str, NDArray[np.bool_]] = {}
+        for m in self.modalities:
+            rows, ok = self._rows(batch, m)
+            z, flat = normalise_rows(rows)
+            codes[_code_channel(m)] = encode_rows(
+                z,
+                self.dictionaries[m],
+                self.penalty(m),
+                skip=flat | ~ok,
+                max_iter=self.config.encode_max_iter,
+                gram=self._grams[m],
+            )
+            valid[_code_channel(m)] = ok
+        return SampleBatch(batch.timestamps_s, codes, valid)
+
+    # -- learning --------------------------------------------------------------------------
+
+    def fit(self, batches: Sequence[SampleBatch]) -> None:
+        """Learn one dictionary per modality from feature batches (``emd-features`` output).
+
+        Invalid, non-finite and constant tensors are left out.
+
+        Raises
+        ------
+        ValueError
+            If a modality has fewer than 2 usable tensors.
+        """
+        if not batches:
+            raise ValueError("fit needs at least one batch of feature tensors")
+        stats: dict[str, Any] = {}
+        learned: dict[Modality, NDArray[np.float64]] = {}
+        for m in self.modalities:
+            parts = [self._rows(b, m) for b in batches]
+            rows = np.concatenate([p[0] for p in parts])
+            ok = np.concatenate([p[1] for p in parts])
+            z, flat = normalise_rows(rows)
+            learned[m], stats[m] = learn_dictionary(
+                z[ok & ~flat],
+                self.n_atoms(m),
+                self.penalty(m),
+                init=self.dictionaries[m],
+                seed=self._seed,
+                epochs=self.config.fit_epochs,
+                batch_size=self.config.fit_batch_size,
+            )
+        self.dictionaries = learned
+        self.fitted = True
+        self.fit_stats = stats
+        self._refresh()
+
+    # -- persistence ---------------------------------------------------------------------
+
+    def metadata(self) -> dict[str, Any]:
+        """Settings and versions stored beside the dictionaries."""
+        return {
+            "format": DICTIONARY_FORMAT,
+            "format_version": _FORMAT_VERSION,
+            "modalities": list(self.modalities),
+            "atoms": {m: self.n_atoms(m) for m in self.modalities},
+            "tensor_shapes": {m: list(self.tensor_shape(m)) for m in self.modalities},
+            "lambda_scale": self.config.lambda_scale,
+            "lambda": {m: self.penalty(m) for m in self.modalities},
+            "normalisation": "each flattened tensor centred and scaled to unit l2 norm",
+            "encoder": "sklearn.decomposition.sparse_encode(algorithm='lasso_cd', alpha=lambda)",
+            "fitted": self.fitted,
+            "fit": {
+                "epochs": self.config.fit_epochs,
+                "batch_size": self.config.fit_batch_size,
+                "seed": self._seed,
+                "stats": self.fit_stats,
+            },
+            "versions": {
+                "hapticframe": _version_of("hapticframe"),
+                "numpy": np.__version__,
+                "scikit-learn": _version_of("scikit-learn"),
+                "python": platform.python_version(),
+            },
+        }
+
+    def save(self, path: str | Path) -> tuple[Path, Path]:
+        """Write ``PATH.npz`` (the dictionaries) and ``PATH.json`` (metadata); return both."""
+        base = Path(path)
+        arrays, meta = base.with_suffix(".npz"), base.with_suffix(".json")
+        np.savez(arrays, **{f"{m}_dictionary": self.dictionaries[m] for m in self.modalities})
+        meta.write_text(json.dumps(self.metadata(), indent=2, allow_nan=False) + "\n")
+        return arrays, meta
+
+    def load(self, path: str | Path) -> None:
+        """Read dictionaries written by :meth:`save` (``PATH.npz`` and ``PATH.json``).
+
+        Raises
+        ------
+        ValueError
+            If the files are not such a pair, or lack a configured modality, or their
+            shapes or λ differ from this component's config.
+        """
+        base = Path(path)
+        meta = json.loads(base.with_suffix(".json").read_text())
+        if meta.get("format") != DICTIONARY_FORMAT:
+            raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
+        if meta.get("format_version") != _FORMAT_VERSION:
+            raise ValueError(f"unsupported dictionary format version {meta.get('format_version')}")
+        if not np.isclose(float(meta["lambda_scale"]), self.config.lambda_scale):
+            raise ValueError(
+                f"dictionaries were learned with lambda_scale {meta['lambda_scale']}, the config "
+                f"says {self.config.lambda_scale}"
+            )
+        loaded: dict[Modality, NDArray[np.float64]] = {}
+        with np.load(base.with_suffix(".npz"), allow_pickle=False) as data:
+            for m in self.modalities:
+                key = f"{m}_dictionary"
+                if key not in data:
+                    raise ValueError(f"{base.with_suffix('.npz')} has no dictionary for {m!r}")
+                d = np.array(data[key], dtype=np.float64)
+                expected = (self.n_atoms(m), self.dimension(m))
+                if d.shape != expected or not np.isfinite(d).all():
+                    raise ValueError(f"{key} has shape {d.shape}, expected finite {expected}")
+                loaded[m] = d
+        self.dictionaries = loaded
+        self.fitted = bool(meta.get("fitted", False))
+        self.fit_stats = dict(meta.get("fit", {}).get("stats", {}))
+        self._refresh()

@@ -1,0 +1,51 @@
+"""Registration of the BioTac feature extractors ``emd-features`` and ``sparse-coding``.
+
+Import-light: only hapticframe and the pydantic config module load here; numpy/scipy
+(``emd-features``) and scikit-learn (``sparse-coding``) load when a component is built.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import FeatureExtractorSpec, hookimpl
+
+from ._config import EMDFeaturesConfig, SparseCodingConfig
+
+# What the default configs need (all three modalities): the kit feeds exactly these.
+_SENSOR_CHANNELS: dict[str, tuple[int, ...]] = {"pac": (22,), "pdc": (), "electrodes": (19,)}
+_FEATURE_TENSORS: dict[str, tuple[int, ...]] = {
+    "pac_imfs": (8, 22),
+    "pdc_imfs": (5, 5),
+    "electrodes_window": (19, 5),
+}
+
+
+@hookimpl
+def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
+    yield FeatureExtractorSpec(
+        name="emd-features",
+        summary="BioTac feature tensors: streaming EMD of pac (8×22) and pdc (5×5), "
+        "electrode windows (19×5).",
+        config=EMDFeaturesConfig,
+        factory="hapticframe_tactile_features._emd_features:EMDFeatureExtractor",
+        requires=("scipy",),
+        consumes=dict(_SENSOR_CHANNELS),
+        sample_rate_hz=100.0,
+        # The defaults already use the smallest windows allowed (512 and 64 samples); a
+        # short delay and a lower sifting cap keep the kit's ~2,000 frames quick.
+        check_config={"delay_frames": 1, "max_sifts": 10},
+    )
+    yield FeatureExtractorSpec(
+        name="sparse-coding",
+        summary="Sparse codes of the BioTac feature tensors (lasso at λ = 1.2/√m, "
+        "dictionaries by MiniBatchDictionaryLearning).",
+        config=SparseCodingConfig,
+        factory="hapticframe_tactile_features._sparse_coding:SparseCodingExtractor",
+        capabilities=frozenset({"trainable"}),
+        requires=("sklearn",),
+        install_hint="pip install 'hapticframe[learn]'",
+        consumes=dict(_FEATURE_TENSORS),
+        sample_rate_hz=100.0,
+        check_config={"pac_atoms": 40, "pdc_atoms": 20, "electrodes_atoms": 20},
+    )

@@ -1,0 +1,246 @@
+"""Sparse coding: normalisation, λ, lasso optimality, learning, save/load, streaming."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hapticframe_tactile_features._config import SparseCodingConfig
+from hapticframe_tactile_features._sparse import (
+    encode_rows,
+    learn_dictionary,
+    normalise_rows,
+    random_dictionary,
+    sparsity_penalty,
+)
+from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
+
+from hapticframe.kinds import BuildContext, SampleBatch
+
+pytest.importorskip("sklearn")
+
+
+def _coder(seed: int = 0, **config: object) -> SparseCodingExtractor:
+    return SparseCodingExtractor(
+        SparseCodingConfig(**config), BuildContext("codes", np.random.default_rng(seed))
+    )
+
+
+def _sparse_mixtures(
+    rng: np.random.Generator, atoms: np.ndarray, n: int, active: int = 3
+) -> np.ndarray:
+    """Rows mixing ``active`` random atoms with weights of either sign, plus 1 % noise."""
+    codes = np.zeros((n, atoms.shape[0]))
+    for row in codes:
+        chosen = rng.choice(atoms.shape[0], active, replace=False)
+        row[chosen] = rng.uniform(0.5, 1.5, active) * rng.choice([-1.0, 1.0], active)
+    return codes @ atoms + 0.01 * rng.standard_normal((n, atoms.shape[1]))
+
+
+def _tensor_batch(
+    rng: np.random.Generator, n: int, shapes: dict[str, tuple[int, int]]
+) -> SampleBatch:
+    return SampleBatch(
+        (1 + np.arange(n)) / 100.0,
+        {name: rng.standard_normal((n, *shape)) for name, shape in shapes.items()},
+    )
+
+
+_SHAPES = {"pac_imfs": (8, 22), "pdc_imfs": (5, 5), "electrodes_window": (19, 5)}
+
+
+def test_thesis_penalties() -> None:
+    assert sparsity_penalty(176) == pytest.approx(0.0905, abs=5e-5)
+    assert sparsity_penalty(25) == pytest.approx(0.240)
+    assert sparsity_penalty(95) == pytest.approx(0.1231, abs=5e-5)
+    coder = _coder()
+    assert {m: round(coder.penalty(m), 4) for m in coder.modalities} == {
+        "pac": 0.0905,
+        "pdc": 0.24,
+        "electrodes": 0.1231,
+    }
+
+
+def test_normalise_rows_centres_scales_and_flags_flat_rows() -> None:
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((4, 10)) * np.array([[1.0], [1e9], [1e-12], [3.0]])
+    x[3] = 7.0
+    z, flat = normalise_rows(x)
+    assert flat.tolist() == [False, False, False, True]
+    assert np.allclose(z[:3].mean(axis=1), 0.0, atol=1e-15)
+    assert np.allclose(np.linalg.norm(z[:3], axis=1), 1.0)
+    assert np.all(z[3] == 0.0)
+    # Scale and offset do not change the normalised vector.
+    z2, _ = normalise_rows(np.vstack([5e8 * x[0] + 123.0]))
+    assert np.allclose(z2[0], z[0], atol=1e-12)
+    with pytest.raises(ValueError):
+        normalise_rows(np.array([[np.nan, 1.0]]))
+
+
+def test_lasso_codes_satisfy_the_optimality_conditions_at_the_thesis_lambda() -> None:
+    # KKT conditions of min 0.5||z - D^T u||^2 + λ||u||_1: on the support the correlation
+    # of each atom with the residual equals λ·sign(u); off it, it is at most λ. OMP (the
+    # scikit-learn default transform) would ignore λ and fail this.
+    rng = np.random.default_rng(2)
+    dictionary = random_dictionary(60, 25, rng)
+    z, _ = normalise_rows(_sparse_mixtures(rng, dictionary, 20))
+    lam = sparsity_penalty(25)
+    codes = encode_rows(z, dictionary, lam, max_iter=5000)
+    for row, code in zip(z, codes, strict=True):
+        correlation = dictionary @ (row - code @ dictionary)
+        support = code != 0
+        assert support.any()
+        assert np.abs(correlation[support] - lam * np.sign(code[support])).max() < 1e-4
+        assert np.abs(correlation[~support]).max() <= lam + 1e-4
+
+
+def test_learned_dictionary_reconstructs_sparse_data_at_the_thesis_lambda() -> None:
+    rng = np.random.default_rng(3)
+    m, true_atoms, k = 95, 30, 60  # electrode-sized vectors
+    truth = random_dictionary(true_atoms, m, rng)
+    train, _ = normalise_rows(_sparse_mixtures(rng, truth, 800))
+    test, _ = normalise_rows(_sparse_mixtures(rng, truth, 200))
+    lam = sparsity_penalty(m)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # sklearn's early-stopping notices
+        learned, stats = learn_dictionary(
+            train, k, lam, init=random_dictionary(k, m, rng), seed=0, epochs=5
+        )
+    assert learned.shape == (k, m) and stats["samples"] == 800
+    assert np.linalg.norm(learned, axis=1).max() <= 1.0 + 1e-9
+
+    def quality(dictionary: np.ndarray) -> tuple[float, float]:
+        codes = encode_rows(test, dictionary, lam)
+        error = np.linalg.norm(test - codes @ dictionary, axis=1)  # rows have unit norm
+        return float(error.mean()), float((codes != 0).sum(axis=1).mean())
+
+    error, nonzeros = quality(learned)
+    random_error, _ = quality(random_dictionary(k, m, rng))
+    # Measured: mean error 0.237 and 4.2 non-zeros per code with the learned atoms (lasso
+    # shrinkage at λ = 0.123 alone costs ~0.2 on unit vectors of 3 atoms); 0.90 and 11.5
+    # non-zeros with random atoms.
+    assert error < 0.32
+    assert 2.0 <= nonzeros <= 8.0
+    assert random_error > 0.7
+
+
+def test_random_dictionary_before_fit_is_seeded_and_unit_norm() -> None:
+    a, b, c = _coder(seed=4), _coder(seed=4), _coder(seed=5)
+    assert not a.fitted
+    for m in a.modalities:
+        assert a.dictionaries[m].shape == (a.n_atoms(m), a.dimension(m))
+        assert np.allclose(np.linalg.norm(a.dictionaries[m], axis=1), 1.0)
+        assert np.array_equal(a.dictionaries[m], b.dictionaries[m])
+        assert not np.array_equal(a.dictionaries[m], c.dictionaries[m])
+
+
+def test_codes_of_batches_flat_and_invalid_tensors() -> None:
+    rng = np.random.default_rng(6)
+    coder = _coder(pac_atoms=30, pdc_atoms=20, electrodes_atoms=20)
+    batch = _tensor_batch(rng, 6, _SHAPES)
+    channels = {k: v.copy() for k, v in batch.channels.items()}
+    channels["pac_imfs"][1] = 5.0  # constant: no direction
+    channels["pdc_imfs"][2, 0, 0] = np.nan
+    valid = {"electrodes_window": np.array([True, True, True, False, True, True])}
+    out = coder.update(SampleBatch(batch.timestamps_s, channels, valid))
+    assert {k: v.shape for k, v in out.channels.items()} == {
+        "pac_code": (6, 30),
+        "pdc_code": (6, 20),
+        "electrodes_code": (6, 20),
+    }
+    assert all(np.isfinite(v).all() for v in out.channels.values())
+    assert np.all(out.channels["pac_code"][1] == 0) and out.valid["pac_code"][1]
+    assert np.all(out.channels["pdc_code"][2] == 0) and not out.valid["pdc_code"][2]
+    assert np.all(out.channels["electrodes_code"][3] == 0) and not out.valid["electrodes_code"][3]
+    assert np.count_nonzero(out.channels["pac_code"][0]) > 0
+    # Codes do not depend on the tensors' scale or offset.
+    scaled = SampleBatch(batch.timestamps_s, {k: 1e9 * v + 7.0 for k, v in batch.channels.items()})
+    assert np.allclose(
+        coder.update(scaled).channels["pdc_code"],
+        coder.update(batch).channels["pdc_code"],
+        atol=1e-6,
+    )
+
+
+def test_streaming_equals_batch_exactly() -> None:
+    rng = np.random.default_rng(7)
+    coder = _coder(pac_atoms=30, pdc_atoms=20, electrodes_atoms=20)
+    batch = _tensor_batch(rng, 25, _SHAPES)
+    whole = coder.transform(batch)
+    parts = [coder.update(batch.select(slice(s, s + 4))) for s in range(0, 25, 4)]
+    for name, array in whole.channels.items():
+        assert np.array_equal(np.concatenate([p.channels[name] for p in parts]), array)
+
+
+def test_only_configured_modalities_are_encoded() -> None:
+    coder = _coder(modalities=["pdc"], pdc_atoms=10)
+    batch = _tensor_batch(np.random.default_rng(8), 3, {"pdc_imfs": (5, 5)})
+    assert set(coder.update(batch).channels) == {"pdc_code"}
+    with pytest.raises(ValueError, match="lacks 'pac_imfs'"):
+        _coder(modalities=["pac"]).update(batch)
+
+
+def test_fit_save_load_round_trip(tmp_path: Path) -> None:
+    rng = np.random.default_rng(9)
+    config = {"pac_atoms": 12, "pdc_atoms": 8, "electrodes_atoms": 8, "fit_epochs": 2}
+    coder = _coder(seed=1, **config)
+    before = {m: d.copy() for m, d in coder.dictionaries.items()}
+    batches = [_tensor_batch(rng, 150, _SHAPES), _tensor_batch(rng, 150, _SHAPES)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        coder.fit(batches)
+    assert coder.fitted and coder.fit_stats["pac"]["samples"] == 300
+    assert not np.array_equal(coder.dictionaries["pac"], before["pac"])
+    arrays, meta_path = coder.save(tmp_path / "dictionaries")
+    meta = json.loads(meta_path.read_text())
+    assert meta["fitted"] and meta["atoms"] == {"pac": 12, "pdc": 8, "electrodes": 8}
+    assert meta["lambda"]["pac"] == pytest.approx(1.2 / np.sqrt(176))
+    assert meta["versions"]["numpy"] == np.__version__ and meta["versions"]["scikit-learn"]
+    with np.load(arrays, allow_pickle=False) as data:
+        assert sorted(data.files) == ["electrodes_dictionary", "pac_dictionary", "pdc_dictionary"]
+    # A component built from the file (another seed) gives the same codes.
+    loaded = _coder(seed=99, dictionary_file=str(tmp_path / "dictionaries"), **config)
+    assert loaded.fitted
+    probe = _tensor_batch(rng, 5, _SHAPES)
+    for name, codes in coder.update(probe).channels.items():
+        assert np.array_equal(loaded.update(probe).channels[name], codes)
+
+
+def test_load_rejects_mismatched_files(tmp_path: Path) -> None:
+    _coder(pac_atoms=12, pdc_atoms=8, electrodes_atoms=8).save(tmp_path / "d")
+    with pytest.raises(ValueError, match="shape"):
+        _coder(pac_atoms=13, pdc_atoms=8, electrodes_atoms=8, dictionary_file=str(tmp_path / "d"))
+    with pytest.raises(ValueError, match="lambda_scale"):
+        _coder(
+            pac_atoms=12,
+            pdc_atoms=8,
+            electrodes_atoms=8,
+            lambda_scale=1.0,
+            dictionary_file=str(tmp_path / "d"),
+        )
+    (tmp_path / "x.json").write_text(json.dumps({"format": "other"}))
+    with pytest.raises(ValueError, match="not a"):
+        _coder().load(tmp_path / "x")
+
+
+def test_fit_needs_usable_data() -> None:
+    coder = _coder(pac_atoms=5, pdc_atoms=5, electrodes_atoms=5)
+    with pytest.raises(ValueError):
+        coder.fit([])
+    flat = SampleBatch(np.array([0.01, 0.02]), {k: np.ones((2, *s)) for k, s in _SHAPES.items()})
+    with pytest.raises(ValueError, match="at least 2"):
+        coder.fit([flat])
+
+
+def test_config_and_registration_do_not_import_sklearn() -> None:
+    code = (
+        "import sys, hapticframe_tactile_features.plugin, hapticframe_tactile_features._config\n"
+        "print('sklearn' in sys.modules, 'scipy' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]
