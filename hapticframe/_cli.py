@@ -153,6 +153,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_train(args: argparse.Namespace) -> int:
+    from ._config import validate_file
+    from ._train import train_experiment
+
+    experiment = validate_file(args.file, strict=args.strict)
+    record = train_experiment(experiment, args.out, overwrite=args.overwrite, echo=_out)
+    _out(f"trained {', '.join(record['trained']) or 'nothing'}; artifacts in {args.out}")
+    return 0
+
+
 def _short(value: float) -> str:
     return f"{value:.4g}" if isinstance(value, float) else str(value)
 
@@ -210,6 +220,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--out", required=True, metavar="DIR", help="directory for the artifacts")
+    p.add_argument("--overwrite", action="store_true", help="replace a training run already in DIR")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="run a benchmark suite (see `hapticframe plugins`)")
     p.add_argument("name", metavar="NAME")

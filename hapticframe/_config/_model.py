@@ -44,6 +44,9 @@ class RunSettings(BaseModel):
     evaluation_map: str | None = Field(
         None, description="Map id scored against the scene; default: the planner's map."
     )
+    label_channel: str = Field(
+        "contact", description="Sensor channel holding per-sample class labels for `hapticframe train`."
+    )
     figures: bool = Field(
         True, description="Let components write their figures (benchmarks switch this off)."
     )

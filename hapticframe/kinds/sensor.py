@@ -16,7 +16,7 @@ Contract
 from __future__ import annotations
 
 from abc import abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import ClassVar
 
 from .._kind import Kind
@@ -57,3 +57,11 @@ class Sensor(Component):
         if not batches:
             return SampleBatch.empty(self.channels)
         return concatenate_batches(batches)
+
+    def iter_recordings(self) -> Iterator[SampleBatch]:
+        """A finite source's recordings (trials), one batch each, for training.
+
+        Default: the whole source as one recording. Sources that hold several trials
+        override this so that models never learn across a trial boundary.
+        """
+        yield self.read_all()

@@ -48,6 +48,11 @@ class BioTacSensorConfig(PluginConfig):
     )
     has_object: bool = Field(True, description="Synthetic: whether a buried object lies on the path.")
     fingertip_depth_m: float = Field(0.05, ge=0.01, le=0.12, description="Synthetic: fingertip depth below the surface.")
+    dataset: Literal["single", "training", "robustness"] = Field(
+        "single",
+        description="Synthetic: 'single' repeats the trial described here n_trials times; "
+        "'training' (750 trials) and 'robustness' (375) are the thesis's sets, cut to n_trials.",
+    )
     n_trials: int = Field(1, ge=1, le=100_000, description="Synthetic: trials generated one after another.")
     trial_gap_s: float = Field(
         0.5, gt=0, description="Synthetic: time between the last frame of a trial and the first of the next."

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import importlib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -74,24 +74,33 @@ class _SyntheticSource(_FrameSource):
         # Imported here: the generator is numpy-heavy and owned by the dataset module.
         synthetic = importlib.import_module("hapticframe_biotac._synthetic")
         self._generate = synthetic.generate_trial
-        self._spec = synthetic.TrialSpec(
-            medium=config.medium,
-            speed_m_per_s=config.speed_m_per_s,
-            orientation_deg=config.orientation_deg,
-            object_offset_m=config.object_offset_m,
-            has_object=config.has_object,
-            fingertip_depth_m=config.fingertip_depth_m,
-        )
+        if config.dataset == "training":
+            self._specs = list(synthetic.training_specs(rng))
+        elif config.dataset == "robustness":
+            self._specs = list(synthetic.robustness_specs(rng))
+        else:
+            self._specs = [synthetic.TrialSpec(
+                medium=config.medium,
+                speed_m_per_s=config.speed_m_per_s,
+                orientation_deg=config.orientation_deg,
+                object_offset_m=config.object_offset_m,
+                has_object=config.has_object,
+                fingertip_depth_m=config.fingertip_depth_m,
+            )]
         self.layout = layout
         self.rng = rng
-        self.trials_left = config.n_trials
+        self.trials_left = config.n_trials if config.dataset == "single" else min(
+            config.n_trials or len(self._specs), len(self._specs))
+        self._trial_number = 0
         self.gap_s = config.trial_gap_s
         self._buffer = BioTacFrames.empty(layout, ground_truth=True)
         self._last_time: float | None = None
         self._next_index = 0
 
     def _append_trial(self) -> None:
-        trial = self._generate(self._spec, self.rng)
+        spec = self._specs[self._trial_number % len(self._specs)]
+        self._trial_number += 1
+        trial = self._generate(spec, self.rng)
         t = np.asarray(trial.timestamps_s, dtype=np.float64)
         if self._last_time is not None and t.size:
             t = t - t[0] + self._last_time + self.gap_s
@@ -210,6 +219,17 @@ class BioTacSensor(Sensor):
 
     def read(self) -> SampleBatch:
         return self.read_frames().to_sample_batch()
+
+    def iter_recordings(self) -> Iterator[SampleBatch]:
+        """Synthetic trials one at a time (other sources: the whole recording)."""
+        if not isinstance(self._source, _SyntheticSource):
+            yield from super().iter_recordings()
+            return
+        while not self._source.exhausted:
+            frames = self._source.next_trial()
+            if len(frames):
+                self._last_time = float(frames.timestamps_s[-1])
+                yield frames.to_sample_batch()
 
     def close(self) -> None:
         self._source.close()

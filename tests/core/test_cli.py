@@ -105,3 +105,18 @@ def test_a_known_plugin_with_missing_requirements_gets_its_install_hint(lab_dir,
     err = capsys.readouterr().err
     assert "needs no_such_vendor_driver" in err and "pip install lab-vendor-driver" in err
     assert f"{path}:11:" in err
+
+
+def test_train_fits_classifiers_on_labelled_recordings_and_saves(lab_dir, capsys):
+    out = lab_dir / "trained"
+    assert main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
+    record = json.loads((out / "train.json").read_text())
+    assert record["trained"] == ["contact"] and record["recordings"] == 1
+    threshold = json.loads((out / "contact" / "threshold.json").read_text())["threshold_n"]
+    # Free force is ~5 N and contact ~35-45 N: the learned threshold lies between.
+    assert 10 < threshold < 40 and record["reports"]["contact"]["threshold_n"] == threshold
+    assert main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 2
+    path = lab_dir / "lab-open-loop.yaml"
+    path.write_text(path.read_text().replace("seed: 3", "seed: 3\nrun: {label_channel: nothing}"))
+    assert main(["train", str(path), "--out", str(lab_dir / "t2")]) == 1
+    assert "no label channel 'nothing'" in capsys.readouterr().err

@@ -48,11 +48,13 @@ class SweepSensor(Sensor):
         near = np.exp(-((x - 0.40) / 0.03) ** 2)
         force = 5.0 + 40.0 * near + config.noise_n * context.rng.standard_normal(n)
         self._force = np.column_stack([force, np.zeros(n)])
+        self._contact = (np.abs(x - 0.40) < 0.03).astype(float)
         self._next = 0
 
     @property
     def channels(self) -> Mapping[str, ChannelInfo]:
-        return {"force_n": ChannelInfo((2,), "N", 100.0), "position_m": ChannelInfo((2,), "m", 100.0)}
+        return {"force_n": ChannelInfo((2,), "N", 100.0), "position_m": ChannelInfo((2,), "m", 100.0),
+                "contact": ChannelInfo((), "1", 100.0)}
 
     @property
     def exhausted(self) -> bool:
@@ -61,7 +63,8 @@ class SweepSensor(Sensor):
     def read(self) -> SampleBatch:
         rows = slice(self._next, self._next + self.config.chunk)
         self._next = min(self._next + self.config.chunk, len(self._t))
-        return SampleBatch(self._t[rows], {"force_n": self._force[rows], "position_m": self._pos[rows]})
+        return SampleBatch(self._t[rows], {"force_n": self._force[rows], "position_m": self._pos[rows],
+                                           "contact": self._contact[rows]})
 
 
 class ScaleConfig(PluginConfig):
@@ -88,7 +91,24 @@ class ThresholdConfig(PluginConfig):
 
 
 class ThresholdClassifier(Classifier):
-    """Contact when the force magnitude exceeds a threshold (stateless)."""
+    """Contact when the force magnitude exceeds a threshold (stateless; trainable)."""
+
+    def __init__(self, config: ThresholdConfig, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        self.threshold_n = config.threshold_n
+        self.training_report: dict[str, float] = {}
+
+    def fit(self, batches, labels) -> None:  # type: ignore[no-untyped-def]
+        force = np.concatenate([np.linalg.norm(b.channels["force_n"], axis=1) for b in batches])
+        label = np.concatenate(labels)
+        self.threshold_n = float((force[label == 1].mean() + force[label == 0].mean()) / 2)
+        self.training_report = {"threshold_n": self.threshold_n}
+
+    def save(self, directory) -> None:  # type: ignore[no-untyped-def]
+        import json
+        from pathlib import Path
+
+        (Path(directory) / "threshold.json").write_text(json.dumps({"threshold_n": self.threshold_n}))
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -100,7 +120,7 @@ class ThresholdClassifier(Classifier):
             raise ValueError("force samples must be finite")
         from scipy.special import expit
 
-        p = expit((force - self.config.threshold_n) / self.config.width_n)
+        p = expit((force - self.threshold_n) / self.config.width_n)
         return ClassProbabilities(batch.timestamps_s, np.column_stack([1 - p, p]), self.classes)
 
 

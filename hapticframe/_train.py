@@ -1,0 +1,141 @@
+"""``hapticframe train``: fit an experiment's trainable components on its recordings.
+
+The experiment's sensors must be finite (synthetic trials, recordings). Their recordings
+(trials) flow through the components in build order: each feature extractor is fitted on
+its inputs and then transforms them; each classifier is fitted on its inputs with labels
+taken from the sensors' label channel (``run.label_channel``, default ``contact``) at the
+classifier inputs' timestamps. Components that can ``save(directory)`` write their
+artifacts into ``DIR/<component id>/``, and ``DIR/train.json`` records the seed, versions,
+plugins, the resolved config and each component's training report.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._config import Experiment
+from ._dataflow import merge_batches
+from ._errors import RunError, UsageError
+from ._kind import Kind
+from ._session import _write_json, build_components
+from ._version import __version__
+from .kinds import Classifier, FeatureExtractor, SampleBatch, Sensor
+
+__all__ = ["labels_at", "train_experiment"]
+
+
+def labels_at(times_s: np.ndarray, source: SampleBatch, channel: str) -> np.ndarray:
+    """Integer labels of ``source[channel]`` at ``times_s`` (the latest sample not after each)."""
+    if channel not in source.channels:
+        raise RunError(
+            f"the recordings carry no label channel {channel!r} (channels: "
+            f"{', '.join(source.channels)}); set run.label_channel"
+        )
+    values = source.channels[channel].reshape(len(source), -1)[:, 0]
+    index = np.searchsorted(source.timestamps_s, times_s, side="right") - 1
+    if len(index) and (index.min() < 0 or index.max() >= len(values)):
+        raise RunError("classifier inputs lie outside the time span of their recording")
+    labels = values[index]
+    if not np.all(np.isfinite(labels)):
+        raise RunError(f"label channel {channel!r} holds NaN at some training samples")
+    return np.rint(labels).astype(np.int64)
+
+
+def _recordings(experiment: Experiment, components: Mapping[str, Any]) -> list[dict[str, SampleBatch]]:
+    per_sensor = {}
+    for entry in experiment.of_kind(Kind.SENSOR):
+        sensor: Sensor = components[entry.id]
+        per_sensor[entry.id] = list(sensor.iter_recordings())
+    if not per_sensor:
+        raise UsageError("nothing to train on: the experiment has no sensors")
+    counts = {sid: len(recs) for sid, recs in per_sensor.items()}
+    if len(set(counts.values())) != 1:
+        raise RunError(f"sensors deliver different numbers of recordings: {counts}")
+    count = next(iter(counts.values()))
+    return [{sid: recs[i] for sid, recs in per_sensor.items()} for i in range(count)]
+
+
+def train_experiment(
+    experiment: Experiment,
+    out_dir: str | Path,
+    *,
+    overwrite: bool = False,
+    echo: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Fit every trainable component of ``experiment`` and save the artifacts into ``out_dir``."""
+    out = Path(out_dir)
+    if (out / "train.json").exists() and not overwrite:
+        raise UsageError(f"--out {out} already holds a training run (train.json); pass --overwrite")
+    started = time.perf_counter()
+    components = build_components(experiment)
+    label_channel = experiment.model.run.label_channel  # type: ignore[attr-defined]
+    try:
+        recordings = _recordings(experiment, components)
+        echo(f"training on {len(recordings)} recordings")
+        sensor_ids = [e.id for e in experiment.of_kind(Kind.SENSOR)]
+        trained: list[str] = []
+        for entry in experiment.components:
+            component = components[entry.id]
+            if entry.kind not in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
+                continue
+            inputs = [merge_batches([rec[i] for i in entry.inputs if i in rec], entry.id)
+                      for rec in recordings]
+            if isinstance(component, FeatureExtractor):
+                echo(f"fitting {entry.id} ({entry.type})")
+                component.fit(inputs)
+                for rec, batch in zip(recordings, inputs):
+                    rec[entry.id] = component.transform(batch)
+            elif isinstance(component, Classifier):
+                echo(f"fitting {entry.id} ({entry.type})")
+                labels = [labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
+                                    label_channel) for rec, batch in zip(recordings, inputs)]
+                component.fit(inputs, labels)
+            trained.append(entry.id)
+        out.mkdir(parents=True, exist_ok=True)
+        saved = _save(components, trained, out)
+        record = {
+            "status": "ok",
+            "seed": experiment.seed,
+            "recordings": len(recordings),
+            "label_channel": label_channel,
+            "trained": trained,
+            "artifacts": saved,
+            "reports": {cid: getattr(components[cid], "training_report", None) for cid in trained},
+            "versions": {"hapticframe": __version__, "numpy": np.__version__},
+            "plugins": [
+                {"id": e.id, "kind": e.kind.value, "type": e.type,
+                 "distribution": e.registered.source.distribution, "version": e.registered.source.version}
+                for e in experiment.components
+            ],
+            "resolved_config": experiment.resolved_config(),
+            "wall_time_s": time.perf_counter() - started,
+        }
+        _write_json(out / "train.json", record)
+        return record
+    finally:
+        for component in components.values():
+            component.close()
+
+
+def _label_source(recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str) -> SampleBatch:
+    for sid in sensor_ids:
+        if channel in recording[sid].channels:
+            return recording[sid]
+    return recording[sensor_ids[0]]  # labels_at reports the missing channel
+
+
+def _save(components: Mapping[str, Any], trained: Sequence[str], out: Path) -> dict[str, str]:
+    saved = {}
+    for cid in trained:
+        save = getattr(components[cid], "save", None)
+        if callable(save):
+            target = out / cid
+            target.mkdir(parents=True, exist_ok=True)
+            save(target)
+            saved[cid] = str(target)
+    return saved
