@@ -1,0 +1,420 @@
+"""The ``belief-map`` map: RBF support-vector classification with Platt scaling (App. A.4).
+
+The thesis stores fingertip contact estimates at their positions in an RBF SVC (Eq. A.9,
+A.10) and calibrates its scores into ``P(object | x)`` with Platt scaling (Eq. A.11),
+refitting every 10 classifier steps. Here:
+
+- The classifier is ``CalibratedClassifierCV(SVC(kernel="rbf"), method="sigmoid",
+  ensemble=False)``: one SVC fitted on all points, and a sigmoid fitted on out-of-fold
+  decision values. ``SVC(probability=True)`` would do the same, but it is deprecated in
+  scikit-learn 1.9 (removed in 1.11). Folds are a seeded, shuffled ``StratifiedKFold``.
+- Labels are the contact decision (target > 0.5), as the thesis labels with the SF-RNN's
+  state; observation weights become sample weights.
+- The update cost is bounded: observations are binned per (cell, decided class) into a
+  summed weight and a mean position (:mod:`._functional`), and the cell size doubles
+  whenever more than ``max_points`` bins exist. A refit therefore sees at most
+  ``max_points`` weighted points, whatever the number of observations; a bin of ``k``
+  coincident observations is exactly ``k`` duplicated points to the SVM.
+- Until each class has at least two bins (cross-validated calibration needs two folds), the
+  map returns the Laplace-smoothed contact fraction ``(w_contact + 1) / (w + 2)`` on observed
+  ground (blended into the unexplored prior as below): 0.5 everywhere before any
+  observation, never NaN.
+- Far from every observation the probability returns to ``unexplored_prior`` (0.5, the
+  uniform prior of App. A.4): ``mean = w p + (1 - w) prior`` with ``w`` the RBF kernel to the
+  nearest observation bin (less the bin's half diagonal). The bare SVC would return ``sigmoid(A b + B)`` there, which
+  follows the class balance of what was seen, not anything about the unexplored ground.
+  ``unexplored_prior: null`` switches the blend off.
+- ``query`` returns ``mean = P(object | x)`` and ``std = sqrt(p (1 - p))``: the spread of the
+  Bernoulli variable "object here", not the posterior uncertainty of ``p`` itself (an SVC
+  has none).
+
+Snapshots for Fig. 2.7 are the fitted maps right after the refits that first include the
+first contact, the middle contact and the last contact observation (contact decided from
+the targets in arrival order). They are kept as fitted classifiers and evaluated on the
+final region when the run finishes.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+
+from . import _functional as fn
+from ._config import BeliefMapConfig
+
+__all__ = ["BeliefMap", "BeliefSnapshot", "fit_calibrated_svc"]
+
+FloatArray = NDArray[np.float64]
+
+_THESIS_REGION = Region(0.0, 0.75, 0.0, 0.50)
+
+
+def fit_calibrated_svc(
+    positions_m: FloatArray,
+    labels: NDArray[np.int64],
+    weights: FloatArray,
+    *,
+    gamma_per_m2: float,
+    penalty_c: float,
+    folds: int,
+    seed: int,
+) -> Any:
+    """Fit ``CalibratedClassifierCV(SVC(rbf), ensemble=False)`` deterministically.
+
+    Parameters
+    ----------
+    positions_m : (m, 2) float64
+        Training points, already centred (the RBF is translation invariant; centring keeps
+        libsvm's ``|x|^2 + |y|^2 - 2 x.y`` distances accurate far from the origin).
+    labels : (m,) int
+        0 for free movement, 1 for contact; both must occur at least ``folds`` times.
+    weights : (m,) float64
+        Positive sample weights.
+    """
+    # scikit-learn loads only when a map is first fitted.
+    from sklearn import config_context
+    from sklearn.calibration import CalibratedClassifierCV
+    from sklearn.model_selection import StratifiedKFold
+    from sklearn.svm import SVC
+
+    splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
+    model = CalibratedClassifierCV(
+        SVC(kernel="rbf", gamma=gamma_per_m2, C=penalty_c, random_state=seed),
+        method="sigmoid",
+        cv=splitter,
+        ensemble=False,
+    )
+    # The problems are tiny: BLAS threads only add start-up cost (Platt's 2-parameter L-BFGS
+    # fit took 60 ms instead of 10 ms with OpenBLAS threads on two cores).
+    # Inputs are finite by construction (Observations validates them); scikit-learn's
+    # per-call parameter validation costs more than the four small SVC fits themselves.
+    with (
+        _blas_controller().limit(limits=1, user_api="blas"),
+        config_context(assume_finite=True, skip_parameter_validation=True),
+    ):
+        model.fit(positions_m, labels, sample_weight=weights)
+    return model
+
+
+@functools.cache
+def _blas_controller() -> Any:
+    """One ``ThreadpoolController``: creating it inspects every loaded library (milliseconds)."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+@dataclass(frozen=True)
+class BeliefSnapshot:
+    """A fitted map at one moment.
+
+    Attributes
+    ----------
+    observations_seen : int
+        Observations fused when it was fitted (it includes indices below this).
+    model : object
+        The fitted ``CalibratedClassifierCV``; never refitted in place.
+    origin_m : (2,) float64
+        Subtracted from query points before prediction.
+    fingertip_m : (2,) float64
+        Position of the latest observation at that moment.
+    """
+
+    observations_seen: int
+    model: Any
+    origin_m: FloatArray
+    fingertip_m: FloatArray
+    representatives_m: FloatArray
+    cell_size_m: float
+    length_scale_m: float
+    unexplored_prior: float | None
+
+    def probability(self, points_m: FloatArray) -> FloatArray:
+        """``P(object | x)`` at ``points_m`` (finite, (q, 2))."""
+        if points_m.shape[0] == 0:
+            return np.empty(0)
+        with _blas_controller().limit(limits=1, user_api="blas"):
+            proba = self.model.predict_proba(points_m - self.origin_m)
+        column = list(self.model.classes_).index(1)
+        p = np.clip(np.asarray(proba[:, column], dtype=np.float64), 0.0, 1.0)
+        return _blend(
+            p, points_m, self.representatives_m, self.cell_size_m, self.length_scale_m,
+            self.unexplored_prior,
+        )
+
+
+def _blend(
+    p: FloatArray,
+    points_m: FloatArray,
+    representatives_m: FloatArray,
+    cell_size_m: float,
+    length_scale_m: float,
+    prior: float | None,
+) -> FloatArray:
+    if prior is None:
+        return p
+    w = fn.support_weight(points_m, representatives_m, length_scale_m, cell_size_m)
+    return np.clip(w * p + (1.0 - w) * prior, 0.0, 1.0)
+
+
+class BeliefMap(Map):
+    """Belief map of Jia (2022), section 2.5 and Appendix A.4; see the module docstring."""
+
+    config: BeliefMapConfig
+
+    def __init__(self, config: BeliefMapConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+        # One seed for every refit: the folds of a refit depend only on its data.
+        self._seed = int(context.rng.integers(0, 2**31 - 1))
+        if config.region is not None:
+            self._fixed_region: Region | None = config.region.to_region()
+        elif context.scene is not None:
+            self._fixed_region = context.scene.region.to_region()
+        else:
+            self._fixed_region = None
+        self.refit_durations_s: deque[float] = deque(maxlen=10_000)
+        self.reset()
+
+    # --- state -------------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget every observation, the fitted classifier and the snapshots."""
+        self._bins = fn.Bins.empty()
+        self._level = 0
+        self._seen = 0
+        self._pending = 0
+        self._contact_weight = 0.0
+        self._total_weight = 0.0
+        self._lower: FloatArray | None = None
+        self._upper: FloatArray | None = None
+        self._latest_point = np.full(2, np.nan)
+        self._current: BeliefSnapshot | None = None
+        self._first_contact: int | None = None
+        self._last_contact: int | None = None
+        self._first_snapshot: BeliefSnapshot | None = None
+        self._last_snapshot: BeliefSnapshot | None = None
+        self._history: list[BeliefSnapshot] = []
+        self.refits = 0
+
+    @property
+    def region(self) -> Region:
+        """Config region, else the scene's, else the observed extent plus a margin."""
+        if self._fixed_region is not None:
+            return self._fixed_region
+        if self._lower is None or self._upper is None:
+            return _THESIS_REGION
+        try:
+            return Region(*fn.extent_region(self._lower, self._upper, self.config.region_margin_m))
+        except ValueError:  # an extent near the float64 limit
+            return _THESIS_REGION
+
+    @property
+    def cell_size_m(self) -> float:
+        """The current bin edge: the configured size doubled once per coarsening."""
+        return float(self.config.cell_size_m * 2.0**self._level)
+
+    @property
+    def representatives(self) -> int:
+        """Number of (cell, class) bins the next refit is fitted on."""
+        return len(self._bins)
+
+    @property
+    def observations_seen(self) -> int:
+        return self._seen
+
+    @property
+    def fitted(self) -> bool:
+        """Whether an SVC is fitted (both classes seen in at least two bins each)."""
+        return self._current is not None
+
+    @property
+    def contact_indices(self) -> tuple[int | None, int | None]:
+        """Arrival index of the first and the last contact observation (None without contact)."""
+        return self._first_contact, self._last_contact
+
+    # --- updating ----------------------------------------------------------------------------
+
+    def update(self, observations: Observations) -> None:
+        """Bin the observations; refit once ``update_every`` have arrived since the last refit."""
+        if not isinstance(observations, Observations):
+            raise TypeError(f"update expects Observations, got {type(observations).__name__}")
+        n = len(observations)
+        if n == 0:
+            return
+        points, targets, weights = observations.points_m, observations.targets, observations.weights
+        contact = np.flatnonzero(targets > 0.5)
+        if contact.size:
+            if self._first_contact is None:
+                self._first_contact = self._seen + int(contact[0])
+            self._last_contact = self._seen + int(contact[-1])
+        low, high = points.min(axis=0), points.max(axis=0)
+        self._lower = low if self._lower is None else np.minimum(self._lower, low)
+        self._upper = high if self._upper is None else np.maximum(self._upper, high)
+        self._latest_point = points[-1].copy()
+        self._total_weight += float(weights.sum())
+        self._contact_weight += float(weights[targets > 0.5].sum())
+        new_bins = fn.bin_observations(points, targets, weights, self.cell_size_m)
+        self._bins, self._level = fn.bound_bins(
+            fn.merge_bins(self._bins, new_bins), self._level, self.config.max_points
+        )
+        self._seen += n
+        self._pending += n
+        if self._pending >= self.config.update_every:
+            self.refit()
+
+    def refit(self) -> None:
+        """Fit the classifier on the current bins now (a no-op for the prior's state)."""
+        self._pending = 0
+        labels = self._bins.labels
+        counts = np.bincount(labels, minlength=2)
+        if counts.min() < 2:
+            self._current = None
+            return
+        positions = self._bins.positions
+        weights = self._bins.weights
+        origin = (weights[:, None] * positions).sum(axis=0) / weights.sum()
+        started = time.perf_counter()
+        model = fit_calibrated_svc(
+            positions - origin,
+            labels,
+            weights,
+            gamma_per_m2=self.config.gamma_per_m2,
+            penalty_c=self.config.penalty_c,
+            folds=int(min(self.config.calibration_folds, counts.min())),
+            seed=self._seed,
+        )
+        self.refit_durations_s.append(time.perf_counter() - started)
+        self.refits += 1
+        snapshot = BeliefSnapshot(
+            self._seen, model, origin, self._latest_point.copy(), positions, self.cell_size_m,
+            self.config.length_scale_m, self.config.unexplored_prior,
+        )
+        self._current = snapshot
+        self._remember(snapshot)
+
+    def _remember(self, snapshot: BeliefSnapshot) -> None:
+        """Keep fitted maps from first contact on (first and last-contact ones exactly)."""
+        if self._first_contact is None or self._last_contact is None:
+            return
+        if self._first_snapshot is None:
+            self._first_snapshot = snapshot
+        # A later contact observation makes the kept last-contact map stale.
+        if self._last_snapshot is None or self._last_snapshot.observations_seen <= self._last_contact:
+            self._last_snapshot = snapshot
+        self._history.append(snapshot)
+        if len(self._history) > self.config.max_snapshots:
+            # Keep the first and the newest, thin the rest evenly.
+            self._history = self._history[:-1:2] + [self._history[-1]]
+
+    # --- queries -----------------------------------------------------------------------------
+
+    def prior(self) -> float:
+        """The mean on observed ground while no classifier is fitted: the smoothed contact fraction."""
+        return fn.smoothed_fraction(self._contact_weight, self._total_weight)
+
+    def query(self, points_m: ArrayLike) -> MapEstimate:
+        """``P(object | x)`` and the Bernoulli spread ``sqrt(p (1 - p))`` at ``points_m``."""
+        p = np.asarray(points_m, dtype=np.float64)
+        if p.size == 0:
+            return MapEstimate(np.empty(0), np.empty(0))
+        if p.ndim == 1 and p.shape == (2,):
+            p = p[None, :]
+        if p.ndim != 2 or p.shape[1] != 2:
+            raise ValueError(f"points_m must have shape (q, 2), got {p.shape}")
+        if not np.isfinite(p).all():
+            raise ValueError("query points must be finite (got NaN or infinity)")
+        if self._current is None:
+            mean = _blend(
+                np.full(len(p), self.prior()), p,
+                self._bins.positions if len(self._bins) else np.empty((0, 2)),
+                self.cell_size_m, self.config.length_scale_m, self.config.unexplored_prior,
+            )
+        else:
+            mean = self._current.probability(p)
+        return MapEstimate(mean, fn.bernoulli_std(mean))
+
+    # --- snapshots and figures ---------------------------------------------------------------
+
+    def snapshots(self) -> dict[str, BeliefSnapshot]:
+        """Fitted maps at ``first_contact``, ``mid_contact`` and ``last_contact`` (those reached).
+
+        Each is the map right after the first refit whose data include that observation
+        (call :meth:`refit` first to include observations still waiting for the cadence).
+        The middle one comes from a thinned history and may be a few refits late.
+        """
+        out: dict[str, BeliefSnapshot] = {}
+        if self._first_contact is None or self._last_contact is None:
+            return out
+        if self._first_snapshot is not None:
+            out["first_contact"] = self._first_snapshot
+        middle = (self._first_contact + self._last_contact) // 2
+        for snapshot in self._history:
+            if snapshot.observations_seen > middle:
+                out["mid_contact"] = snapshot
+                break
+        if (
+            self._last_snapshot is not None
+            and self._last_snapshot.observations_seen > self._last_contact
+        ):
+            out["last_contact"] = self._last_snapshot
+        return out
+
+    def probability_grid(
+        self, snapshot: BeliefSnapshot | None = None, cells_long_side: int = 150
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(xs, ys, mean)`` on a grid over :attr:`region`; ``mean`` has shape ``(ny, nx)``."""
+        region = self.region
+        width, height = region.size_m
+        spacing = max(width, height) / cells_long_side
+        xs, ys = region.grid(spacing)
+        gx, gy = np.meshgrid(xs, ys)
+        points = np.column_stack([gx.ravel(), gy.ravel()])
+        if snapshot is None:
+            mean = self.query(points).mean
+        else:
+            mean = snapshot.probability(points)
+        return xs, ys, mean.reshape(len(ys), len(xs))
+
+    def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
+        """Refit on waiting observations, write ``belief_<moment>.png`` and return counts."""
+        if self._pending:
+            self.refit()
+        snapshots = self.snapshots()
+        if outcome.figures:
+            from ._plots import save_belief_figure
+
+            out_dir = Path(outcome.out_dir)
+            outlines = [] if outcome.scene is None else [o.outline() for o in outcome.scene.objects]
+            titles = {
+                "first_contact": "(a) first contact",
+                "mid_contact": "(b) mid-contact",
+                "last_contact": "(c) last contact",
+            }
+            for moment, snapshot in snapshots.items():
+                xs, ys, mean = self.probability_grid(snapshot)
+                save_belief_figure(
+                    out_dir / f"belief_{moment}.png", xs, ys, mean,
+                    title=f"Belief map at {titles[moment]}",
+                    fingertip_m=snapshot.fingertip_m, outlines=outlines,
+                )
+            xs, ys, mean = self.probability_grid()
+            save_belief_figure(
+                out_dir / "belief_final.png", xs, ys, mean, title="Belief map at the end of the run",
+                fingertip_m=self._latest_point, outlines=outlines,
+            )
+        return {
+            "belief_map_refits": int(self.refits),
+            "belief_map_representatives": int(len(self._bins)),
+            "belief_map_cell_size_m": self.cell_size_m,
+            "belief_map_snapshots": sorted(snapshots),
+        }
