@@ -1,0 +1,180 @@
+"""Configuration of the contact-state classifiers (import-light: pydantic only).
+
+The recurrent classifiers (``sf-rnn``, ``fusion-rnn``) read one sparse code per BioTac
+modality, ``pac_code`` (200,), ``pdc_code`` (100,) and ``electrodes_code`` (100,), at the
+100 Hz frame rate of the ``sparse-coding`` feature extractor. ``linear-svm`` reads any
+configured channels flattened per frame.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator
+
+from hapticframe import PluginConfig
+
+__all__ = [
+    "CLASSES",
+    "DEFAULT_CODE_SIZES",
+    "MODALITIES",
+    "FusionRNNConfig",
+    "LinearSVMConfig",
+    "Modality",
+    "RecurrentConfig",
+    "SFRNNConfig",
+    "code_channel",
+]
+
+Modality = Literal["pac", "pdc", "electrodes"]
+#: The BioTac modalities in the thesis's order (vibration, fluid pressure, electrodes).
+MODALITIES: tuple[Modality, ...] = ("pac", "pdc", "electrodes")
+#: Dictionary sizes of the thesis (Appendix A.2): 200, 100 and 100 atoms.
+DEFAULT_CODE_SIZES: dict[str, int] = {"pac": 200, "pdc": 100, "electrodes": 100}
+#: Contact states; ``classes[0]`` is the background state.
+CLASSES: tuple[str, str] = ("free", "contact")
+
+
+def code_channel(modality: str) -> str:
+    """The ``sparse-coding`` output channel of a modality (``pac`` → ``pac_code``)."""
+    return f"{modality}_code"
+
+
+class RecurrentConfig(PluginConfig):
+    """Settings shared by the recurrent classifiers: inputs, training and artifacts."""
+
+    modalities: tuple[Modality, ...] = Field(
+        MODALITIES,
+        description="Modalities the network is built for; their code channels "
+        "(<modality>_code) are read. A configured modality missing at run time is zero-filled.",
+    )
+    pac_code_size: int = Field(200, ge=1, description="Length of pac_code (thesis: 200 atoms).")
+    pdc_code_size: int = Field(100, ge=1, description="Length of pdc_code (thesis: 100 atoms).")
+    electrodes_code_size: int = Field(
+        100, ge=1, description="Length of electrodes_code (thesis: 100 atoms)."
+    )
+    frame_rate_hz: float = Field(100.0, gt=0, description="Rate of the code frames.")
+    dropout: float = Field(
+        0.4, ge=0.0, lt=1.0, description="Dropout rate in training (thesis: 0.4)."
+    )
+    window_frames: int = Field(
+        50, ge=2, description="Training window in frames (thesis: 500 ms at 100 Hz = 50)."
+    )
+    free_stride_frames: int = Field(
+        10, ge=1, description="Sliding-window step over trials without contact (thesis: 10)."
+    )
+    contact_stride_frames: int = Field(
+        5, ge=1, description="Sliding-window step over trials with contact (thesis: 5)."
+    )
+    learning_rate: float = Field(1e-3, gt=0, description="Adam learning rate.")
+    weight_decay: float = Field(
+        1e-4, ge=0, description="L2 penalty on the weights (Adam weight_decay)."
+    )
+    batch_size: int = Field(32, ge=1, description="Training windows per Adam step.")
+    max_epochs: int = Field(40, ge=1, description="Upper bound on training epochs.")
+    patience: int = Field(
+        5, ge=1, description="Epochs without a lower validation loss before training stops."
+    )
+    validation_fraction: float = Field(
+        0.2,
+        ge=0.0,
+        lt=1.0,
+        description="Share of the training trials held out (whole trials) for early stopping "
+        "(thesis: 60/20/20 split; 0 trains without early stopping).",
+    )
+    balance_classes: bool = Field(
+        True,
+        description="Weight the cross-entropy by inverse class frequency over the training "
+        "windows, on top of the thesis's oversampling.",
+    )
+    modality_dropout: float = Field(
+        0.0,
+        ge=0.0,
+        lt=1.0,
+        description="Probability of zeroing one modality for a whole training window, to "
+        "prepare the network for missing modalities (0 = off, as the thesis).",
+    )
+    progress: bool = Field(
+        True, description="Show a progress bar while training (tqdm, else one line per epoch)."
+    )
+    threads: int = Field(
+        1,
+        ge=1,
+        description="torch intra-op threads while training (restored afterwards): these small "
+        "GRUs train fastest on one, and several threads on shared cores slow them ~10×.",
+    )
+    model_dir: str | None = Field(
+        None,
+        description="Directory written by save() (weights.pt + model.json) to load at build "
+        "time; the saved architecture replaces the one configured here.",
+    )
+
+    @field_validator("modalities")
+    @classmethod
+    def _canonical_modalities(cls, value: tuple[Modality, ...]) -> tuple[Modality, ...]:
+        if not value:
+            raise ValueError("name at least one modality")
+        if len(set(value)) != len(value):
+            raise ValueError(f"modalities repeat: {list(value)}")
+        return tuple(m for m in MODALITIES if m in value)
+
+    def code_size(self, modality: str) -> int:
+        """Length of the code vector of ``modality``."""
+        return int(getattr(self, f"{modality}_code_size"))
+
+
+class SFRNNConfig(RecurrentConfig):
+    """SF-RNN (dissertation Fig. 2.2e): codes → fusion layer → GRU stack → two states."""
+
+    fusion_units: int = Field(
+        100, ge=1, description="Width of the fully connected fusion layer over all codes."
+    )
+    gru_layers: int = Field(4, ge=1, description="Stacked GRU layers (thesis: 4).")
+    gru_units: int = Field(50, ge=1, description="Units per GRU layer (thesis: 50).")
+
+
+class FusionRNNConfig(RecurrentConfig):
+    """Fusion RNN (Jain et al.): one GRU stack per modality, joined by a fully connected layer."""
+
+    branch_layers: int = Field(2, ge=1, description="GRU layers per modality.")
+    branch_units: int = Field(50, ge=1, description="Units per GRU layer of each modality.")
+    fusion_units: int = Field(
+        50, ge=1, description="Width of the fully connected layer joining the modalities."
+    )
+
+
+class LinearSVMConfig(PluginConfig):
+    """Linear SVM with Platt-calibrated probabilities on channels flattened per frame."""
+
+    inputs: dict[str, int] = Field(
+        {"pac_code": 200, "pdc_code": 100, "electrodes_code": 100},
+        description="Input channels and their flattened per-frame sizes, e.g. sparse codes "
+        "(stage d), EMD tensors {'pac_imfs': 176, ...} (stage c) or raw frames "
+        "{'pac': 22, 'pdc': 1, 'electrodes': 19}. Missing or invalid ones are zero-filled.",
+    )
+    c: float = Field(1.0, gt=0, description="LinearSVC regularisation C.")
+    max_iter: int = Field(5000, ge=1, description="LinearSVC iteration cap.")
+    calibration_folds: int = Field(
+        3, ge=2, description="Folds (grouped by trial) for the Platt-scaling calibration."
+    )
+    balance_classes: bool = Field(
+        True,
+        description="class_weight='balanced' (stands in for the thesis's random oversampling "
+        "of the contact class).",
+    )
+    frame_rate_hz: float = Field(100.0, gt=0, description="Rate of the input frames.")
+    model_dir: str | None = Field(
+        None,
+        description="Directory written by save() (model.npz + model.json) to load at build "
+        "time.",
+    )
+
+    @field_validator("inputs")
+    @classmethod
+    def _sizes(cls, value: dict[str, int]) -> dict[str, int]:
+        if not value:
+            raise ValueError("name at least one input channel")
+        bad = {k: v for k, v in value.items() if int(v) < 1}
+        if bad:
+            raise ValueError(f"input sizes must be ≥ 1, got {bad}")
+        return value

@@ -1,0 +1,325 @@
+"""The ``sf-rnn`` and ``fusion-rnn`` classifiers: sparse codes in, contact probabilities out.
+
+One class layer serves both networks (:class:`RecurrentClassifier`); the subclasses only
+say which network to build. Inputs are the configured modalities' code channels
+(``pac_code``, ``pdc_code``, ``electrodes_code``) at 100 Hz.
+
+Missing modalities (Table A.1)
+------------------------------
+A configured modality whose channel is absent from a batch, flagged invalid in
+``SampleBatch.valid`` or non-finite in a frame is zero-filled in that frame: the zero code,
+which is what ``sparse-coding`` itself emits for an invalid tensor, meaning "no activation".
+Absent channels raise one :class:`UserWarning` per channel and component; every fill is
+counted in :attr:`RecurrentClassifier.fill_report` and returned by :meth:`finalize`.
+Training with ``modality_dropout > 0`` prepares a network for such gaps.
+
+Streaming and batch
+-------------------
+:meth:`update` runs the network one frame at a time and keeps the GRU hidden state between
+calls; :meth:`predict_proba` (inherited) resets the state and runs the same per-frame code
+over the whole recording, so chunked streaming equals the batch path bit for bit. Output
+timestamps are the input's: any look-ahead delay lies upstream in ``emd-features``.
+Probabilities are float64 (softmax of the float32 logits computed in float64).
+
+Artifacts
+---------
+:meth:`save` writes ``weights.pt`` (``torch.save`` of the state dict: tensors only) and
+``model.json`` (format, versions, config, modalities, classes, feature settings, training
+metrics). :meth:`load` reads them with ``torch.load(weights_only=True)``; nothing is
+unpickled. Config ``model_dir`` loads a saved model at build time.
+
+Before training (no ``model_dir``, no :meth:`fit`), weights are drawn from a
+:class:`torch.Generator` seeded from ``context.rng``: deterministic for a seed, so the
+component runs and can be checked, but its probabilities mean nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from numpy.typing import ArrayLike
+
+from hapticframe.kinds import BuildContext, ClassProbabilities, Classifier, RunOutcome, SampleBatch
+
+from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, code_channel
+from ._functional import (
+    INPUT_CLIP,
+    FillReport,
+    assemble_inputs,
+    check_labels,
+    rms_scale,
+    softmax_rows,
+    version_of,
+)
+from ._networks import FusionRNNNet, RecurrentNet, SFRNNNet, init_parameters
+from ._training import train_network
+
+__all__ = ["MODEL_FORMAT", "FusionRNNClassifier", "RecurrentClassifier", "SFRNNClassifier"]
+
+#: ``format`` field of ``model.json``.
+MODEL_FORMAT = "hapticframe-recurrent-classifier"
+_FORMAT_VERSION = 1
+
+
+class RecurrentClassifier(Classifier):
+    """Streaming two-state classifier over per-modality sparse codes (base of both RNNs)."""
+
+    architecture: str = ""
+
+    def __init__(self, config: RecurrentConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+        self._init_seed = int(context.rng.integers(2**62))
+        self._fit_seed = int(context.rng.integers(2**62))
+        self.fitted = False
+        self.training_metrics: dict[str, Any] = {}
+        self.feature_settings: dict[str, Any] = self._input_settings(context)
+        self.fill_report = FillReport()
+        self._warned: set[str] = set()
+        self._build(config)
+        if config.model_dir is not None:
+            self.load(config.model_dir)
+
+    # -- construction ------------------------------------------------------------------
+
+    def _make_network(self, config: Any) -> RecurrentNet:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _build(self, config: RecurrentConfig) -> None:
+        self.config = config
+        self.groups: dict[str, int] = {
+            code_channel(m): config.code_size(m) for m in config.modalities
+        }
+        self.net = self._make_network(config)
+        init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
+        self.net.eval()
+        self._scale = np.ones(sum(self.groups.values()))
+        self._state: tuple[torch.Tensor, ...] | None = None
+
+    @staticmethod
+    def _input_settings(context: BuildContext) -> dict[str, Any]:
+        # Feature extractors feeding this classifier describe their settings (delay, sizes);
+        # a model must carry them so that run-time features match training features.
+        settings = {}
+        for name, component in context.inputs.items():
+            value = getattr(component, "settings", None)
+            if isinstance(value, Mapping):
+                settings[name] = dict(value)
+        return settings
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        return CLASSES
+
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        return tuple(self.config.modalities)
+
+    # -- streaming ---------------------------------------------------------------------
+
+    def reset(self) -> None:
+        self._state = None
+
+    def _scaled(self, batch: SampleBatch) -> np.ndarray:
+        for name in self.groups:
+            if name not in batch.channels and name not in self._warned and len(batch):
+                self._warned.add(name)
+                warnings.warn(
+                    f"{self.architecture} {self.id!r}: input channel {name!r} is absent; "
+                    "that modality is zero-filled",
+                    UserWarning,
+                    stacklevel=3,
+                )
+        x, _ = assemble_inputs(batch, self.groups, self.fill_report)
+        return np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
+
+    def update(self, batch: SampleBatch) -> ClassProbabilities:
+        x = torch.from_numpy(self._scaled(batch).astype(np.float32))
+        logits = np.empty((len(batch), len(CLASSES)))
+        state = self._state if self._state is not None else self.net.initial_state(1)
+        with torch.no_grad():
+            for i in range(len(batch)):
+                out, state = self.net(x[None, i : i + 1, :], state)
+                logits[i] = out[0, 0].numpy()
+        self._state = state
+        return ClassProbabilities(batch.timestamps_s, softmax_rows(logits), CLASSES)
+
+    # -- training ----------------------------------------------------------------------
+
+    def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:
+        """Train on labelled trials: one batch and one label array (0 free, 1 contact) each.
+
+        Training starts from the seeded initial weights every time, so the result depends
+        only on the data and ``context.rng``'s seed, not on earlier calls. Channels missing
+        from a training batch are zero-filled like at run time.
+
+        Raises
+        ------
+        ValueError
+            On mismatched lengths, labels outside {0, 1}, or no frames.
+        """
+        if len(batches) != len(labels):
+            raise ValueError(f"{len(batches)} batches but {len(labels)} label arrays")
+        xs, ys = [], []
+        for batch, y in zip(batches, labels, strict=True):
+            x, _ = assemble_inputs(batch, self.groups)
+            xs.append(x)
+            ys.append(check_labels(y, len(batch), len(CLASSES)))
+        if not xs or sum(len(y) for y in ys) == 0:
+            raise ValueError("fit needs at least one labelled frame")
+        self._scale = rms_scale(np.vstack(xs), list(self.groups.values()))
+        with torch.no_grad():
+            self.net.input_scale.copy_(torch.from_numpy(self._scale))
+        scaled = [np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP) for x in xs]
+        init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
+        self.training_metrics = train_network(self.net, scaled, ys, self.config, self._fit_seed)
+        self.fitted = True
+        self.reset()
+
+    # -- artifacts ---------------------------------------------------------------------
+
+    def metadata(self) -> dict[str, Any]:
+        """What ``model.json`` holds."""
+        return {
+            "format": MODEL_FORMAT,
+            "format_version": _FORMAT_VERSION,
+            "architecture": self.architecture,
+            "versions": {
+                "hapticframe": version_of("hapticframe"),
+                "torch": torch.__version__,
+                "numpy": np.__version__,
+                "python": platform.python_version(),
+            },
+            "config": self.config.model_dump(mode="json", exclude={"model_dir"}),
+            "modalities": list(self.modalities),
+            "inputs": dict(self.groups),
+            "classes": list(CLASSES),
+            "fitted": self.fitted,
+            "feature_settings": self.feature_settings,
+            "training_metrics": self.training_metrics,
+            "saved_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+
+    def save(self, directory: str | Path) -> Path:
+        """Write ``weights.pt`` and ``model.json`` into ``directory`` (created); return it."""
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        torch.save(self.net.state_dict(), out / "weights.pt")
+        (out / "model.json").write_text(json.dumps(self.metadata(), indent=2, allow_nan=False))
+        return out
+
+    def load(self, directory: str | Path) -> None:
+        """Adopt the model saved in ``directory`` (its architecture and weights).
+
+        Raises
+        ------
+        ValueError
+            When the files are missing or of another format or architecture.
+        """
+        path = Path(directory)
+        meta_path, weights_path = path / "model.json", path / "weights.pt"
+        if not meta_path.is_file() or not weights_path.is_file():
+            raise ValueError(f"{path} lacks model.json or weights.pt")
+        meta = json.loads(meta_path.read_text())
+        if meta.get("format") != MODEL_FORMAT or meta.get("format_version") != _FORMAT_VERSION:
+            raise ValueError(f"{meta_path} is not a {MODEL_FORMAT} v{_FORMAT_VERSION} file")
+        if meta.get("architecture") != self.architecture:
+            raise ValueError(
+                f"{path} holds a {meta.get('architecture')!r} model, not {self.architecture!r}"
+            )
+        saved = {**meta["config"], "model_dir": None, "progress": self.config.progress}
+        self._build(type(self.config).model_validate(saved))
+        state = torch.load(weights_path, map_location="cpu", weights_only=True)
+        self.net.load_state_dict(state)
+        self.net.eval()
+        self._scale = self.net.input_scale.numpy().astype(np.float64).copy()
+        self.fitted = bool(meta.get("fitted", False))
+        self.training_metrics = dict(meta.get("training_metrics") or {})
+        self.feature_settings = dict(meta.get("feature_settings") or {})
+
+    def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
+        report = self.fill_report.as_dict()
+        metrics: dict[str, Any] = {}
+        for what, counts in report.items():
+            for name, count in counts.items():
+                metrics[f"{self.id}_{name}_{what}"] = count
+        return metrics
+
+
+class SFRNNClassifier(RecurrentClassifier):
+    """SF-RNN (dissertation Fig. 2.2e): sparse codes → fusion → 4 × 50 GRU → free/contact."""
+
+    architecture = "sf-rnn"
+
+    def __init__(self, config: SFRNNConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+
+    def _make_network(self, config: SFRNNConfig) -> RecurrentNet:
+        return SFRNNNet(
+            list(self.groups.values()),
+            config.fusion_units,
+            config.gru_layers,
+            config.gru_units,
+            config.dropout,
+            len(CLASSES),
+        )
+
+
+class FusionRNNClassifier(RecurrentClassifier):
+    """Fusion RNN baseline: one GRU stack per modality joined by a fully connected layer."""
+
+    architecture = "fusion-rnn"
+
+    def __init__(self, config: FusionRNNConfig, context: BuildContext) -> None:
+        super().__init__(config, context)
+
+    def _make_network(self, config: FusionRNNConfig) -> RecurrentNet:
+        return FusionRNNNet(
+            list(self.groups.values()),
+            config.branch_layers,
+            config.branch_units,
+            config.fusion_units,
+            config.dropout,
+            len(CLASSES),
+        )
+
+
+def measure_step_latency(
+    classifier: RecurrentClassifier, frames: int = 2000, seed: int = 0
+) -> dict[str, float]:
+    """Per-frame latency of :meth:`RecurrentClassifier.update` on one thread (benchmark).
+
+    Feeds ``frames`` single-frame batches of sparse code-like input (about 10 % non-zeros)
+    and reports the median, 99th percentile and maximum in milliseconds.
+    """
+    rng = np.random.default_rng(seed)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        classifier.reset()
+        times = np.empty(frames)
+        for i in range(frames):
+            channels = {}
+            for name, size in classifier.groups.items():
+                code = rng.standard_normal(size) * (rng.random(size) < 0.1)
+                channels[name] = code[None, :]
+            batch = SampleBatch(np.array([0.01 * (i + 1)]), channels)
+            start = time.perf_counter()
+            classifier.update(batch)
+            times[i] = (time.perf_counter() - start) * 1e3
+    finally:
+        torch.set_num_threads(threads)
+        classifier.reset()
+    return {
+        "frames": float(frames),
+        "latency_ms_median": float(np.median(times)),
+        "latency_ms_p99": float(np.percentile(times, 99)),
+        "latency_ms_max": float(times.max()),
+    }
