@@ -31,12 +31,16 @@ weight samples by ``m + L^-T z``. No matrix is inverted explicitly.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import lapack
 from scipy.special import expit
+
+from ._windowed import DenseRows, WindowedRows
 
 __all__ = [
     "GaussianWeights",
@@ -177,6 +181,15 @@ def separable_hinge_features(
     if np.any(~np.isfinite(scales)) or np.any(scales <= 0):
         raise ValueError("length scales must be positive and finite")
     n, m = p.shape[0], xs.size * ys.size
+    first = float(scales.flat[0])
+    if np.all(scales == first):  # one length scale (the default): a single outer product
+        fx = _gaussian_factor(p[:, :1] - xs[None, :], first)
+        fy = _gaussian_factor(p[:, 1:] - ys[None, :], first)
+        phi = np.empty((n, m + int(bias)))
+        np.multiply(fx[:, :, None], fy[:, None, :], out=phi[:, :m].reshape(n, xs.size, ys.size))
+        if bias:
+            phi[:, m] = 1.0
+        return phi
     fx = _axis_factors(p[:, 0], xs, scales)
     fy = _axis_factors(p[:, 1], ys, scales)
     flat_scales = scales.ravel()
@@ -228,10 +241,11 @@ def cholesky_with_jitter(matrix: FloatArray) -> FloatArray:
     a = np.asarray(matrix, dtype=np.float64)
     if not np.all(np.isfinite(a)):
         raise np.linalg.LinAlgError("matrix to factorise contains NaN or infinity")
-    try:
-        return sla.cholesky(a, lower=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        pass
+    # LAPACK directly: scipy.linalg.cholesky's checks cost as much as the factorisation
+    # at D ~ 235. potrf leaves the strict upper triangle untouched, so it is cleared.
+    lower, info = lapack.dpotrf(a, lower=1, clean=1)
+    if info == 0:
+        return lower
     scale = float(np.mean(np.abs(np.diag(a)))) or 1.0
     jitter = _JITTER_START * scale
     for _ in range(_JITTER_RETRIES):
@@ -266,23 +280,31 @@ class GaussianWeights:
     cholesky: FloatArray
     mean: FloatArray
     diagonal: bool = False
+    _cache: dict[str, FloatArray] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_information(cls, precision: FloatArray, shift: FloatArray) -> GaussianWeights:
         """Factorise ``precision`` and solve for the mean."""
         lower = cholesky_with_jitter(precision)
-        mean = sla.cho_solve((lower, True), shift, check_finite=False)
+        mean, info = lapack.dpotrs(lower, shift, lower=1)
+        if info != 0:  # cannot happen for a factor potrf produced; keep the checked path
+            mean = sla.cho_solve((lower, True), shift, check_finite=False)
         return cls(precision, shift, lower, mean)
 
     @classmethod
-    def isotropic(cls, dimension: int, variance: float | FloatArray) -> GaussianWeights:
-        """Zero-mean prior with independent weights of the given variance(s)."""
+    def isotropic(
+        cls, dimension: int, variance: float | FloatArray, mean: float | FloatArray = 0.0
+    ) -> GaussianWeights:
+        """Prior with independent weights of the given variance(s) and mean(s) (default 0)."""
         var = np.broadcast_to(np.asarray(variance, dtype=np.float64), (dimension,))
         if np.any(~np.isfinite(var)) or np.any(var <= 0):
             raise ValueError("prior variances must be positive and finite")
+        centre = np.broadcast_to(np.asarray(mean, dtype=np.float64), (dimension,)).copy()
+        if not np.all(np.isfinite(centre)):
+            raise ValueError("prior means must be finite")
         precision = np.diag(1.0 / var)
         root = np.diag(np.sqrt(1.0 / var))
-        return cls(precision, np.zeros(dimension), root, np.zeros(dimension), diagonal=True)
+        return cls(precision, centre / var, root, centre, diagonal=True)
 
     @property
     def dimension(self) -> int:
@@ -298,8 +320,28 @@ class GaussianWeights:
         return np.einsum("ij,ij->j", inverse_factor, inverse_factor)
 
     def covariance(self) -> FloatArray:
-        """The full covariance ``S``, obtained by Cholesky solves (for small D only)."""
-        return sla.cho_solve((self.cholesky, True), np.eye(self.dimension), check_finite=False)
+        """The full covariance ``S`` from the Cholesky factor (LAPACK ``potri``), cached.
+
+        ``potri`` inverts the triangular factor and multiplies it out (what ``cho_solve``
+        with the identity does, at half the cost). The returned array is shared between
+        calls: do not modify it.
+        """
+        cached = self._cache.get("covariance")
+        if cached is not None:
+            return cached
+        if self.diagonal:
+            cov = np.diag(1.0 / np.diag(self.precision))
+        else:
+            lower, info = lapack.dpotri(self.cholesky, lower=1)
+            if info != 0:
+                cov = sla.cho_solve(
+                    (self.cholesky, True), np.eye(self.dimension), check_finite=False
+                )
+            else:
+                cov = np.tril(lower) + np.tril(lower, -1).T
+        cov.setflags(write=False)
+        self._cache["covariance"] = cov
+        return cov
 
 
 @dataclass(frozen=True)
@@ -352,7 +394,8 @@ def variational_update(
     ----------
     prior : GaussianWeights
         The batch prior; it is held fixed while ``xi`` is iterated.
-    features : (n, D) float64
+    features : (n, D) float64, DenseRows or WindowedRows
+        Feature rows (see :mod:`hapticframe_bhm._windowed`).
     targets : (n,) float64
         Soft occupancy targets in [0, 1].
     weights : (n,) float64, optional
@@ -370,9 +413,9 @@ def variational_update(
     posterior : GaussianWeights
     info : UpdateInfo
     """
-    phi = np.asarray(features, dtype=np.float64)
+    rows = features if isinstance(features, (DenseRows, WindowedRows)) else DenseRows(features)
     y = np.asarray(targets, dtype=np.float64)
-    n, d = phi.shape
+    n, d = rows.count, rows.dimension
     if d != prior.dimension:
         raise ValueError(f"features have {d} columns, the belief has {prior.dimension} weights")
     if y.shape != (n,):
@@ -380,7 +423,7 @@ def variational_update(
     w = np.ones(n) if weights is None else np.asarray(weights, dtype=np.float64)
     if w.shape != (n,):
         raise ValueError(f"weights must have shape ({n},), got {w.shape}")
-    if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(y)) and np.all(np.isfinite(w))):
+    if not (rows.all_finite() and np.all(np.isfinite(y)) and np.all(np.isfinite(w))):
         raise ValueError("features, targets and weights must be finite")
     if n and (y.min() < 0 or y.max() > 1 or w.min() < 0):
         raise ValueError("targets must lie in [0, 1] and weights must be non-negative")
@@ -389,25 +432,41 @@ def variational_update(
     if n == 0:
         return prior, UpdateInfo(0, True, 0.0, np.zeros(0))
 
-    shift = prior.shift + phi.T @ (w * (y - 0.5))
-    xi = xi_from_belief(prior, phi) if xi_initial is None else np.abs(np.asarray(xi_initial, float))
+    shift = prior.shift + rows.weighted_sum(w * (y - 0.5))
+    xi = _xi(prior, rows) if xi_initial is None else np.abs(np.asarray(xi_initial, float))
     if xi.shape != (n,):
         raise ValueError(f"xi_initial must have shape ({n},), got {xi.shape}")
     change = np.inf
     for iteration in range(1, max_iterations + 1):
-        root_curvature = np.sqrt(2.0 * w * jj_lambda(xi))
-        scaled = phi * root_curvature[:, None]
-        precision = prior.precision + scaled.T @ scaled
+        precision = prior.precision + rows.gram(2.0 * w * jj_lambda(xi))
         posterior = GaussianWeights.from_information(precision, shift)
         if iteration == max_iterations:
             break
-        xi_new = xi_from_belief(posterior, phi)
+        xi_new = _xi(posterior, rows)
         change = float(np.linalg.norm(xi_new - xi) / max(np.linalg.norm(xi), 1e-300))
         xi = xi_new
         if change <= tolerance:
             # The posterior for xi_new differs from this one by O(tolerance); keep it.
             return posterior, UpdateInfo(iteration, True, change, xi)
     return posterior, UpdateInfo(max_iterations, change <= tolerance, change, xi)
+
+
+def _xi(belief: GaussianWeights, rows: Any) -> FloatArray:
+    """``xi_n`` of :func:`xi_from_belief` over feature rows (dense or windowed).
+
+    Dense rows (small batches) use one triangular solve with the precision's Cholesky factor;
+    windowed rows (large batches) the cached covariance, ``phi^T S phi`` in ``O(n K^4)``.
+    """
+    mu = rows.dot(belief.mean)
+    if belief.diagonal:
+        var = rows.quadratic_diagonal(1.0 / np.diag(belief.precision))
+    elif isinstance(rows, DenseRows) and rows.count <= 4 * belief.dimension:
+        # A few rows: one triangular solve (n D^2 / 2 flops) beats a product with the
+        # covariance (n D^2) and needs no covariance at all.
+        var = predictive_moments(belief, rows.matrix)[1]
+    else:
+        var = rows.quadratic(belief.covariance())
+    return np.sqrt(np.maximum(0.0, mu * mu + var))
 
 
 # --- prediction -------------------------------------------------------------------------

@@ -102,11 +102,13 @@ def grid_predictive_moments(
             part = tensor
             if len(blocks) > 1:
                 part = tensor * (mask_p[:, :, None, None] * mask_q[None, None, :, :])
-            # Contract the two x-axes first (a: query x), then the two y-axes (b: query y).
+            # Contract the two x-axes first (a: query x), then the two y-axes (b: query y),
+            # with BLAS products throughout: u[a, j, k, m] = sum_i gx_p[a, i] S[i, j, k, m].
             u = np.tensordot(gx_p, part, axes=(1, 0))  # (qx, ny, nx, ny)
-            v = np.einsum("ajkm,ak->ajm", u, gx_q)  # (qx, ny, ny)
-            w = v @ gy_q.T  # (qx, ny, qy)
-            term = np.einsum("bj,ajb->ab", gy_p, w)
+            # v[a, j, m] = sum_k u[a, j, k, m] gx_q[a, k]: a batched matrix-vector product.
+            v = np.matmul(u.transpose(0, 1, 3, 2), gx_q[:, None, :, None])[..., 0]
+            w = v @ gy_q.T  # (qx, ny, qy): w[a, j, b] = sum_m v[a, j, m] gy_q[b, m]
+            term = np.sum(w * gy_p.T[None, :, :], axis=1)  # sum_j gy_p[b, j] w[a, j, b]
             # S is symmetric, so the (q, p) term equals the (p, q) term.
             var += term if q == p else 2.0 * term
     if bias:

@@ -45,8 +45,22 @@ class CoverageConfig(PluginConfig):
 class TwoPhaseCoverageConfig(CoverageConfig):
     """The dissertation's two-phase strategy (section 3.4.4, Table 3.1)."""
 
+    line_spacing_m: float = Field(
+        0.10, gt=0,
+        description="Distance between neighbouring phase-1 lines. 10 cm: at the full raking "
+        "depth the classifier detects an object whose outline passes within about 2.5 cm of "
+        "the fingertip's path (more for a head-on approach), so a 9 x 5 cm ellipse (5 cm "
+        "across) or an 8 cm circle within 5 cm of a line is always found.",
+    )
     max_movements: int = Field(
         40, ge=1, description="Hard cap on all movements of one run (both phases)."
+    )
+    phase1_order: Literal["outer-last", "binary"] = Field(
+        "outer-last",
+        description="Order of the phase-1 lines: 'binary' (the middle line, then the quarters, "
+        "the eighths...; the dissertation's binary search) or 'outer-last' (the same with the "
+        "two lines nearest the region's edges raked last: a buried object is less often "
+        "centred there).",
     )
     max_phase2_movements: int = Field(
         12, ge=0, description="Hard cap on phase-2 movements."
@@ -57,18 +71,53 @@ class TwoPhaseCoverageConfig(CoverageConfig):
     phase2_line_spacing_m: float = Field(
         0.02, gt=0, description="Spacing of the phase-2 candidate lines."
     )
+    phase2_region_size_m: float | None = Field(
+        0.32, gt=0,
+        description="Side of the first phase-2 region, a square centred on the centroid "
+        "estimate and kept inside the search region; None starts from the whole search "
+        "region (the dissertation). A line then starts at most half this side from the "
+        "object, far enough to be outside the failure zone.",
+    )
     region_shrink: float = Field(
         0.25, ge=0, lt=1,
         description="Fraction by which each side of the search region shrinks before every "
         "phase-2 movement.",
     )
     min_region_size_m: float = Field(
-        0.10, gt=0, description="The shrinking region's sides never fall below this."
+        0.26, gt=0,
+        description="The shrinking region's sides never fall below this (26 cm: a line "
+        "through the centroid estimate starts at least 13 cm from it, outside the failure "
+        "zone, about 7 cm deep, of an object reaching up to 4.5 cm from its centre).",
     )
     min_sweep_separation_deg: float = Field(
         30.0, ge=0, lt=90,
         description="A new sweep angle differs by at least this from the angles used before "
         "(modulo 180 degrees).",
+    )
+    sweep_rule: Literal["widest-gap", "random"] = Field(
+        "widest-gap",
+        description="'random': a uniformly random sweep angle at least min_sweep_separation_deg "
+        "from those used before, the line raked from its low-occupancy end (the "
+        "dissertation); 'widest-gap': the approach direction that faces the widest "
+        "unexplored side of the object (largest angular gap between the directions the "
+        "object was met from), subject to the same separation, raked from that side.",
+    )
+    met_from: Literal["heading", "stop-point"] = Field(
+        "stop-point",
+        description="How the direction an interacting movement met the object from is taken: "
+        "'heading' (opposite to its direction of motion) or 'stop-point' (the direction "
+        "from the centroid estimate to where it stopped, which also tells a line passing "
+        "beside the centre).",
+    )
+    gap_step_deg: float = Field(
+        5.0, gt=0, le=45,
+        description="Resolution of the approach directions tried by the 'widest-gap' rule.",
+    )
+    min_start_distance_m: float = Field(
+        0.12, ge=0,
+        description="'widest-gap' rule: skip approach directions whose line would start nearer "
+        "than this to the centroid estimate (inside the failure zone of the object, e.g. when "
+        "it lies near the region's edge); ignored when no direction qualifies.",
     )
     occupancy_weight: float = Field(1.0, description="w1 of Eq. 3.9 (occupancy probability).")
     uncertainty_weight: float = Field(0.5, description="w2 of Eq. 3.9 (occupancy std).")
@@ -86,10 +135,17 @@ class TwoPhaseCoverageConfig(CoverageConfig):
     score_step_m: float = Field(
         0.01, gt=0, description="Spacing of the points summed along a candidate line (Eq. 3.9)."
     )
-    stop_rule: Literal["uncertain-area", "mean-std"] = Field(
-        "uncertain-area",
-        description="'uncertain-area': share of the current region whose std exceeds "
-        "uncertain_std; 'mean-std': mean std over the region relative to 0.5.",
+    stop_rule: Literal["angular-gap", "uncertain-area", "mean-std"] = Field(
+        "angular-gap",
+        description="'angular-gap': stop once the directions the object was met from leave "
+        "no gap wider than max_gap_deg; 'uncertain-area': share of the current region whose "
+        "std exceeds uncertain_std (the dissertation's λ rule); 'mean-std': mean std over the "
+        "region relative to 0.5.",
+    )
+    max_gap_deg: float = Field(
+        110.0, gt=0, le=360,
+        description="'angular-gap' rule: the largest allowed gap between the directions "
+        "(seen from the object) of the movements that met it.",
     )
     stop_fraction: float = Field(
         0.10, ge=0, le=1, description="λ: stop when the stop rule's fraction falls below it."

@@ -16,6 +16,11 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "Bounds",
     "angle_gap_deg",
+    "allowed_sweep_mask",
+    "bearing_gap_scores_deg",
+    "largest_angular_gap_deg",
+    "outer_last_order",
+    "ray_exit_distance",
     "binary_search_order",
     "line_scores",
     "longer_side_angle_deg",
@@ -120,6 +125,22 @@ def binary_search_order(count: int) -> list[int]:
         pending.append((lo, mid - 1))
         pending.append((mid + 1, hi))
     return order
+
+
+def outer_last_order(count: int) -> list[int]:
+    """Binary-search order with the two outermost lines moved to the end.
+
+    The outermost lines lie half a spacing from the region's edge, so an object (fully
+    inside the region) is less often centred near them: they are raked last.
+
+    >>> outer_last_order(5)
+    [2, 3, 1, 0, 4]
+    """
+    order = binary_search_order(count)
+    if count <= 2:
+        return order
+    edges = [0, count - 1]
+    return [i for i in order if i not in edges] + edges
 
 
 def angle_gap_deg(a_deg: float, b_deg: float) -> float:
@@ -281,3 +302,67 @@ def uncertainty_fraction(std: ArrayLike, rule: str, uncertain_std: float) -> flo
     if rule == "mean-std":
         return float(np.mean(sd) / 0.5)
     raise ValueError(f"unknown stop rule {rule!r}")
+
+
+def largest_angular_gap_deg(bearings_deg: ArrayLike) -> float:
+    """Widest gap (degrees) between directions on the full circle; 360 with none, and the
+    complement of nothing (360) with one."""
+    b = np.sort(np.mod(np.asarray(bearings_deg, dtype=np.float64).reshape(-1), 360.0))
+    if b.size == 0:
+        return 360.0
+    if not np.all(np.isfinite(b)):
+        raise ValueError("bearings must be finite")
+    return float(np.max(np.diff(np.append(b, b[0] + 360.0))))
+
+
+def bearing_gap_scores_deg(candidates_deg: ArrayLike, bearings_deg: ArrayLike) -> FloatArray:
+    """For each candidate direction, the angular distance (0-180°) to the nearest bearing.
+
+    With no bearings every candidate scores 180.
+    """
+    c = np.asarray(candidates_deg, dtype=np.float64).reshape(-1, 1)
+    b = np.asarray(bearings_deg, dtype=np.float64).reshape(1, -1)
+    if b.size == 0:
+        return np.full(c.shape[0], 180.0)
+    d = np.mod(c - b, 360.0)
+    return np.min(np.minimum(d, 360.0 - d), axis=1)
+
+
+def allowed_sweep_mask(
+    candidates_deg: ArrayLike, used_deg: Sequence[float], min_separation_deg: float
+) -> NDArray[np.bool_]:
+    """Candidates whose line direction (modulo 180°) keeps ``min_separation_deg`` from the
+    used ones; when none does, the oldest used angles are forgotten until some do (the most
+    recent one never is), as in :func:`sample_sweep_angle_deg`."""
+    if not 0.0 <= min_separation_deg < 90.0:
+        raise ValueError("min_separation_deg must lie in [0, 90)")
+    c = np.mod(np.asarray(candidates_deg, dtype=np.float64).reshape(-1), 180.0)
+    recent = [float(a) % 180.0 for a in used_deg]
+    while True:
+        ok = np.ones(c.size, dtype=bool)
+        for a in recent:
+            d = np.mod(c - a, 180.0)
+            ok &= np.minimum(d, 180.0 - d) >= min_separation_deg - 1e-9
+        if ok.any() or len(recent) <= 1:
+            return ok
+        recent = recent[1:]
+
+
+def ray_exit_distance(
+    origin_m: ArrayLike, bearings_deg: ArrayLike, bounds: Sequence[float]
+) -> FloatArray:
+    """Distance from ``origin_m`` along each bearing to the boundary of the rectangle
+    (0 when the origin lies outside it)."""
+    x_min, x_max, y_min, y_max = _check_bounds(bounds)
+    o = np.asarray(origin_m, dtype=np.float64).reshape(2)
+    theta = np.radians(np.asarray(bearings_deg, dtype=np.float64).reshape(-1))
+    u = np.column_stack([np.cos(theta), np.sin(theta)])
+    out = np.full(theta.size, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for axis, (lo, hi) in enumerate(((x_min, x_max), (y_min, y_max))):
+            step = u[:, axis]
+            exit_at = np.where(step > 0, (hi - o[axis]) / step,
+                               np.where(step < 0, (lo - o[axis]) / step, np.inf))
+            out = np.minimum(out, exit_at)
+    inside = x_min <= o[0] <= x_max and y_min <= o[1] <= y_max
+    return np.maximum(out, 0.0) if inside else np.zeros(theta.size)

@@ -15,8 +15,8 @@ Readings of the dissertation chosen here (all configurable):
   phase-2 movement, centred on the centroid estimate and kept inside the search region,
   never below ``min_region_size_m``.
 - *Centroid*: the occupancy-weighted centroid of the map's blob above 0.6 closest to the
-  interaction points (``blob_centroid``), or the mean of the interaction points when no cell
-  reaches 0.6.
+  interaction points (``blob_centroid``); when no cell reaches 0.6, the blob at 0.5, 0.4 or
+  0.3, and only then the mean of the interaction points.
 - *Eq. 3.9* sums over points every ``score_step_m`` along each candidate (so it is a path
   integral), with the squared distance divided by the squared diagonal of the current region.
   With the published w3 = −1 the distance term *attracts* paths towards the centroid estimate
@@ -28,6 +28,36 @@ Readings of the dissertation chosen here (all configurable):
 - *Sweep angles* are drawn uniformly from the directions at least 30° (modulo 180°) from all
   angles used before, the phase-1 angle included; once six directions are used no angle
   fits, and the oldest are forgotten until one does.
+
+Defaults that differ from the dissertation, and why
+---------------------------------------------------
+The reading above is one configuration away (``line_spacing_m: 0.035``, ``phase1_order:
+binary``, ``phase2_region_size_m: null``, ``min_region_size_m: 0.1``, ``sweep_rule:
+random``, ``stop_rule: uncertain-area``, ``met_from: heading``). The defaults were tuned on
+the ``search`` benchmark's seeds 100 and above (never 0-24) against Table 3.2's movement
+counts (7.2 and 7.0 in all) and accuracy:
+
+- *Phase 1: 10 cm lines, the two outermost last.* At the full depth the classifier detects
+  an object whose outline passes within about 2.5 cm of the fingertip's path, so lines
+  10 cm apart always meet an 8 cm circle or a 9 x 5 cm ellipse; 3.5 cm lines only add
+  movements. A buried object is less often centred near the region's edges, so the lines
+  half a spacing from them come last (3.5 phase-1 movements on average, reverse included).
+- *Phase 2 in a 32 cm square around the estimate* (then shrinking by 25 % to at least
+  26 cm): lines start 13-16 cm from the object, outside its failure zone, instead of up to
+  the region's far side (shorter movements, same information).
+- *Widest-gap approach* (``sweep_rule: widest-gap``). Each interacting movement met the
+  object from one side, taken as the direction from the centroid estimate to where it
+  stopped (``met_from: stop-point``: a phase-1 line passing beside the centre met it from
+  that side). The next line is aimed through the estimate from the direction farthest from
+  every side met so far (among those keeping the 30° sweep separation and starting at least
+  ``min_start_distance_m`` from the estimate, inside the region), and raked from that side.
+  Random angles with Eq. 3.9's low-occupancy start met the object from the same side
+  repeatedly.
+- *Angular-gap stopping* (``stop_rule: angular-gap``): stop once every direction the object
+  can be approached from lies within 55° of a side met (``max_gap_deg: 110``). The λ rule
+  on the map's std did not separate "outline known" from "outline guessed" on the BHM's
+  std (which stays high wherever no movement passed, e.g. far outside the object) and ran
+  to the 12-movement cap in most trials; this rule needs 2-4 phase-2 movements.
 """
 
 from __future__ import annotations
@@ -44,16 +74,23 @@ from ._base import LinePlanner
 from ._config import TwoPhaseCoverageConfig
 from ._functional import (
     Bounds,
+    allowed_sweep_mask,
+    bearing_gap_scores_deg,
     binary_search_order,
+    outer_last_order,
     line_scores,
     parallel_lines,
     points_along,
+    ray_exit_distance,
     sample_sweep_angle_deg,
     shrink_bounds,
     uncertainty_fraction,
 )
 
 __all__ = ["TwoPhaseCoverage"]
+
+#: Lower occupancy levels tried, in turn, when no blob reaches ``centroid_level``.
+_FALLBACK_LEVELS = (0.5, 0.4, 0.3)
 
 FloatArray = NDArray[np.float64]
 
@@ -89,13 +126,17 @@ class TwoPhaseCoverage(LinePlanner):
             self.search_bounds, self.phase1_angle_deg, self.config.line_spacing_m
         )
         self.phase1_lines: tuple[FloatArray, FloatArray] = (starts, ends)
-        self._queue = binary_search_order(len(starts))
+        if self.config.phase1_order == "binary":
+            self._queue = binary_search_order(len(starts))
+        else:
+            self._queue = outer_last_order(len(starts))
         self._phase = "phase1"
         self._reverse_of: ExploratoryMovement | None = None
         self._awaiting_reverse = False
         self.used_angles_deg: list[float] = [self.phase1_angle_deg]
         self.current_bounds: Bounds = self.search_bounds
         self.interaction_points: list[FloatArray] = []
+        self.met_from_deg: list[float] = []
         self.centroid_m: FloatArray | None = None
         self.last_uncertainty: float | None = None
         self._proposed = 0
@@ -127,6 +168,8 @@ class TwoPhaseCoverage(LinePlanner):
         interacted = self.is_interaction(result)
         if interacted:
             self.interaction_points.append(self.stop_point(result))
+            # Seen from the object, it was met from where the movement came from.
+            self.met_from_deg.append((math.degrees(result.movement.heading_rad) + 180.0) % 360.0)
         if self._phase != "phase1":
             return
         if self._awaiting_reverse:
@@ -164,41 +207,120 @@ class TwoPhaseCoverage(LinePlanner):
         if self._phase2_proposed >= c.max_phase2_movements:
             return self._finish()
         self.centroid_m = self._estimate_centroid()
-        self.current_bounds = shrink_bounds(
-            self.current_bounds,
-            self.centroid_m,
-            1.0 - c.region_shrink,
-            self.search_bounds,
-            c.min_region_size_m,
-        )
+        if self._phase2_proposed == 0 and c.phase2_region_size_m is not None:
+            # The first phase-2 region: a square around the estimate, not the whole area.
+            side = max(c.phase2_region_size_m, c.min_region_size_m)
+            x0, x1, y0, y1 = self.search_bounds
+            half = min(side / 2, (x1 - x0) / 2), min(side / 2, (y1 - y0) / 2)
+            self.current_bounds = shrink_bounds(
+                (self.centroid_m[0] - half[0], self.centroid_m[0] + half[0],
+                 self.centroid_m[1] - half[1], self.centroid_m[1] + half[1]),
+                self.centroid_m, 1.0, self.search_bounds, c.min_region_size_m,
+            )
+        else:
+            self.current_bounds = shrink_bounds(
+                self.current_bounds,
+                self.centroid_m,
+                1.0 - c.region_shrink,
+                self.search_bounds,
+                c.min_region_size_m,
+            )
         self._regions.append(self.current_bounds)
-        if self._map is not None:
-            _, _, grid_points = sample_grid(self.current_bounds, c.grid_spacing_m)
-            std = self._map.query(grid_points).std
-            self.last_uncertainty = uncertainty_fraction(std, c.stop_rule, c.uncertain_std)
-            if (
-                self._phase2_proposed >= c.min_phase2_movements
-                and self.last_uncertainty < c.stop_fraction
-            ):
-                return self._finish()
-        angle = sample_sweep_angle_deg(
-            self.context.rng, self.used_angles_deg, c.min_sweep_separation_deg
-        )
+        if self._should_stop():
+            return self._finish()
+        if c.sweep_rule == "random":
+            angle = sample_sweep_angle_deg(
+                self.context.rng, self.used_angles_deg, c.min_sweep_separation_deg
+            )
+            bearing = None
+        else:
+            bearing = self._widest_gap_bearing()
+            angle = bearing % 180.0
         starts, ends = parallel_lines(self.current_bounds, angle, c.phase2_line_spacing_m)
         if len(starts) == 0:  # cannot happen for a region of positive size; be safe
             return self._finish()
         best, mean_at_ends = self._best_candidate(starts, ends)
         self.used_angles_deg.append(angle)
         start, end = starts[best], ends[best]
-        low_start = mean_at_ends[1] < mean_at_ends[0] - 1e-6
-        tie = abs(mean_at_ends[1] - mean_at_ends[0]) <= 1e-6
-        if low_start or (tie and self.context.rng.random() < 0.5):
-            start, end = end, start  # begin in granular material, not inside the object
+        if bearing is not None:
+            # Come from the chosen side: the start lies towards the bearing.
+            towards = np.array([math.cos(math.radians(bearing)), math.sin(math.radians(bearing))])
+            if float((start - end) @ towards) < 0:
+                start, end = end, start
+        else:
+            low_start = mean_at_ends[1] < mean_at_ends[0] - 1e-6
+            tie = abs(mean_at_ends[1] - mean_at_ends[0]) <= 1e-6
+            if low_start or (tie and self.context.rng.random() < 0.5):
+                start, end = end, start  # begin in granular material, not inside the object
         self._phase2_proposed += 1
         return self.make_movement(
             start, end, "phase2",
             f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}",
         )
+
+    def _should_stop(self) -> bool:
+        """The stopping rule, consulted before each phase-2 movement (section 3.4.4)."""
+        c = self.config
+        if c.stop_rule == "angular-gap":
+            gap = self._open_gap_deg()
+            self.last_uncertainty = gap / 360.0
+            return self._phase2_proposed >= c.min_phase2_movements and gap <= c.max_gap_deg
+        if self._map is None:
+            return False
+        _, _, grid_points = sample_grid(self.current_bounds, c.grid_spacing_m)
+        std = self._map.query(grid_points).std
+        self.last_uncertainty = uncertainty_fraction(std, c.stop_rule, c.uncertain_std)
+        return (
+            self._phase2_proposed >= c.min_phase2_movements
+            and self.last_uncertainty < c.stop_fraction
+        )
+
+    def _met_from(self) -> list[float]:
+        """Directions (degrees) the object was met from, seen from the centroid estimate."""
+        if self.config.met_from == "heading" or self.centroid_m is None:
+            return list(self.met_from_deg)
+        out = []
+        for stop, heading in zip(self.interaction_points, self.met_from_deg):
+            offset = np.asarray(stop) - self.centroid_m
+            if float(np.hypot(*offset)) < 1e-9:
+                out.append(heading)
+            else:
+                out.append(math.degrees(math.atan2(offset[1], offset[0])) % 360.0)
+        return out
+
+    def _open_gap_deg(self) -> float:
+        """Twice the angular distance from the met-from directions to the farthest direction
+        the object can still be approached from (one whose line would start at least
+        ``min_start_distance_m`` from the centroid estimate inside the search region).
+
+        With the object met from every side this is the widest gap between met-from
+        directions; directions blocked by the region's edge do not count as open.
+        """
+        c = self.config
+        candidates = np.arange(0.0, 360.0, c.gap_step_deg)
+        room = ray_exit_distance(self.centroid_m, candidates, self.search_bounds)
+        open_ = room >= c.min_start_distance_m
+        if not open_.any():
+            return 0.0
+        return 2.0 * float(bearing_gap_scores_deg(candidates[open_], self._met_from()).max())
+
+    def _widest_gap_bearing(self) -> float:
+        """The direction (degrees, seen from the centroid estimate) to approach from next.
+
+        Among directions on a ``gap_step_deg`` grid whose line keeps the sweep separation,
+        preferring those whose start lies at least ``min_start_distance_m`` from the
+        estimate, the one farthest from every direction the object was already met from;
+        ties are broken with the planner's generator.
+        """
+        c = self.config
+        candidates = np.arange(0.0, 360.0, c.gap_step_deg)
+        allowed = allowed_sweep_mask(candidates, self.used_angles_deg, c.min_sweep_separation_deg)
+        room = ray_exit_distance(self.centroid_m, candidates, self.current_bounds)
+        roomy = allowed & (room >= c.min_start_distance_m)
+        pool = roomy if roomy.any() else allowed
+        scores = np.where(pool, bearing_gap_scores_deg(candidates, self._met_from()), -np.inf)
+        best = np.flatnonzero(scores >= scores.max() - 1e-9)
+        return float(candidates[best[int(self.context.rng.integers(best.size))]])
 
     def _best_candidate(self, starts: FloatArray, ends: FloatArray) -> tuple[int, FloatArray]:
         """Index of the line maximising Eq. 3.9 and the map's mean at its (start, end)."""
@@ -225,7 +347,15 @@ class TwoPhaseCoverage(LinePlanner):
         grid = self._map_grid()
         if grid is not None:
             xs, ys, mean = grid
-            centre = blob_centroid(xs, ys, mean, self.config.centroid_level, near_m=near)
+            # Nothing at the outline level (e.g. a movement swept the estimate away): the
+            # strongest remaining evidence, at lower levels, still beats the bare mean of
+            # the interaction points.
+            for level in (self.config.centroid_level, *_FALLBACK_LEVELS):
+                if level > self.config.centroid_level:
+                    continue
+                centre = blob_centroid(xs, ys, mean, level, near_m=near)
+                if centre is not None:
+                    break
         if centre is None:
             if near is not None:
                 centre = near

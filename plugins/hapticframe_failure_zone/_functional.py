@@ -21,6 +21,7 @@ __all__ = [
     "analytic_side_angle",
     "arthur_angle_deg",
     "depth_schedule",
+    "disc_offsets",
     "empirical_gamma",
     "empirical_side_angle",
     "kernel_targets",
@@ -29,6 +30,7 @@ __all__ = [
     "rupture_distance",
     "rupture_gamma",
     "sector_offsets",
+    "state_coverage",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -196,15 +198,17 @@ def mixture_targets(
     gamma_per_m2: float,
     theta: ArrayLike,
     ranges_m: ArrayLike,
+    inner_ranges_m: ArrayLike | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """The three-state mixture of Eq. 3.4 at points ``distance_m`` from the fingertip.
 
-    Each state ``k`` speaks only about points within its own range ``r_k`` (contact has
-    range 0). A point covered by the set ``K(x)`` of states gets the θ-weighted mean of
-    their kernels, renormalised over ``K(x)``, and a weight equal to the mass
-    ``Σ_{k∈K(x)} θ_k``: with one-hot θ this is exactly Eq. 3.4 (weight 1 where the active
-    state reaches, nothing elsewhere); with soft θ a point beyond the contact point is not
-    pulled towards "free" merely because contact claims part of the probability.
+    Each state ``k`` speaks only about points within its own radial interval
+    ``[inner_k, r_k]`` (contact has range 0; Eq. 3.4 has every inner bound 0). A point
+    covered by the set ``K(x)`` of states gets the θ-weighted mean of their kernels,
+    renormalised over ``K(x)``, and a weight equal to the mass ``Σ_{k∈K(x)} θ_k``: with
+    one-hot θ this is exactly Eq. 3.4 (weight 1 where the active state reaches, nothing
+    elsewhere); with soft θ a point beyond the contact point is not pulled towards "free"
+    merely because contact claims part of the probability.
 
     Parameters
     ----------
@@ -215,7 +219,9 @@ def mixture_targets(
     theta : (3,) array
         State probabilities (free, jamming, contact), non-negative.
     ranges_m : (3,) array
-        Range of each state.
+        Outer range of each state.
+    inner_ranges_m : (3,) array, optional
+        Inner range of each state (default 0: the whole disc sector up to the range).
 
     Returns
     -------
@@ -226,12 +232,12 @@ def mixture_targets(
     d = np.asarray(distance_m, dtype=np.float64).reshape(-1)
     th = np.asarray(theta, dtype=np.float64).reshape(-1)
     rk = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
-    if th.shape != (3,) or rk.shape != (3,):
-        raise ValueError("theta and ranges_m must have three entries (free, jamming, contact)")
+    lo = np.zeros(3) if inner_ranges_m is None else np.asarray(inner_ranges_m, float).reshape(-1)
+    if th.shape != (3,) or rk.shape != (3,) or lo.shape != (3,):
+        raise ValueError("theta and the ranges must have three entries (free, jamming, contact)")
     if not (np.all(np.isfinite(th)) and np.all(th >= 0)):
         raise ValueError("theta must be finite and non-negative")
-    # A small tolerance so the sector's outermost ring (at exactly r) stays covered.
-    covered = d[:, None] <= rk[None, :] * (1 + 1e-12) + 1e-12
+    covered = state_coverage(d, rk, lo)
     mass = covered.astype(np.float64) @ th
     weighted = np.zeros_like(d)
     for k in range(3):
@@ -239,6 +245,19 @@ def mixture_targets(
             weighted += np.where(covered[:, k], th[k] * kernel_targets(d, gamma_per_m2, k), 0.0)
     targets = np.divide(weighted, mass, out=np.zeros_like(d), where=mass > 0)
     return np.clip(targets, 0.0, 1.0), mass
+
+
+def state_coverage(
+    distance_m: ArrayLike, ranges_m: ArrayLike, inner_ranges_m: ArrayLike
+) -> NDArray[np.bool_]:
+    """``(m, 3)`` True where a point lies within a state's radial interval ``[inner, range]``.
+
+    A relative tolerance of 1e-12 keeps the sector's innermost and outermost rings covered.
+    """
+    d = np.asarray(distance_m, dtype=np.float64).reshape(-1, 1)
+    outer = np.asarray(ranges_m, dtype=np.float64).reshape(1, -1)
+    inner = np.asarray(inner_ranges_m, dtype=np.float64).reshape(1, -1)
+    return (d <= outer * (1 + 1e-12) + 1e-12) & (d >= inner * (1 - 1e-12) - 1e-12)
 
 
 def sector_offsets(range_m: float, half_angle_rad: float, spacing_m: float) -> FloatArray:
@@ -272,6 +291,32 @@ def sector_offsets(range_m: float, half_angle_rad: float, spacing_m: float) -> F
                 phi = np.linspace(-half_angle_rad, half_angle_rad, n_arcs + 1)
             parts.append(rho * np.column_stack([np.cos(phi), np.sin(phi)]))
     return np.concatenate(parts)
+
+
+def disc_offsets(centre_ahead_m: float, radius_m: float, spacing_m: float) -> FloatArray:
+    """Points of a disc centred ``centre_ahead_m`` straight ahead of the fingertip.
+
+    A polar grid about the disc's centre: its centre, then rings every ≤ ``spacing_m`` out
+    to exactly ``radius_m``, each sampled every ≤ ``spacing_m`` of arc (+x = direction of
+    motion, the fingertip at the origin).
+
+    Returns
+    -------
+    (m, 2) float64
+    """
+    for name, value in (("centre_ahead_m", centre_ahead_m), ("radius_m", radius_m)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be finite and non-negative, got {value}")
+    if not (math.isfinite(spacing_m) and spacing_m > 0):
+        raise ValueError(f"spacing_m must be finite and positive, got {spacing_m}")
+    parts = [np.zeros((1, 2))]
+    if radius_m > 0:
+        n_rings = max(1, math.ceil(radius_m / spacing_m))
+        for rho in np.linspace(0.0, radius_m, n_rings + 1)[1:]:
+            n_arcs = max(3, math.ceil(2.0 * math.pi * rho / spacing_m))
+            phi = np.linspace(-math.pi, math.pi, n_arcs, endpoint=False)
+            parts.append(rho * np.column_stack([np.cos(phi), np.sin(phi)]))
+    return np.concatenate(parts) + np.array([centre_ahead_m, 0.0])
 
 
 def _check_count(value: int) -> int:

@@ -2,7 +2,7 @@
 
 For each emitted sample the sector ahead of the fingertip (range r, half-angle η about the
 direction of motion, Eq. 3.2) is sampled on a polar grid and every point gets the occupancy
-target of the three-state kernel mixture (Eqs. 3.3-3.4). The parameters follow one of two
+target of the three-state kernel mixture (Eqs. 3.3-3.4). The parameters follow one of three
 schedules (see :class:`~hapticframe_failure_zone.FailureZoneConfig`) that change only between
 movements, in :meth:`FailureZoneKernel.on_movement_end`.
 
@@ -23,6 +23,48 @@ Readings of the dissertation's loose ends, chosen here:
   whose state differs from the previous one (the first jamming or contact sample). The path
   length and the previous state are carried across calls, so observing rows one at a time
   equals observing them at once.
+
+Defaults that differ from the dissertation, and why
+---------------------------------------------------
+The dissertation's model is one configuration away (``schedule: empirical``,
+``free_range_scale: 1``, ``free_gamma_scale: 1``, ``jamming_shape: sector`` with the sector
+scales at their defaults 0, 1, 1, ``first_pair_weight: 1``, ``sector_spacing_m`` and
+``observation_spacing_m`` 0.01). The defaults are calibrated against what the
+force-rate classifier actually reports in the ``sandbox`` simulator (its physics
+unchanged): measured on 1,000 simulated straight approaches to circles and ellipses at the
+four depths of Table 3.1 (where the classifier stops, and how often each point around the
+fingertip is occupied when it stops or while it reports free movement), then tuned by
+replaying searches of the ``search`` benchmark on seeds 100 and above (never seeds 0-24):
+
+- *Range from the measured depth* (``schedule: hybrid``). Table 3.1's γ_r shrinks once per
+  *pair* of interactions, while the soil (and so the rupture distance) shrinks after *every*
+  interacting movement; the robot reports its raking depth, so r = d (cot α + cot β) is used
+  directly (7.2, 5.5, 4.7, 4.3 cm, the rupture distances Table 3.1 lists). η keeps Table
+  3.1's line 50 + 7n.
+- *Free movement reaches 0.85 r with targets near 0* (``free_range_scale: 0.85``,
+  ``free_gamma_scale: 0.04``). The classifier halts a movement when the object is about
+  0.7 r ahead (mean 0.71 r, sd 0.08 r at 4.4 cm depth; 0.58 r at 2.65 cm), so a free sample
+  proves the sector empty only up to roughly that distance, not to r. Over those
+  approaches an object lay within 0.8 r of a free-classified sample in under 2 % of sector
+  points, so targets of 0 to 0.02 there are calibrated, where Eq. 3.3 would give 0 to 0.5
+  and push the object itself towards "free" (the lead's observation (1)).
+- *Jamming speaks about a disc* (``jamming_shape: disc``, near edge 0.45 r ahead, radius
+  3.6 cm, targets from the jamming kernel of Eq. 3.3). The occupied part of Eq. 3.2's fan
+  (±50°, up to r) is wider than any object met head-on: for an 8 cm circle 5.4 cm ahead the
+  object spans ±25°, and P(occupied | jamming) fell to 0.3 at ±40° in the simulated
+  approaches, so the fan's sides painted "ears" beside the object. A convex object met
+  straight ahead curves away from the point met, which a disc tangent there describes;
+  the disc starts short of the detection distance so that the free sectors, which end just
+  before it, set where the map crosses 0.6.
+- *The first pair counts half* (``first_pair_weight: 0.5``). The phase-1 lines are not
+  aimed at the object: they pass it up to 5 cm off centre, where the object is met at the
+  side of the failure zone and the disc straight ahead is misplaced. Later (aimed)
+  interactions then outweigh them. Like Table 3.1's γ_r and η, this depends on n.
+- *Fewer points*: 1.5 cm polar spacing every 2 cm of travel (Table 3.1's 5 cm hinges need no
+  finer sampling) gives about 2,500 observations per search instead of 8,000-22,000.
+
+Single samples that emit nothing (nearly every tick of a closed loop) are answered in plain
+floats without building arrays (:meth:`FailureZoneKernel._quiet_single_row`).
 """
 
 from __future__ import annotations
@@ -46,6 +88,8 @@ from ._config import FailureZoneConfig
 from ._functional import (
     STATES,
     FailureZoneAngleWarning,
+    disc_offsets,
+    kernel_targets,
     analytic_side_angle,
     arthur_angle_deg,
     depth_schedule,
@@ -56,11 +100,18 @@ from ._functional import (
     rupture_distance,
     rupture_gamma,
     sector_offsets,
+    state_coverage,
 )
 
 __all__ = ["FailureZoneKernel"]
 
 FloatArray = NDArray[np.float64]
+
+#: The answer of a sample that emits nothing (records are immutable, so one is enough).
+_NOTHING = Observations.empty()
+
+#: Entries kept in each cache of sector geometry before it is cleared (depths vary little).
+_CACHE_SIZE = 64
 
 #: Shear-band angle when neither the config nor a scene gives one (φ = 42°, ψ = 12°).
 _DEFAULT_SHEAR_BAND_DEG = arthur_angle_deg(42.0, 12.0)
@@ -89,6 +140,10 @@ class FailureZoneKernel(SensorModel):
         self.shear_band_angle_rad = math.radians(beta_deg)
         self.rake_angle_rad = math.radians(config.rake_angle_deg)
         self._warned_angle = False
+        self._class_cache: dict[tuple[str, ...], FloatArray] = {}
+        self._column_cache: dict[tuple[str, ...], list[int]] = {}
+        self._sector_cache: dict[tuple[float, float], FloatArray] = {}
+        self._target_cache: dict[tuple[float, float, int, bool], tuple[FloatArray, ...]] = {}
         self.reset()
 
     # --- state between movements ------------------------------------------------------------
@@ -99,7 +154,7 @@ class FailureZoneKernel(SensorModel):
         self._start_movement()
 
     def _start_movement(self) -> None:
-        self._previous_position: FloatArray | None = None
+        self._previous_position: tuple[float, float] | None = None
         self._previous_state = -1
         self._travel_m = 0.0
 
@@ -134,8 +189,8 @@ class FailureZoneKernel(SensorModel):
         Parameters
         ----------
         depth_m : float
-            Measured fingertip depth; used by the analytic schedule when finite (negative
-            depths count as 0). NaN or infinity falls back to the depth schedule.
+            Measured fingertip depth; used by the analytic and hybrid schedules when finite
+            (negative depths count as 0). NaN or infinity falls back to the depth schedule.
         """
         c = self.config
         if c.schedule == "empirical":
@@ -146,13 +201,18 @@ class FailureZoneKernel(SensorModel):
             eta = empirical_side_angle(
                 self.pair_count, c.empirical_eta_base_deg, c.empirical_eta_step_deg
             )
-            return float(np.clip(reach, c.min_range_m, c.max_range_m)), gamma, eta
+            return min(max(reach, c.min_range_m), c.max_range_m), gamma, eta
         if c.use_measured_depth and math.isfinite(depth_m):
             depth = max(depth_m, 0.0)
         else:
             depth = self.scheduled_depth_m()
         reach = float(rupture_distance(depth, self.rake_angle_rad, self.shear_band_angle_rad))
-        reach = float(np.clip(reach, c.min_range_m, c.max_range_m))
+        reach = min(max(reach, c.min_range_m), c.max_range_m)
+        if c.schedule == "hybrid":
+            eta = empirical_side_angle(
+                self.pair_count, c.empirical_eta_base_deg, c.empirical_eta_step_deg
+            )
+            return reach, float(rupture_gamma(reach)), eta
         eta, argument = analytic_side_angle(reach, self.rake_angle_rad)
         if abs(argument) > 1.0 and not self._warned_angle:
             self._warned_angle = True
@@ -165,26 +225,43 @@ class FailureZoneKernel(SensorModel):
             )
         return reach, float(rupture_gamma(reach)), max(eta, 0.0)
 
+    def state_ranges(self, reach_m: float) -> tuple[FloatArray, FloatArray]:
+        """Inner and outer radial bounds of the free, jamming and contact sectors (m)."""
+        c = self.config
+        outer = np.array([c.free_range_scale, c.jamming_range_scale, 0.0]) * reach_m
+        inner = np.array([0.0, c.jamming_inner_scale, 0.0]) * reach_m
+        return inner, outer
+
     # --- observations ---------------------------------------------------------------------------
 
-    def state_probabilities(self, measurement: LocatedMeasurement) -> FloatArray:
-        """(n, 3) probabilities of (free, jamming, contact), summed over the mapped classes."""
-        unknown = [name for name in measurement.classes if name not in self.config.class_states]
+    def _state_matrix(self, classes: tuple[str, ...]) -> FloatArray:
+        """(classes, 3) map from class columns to kernel states (cached per class tuple)."""
+        cached = self._class_cache.get(classes)
+        if cached is not None:
+            return cached
+        unknown = [name for name in classes if name not in self.config.class_states]
         if unknown:
             raise ValueError(
                 f"failure-zone kernel {self.id!r}: classes {unknown} have no kernel state; "
                 f"class_states maps {sorted(self.config.class_states)}"
             )
-        to_state = np.zeros((len(measurement.classes), 3))
-        for column, name in enumerate(measurement.classes):
+        to_state = np.zeros((len(classes), 3))
+        for column, name in enumerate(classes):
             to_state[column, STATES.index(self.config.class_states[name])] = 1.0
-        return measurement.probabilities @ to_state
+        self._class_cache[classes] = to_state
+        return to_state
+
+    def state_probabilities(self, measurement: LocatedMeasurement) -> FloatArray:
+        """(n, 3) probabilities of (free, jamming, contact), summed over the mapped classes."""
+        return measurement.probabilities @ self._state_matrix(tuple(measurement.classes))
 
     def observe(self, measurement: LocatedMeasurement) -> Observations:
         """Sector points and kernel targets for the emitted samples of ``measurement``."""
         n = len(measurement)
         if n == 0:
             return Observations.empty()
+        if n == 1 and self._quiet_single_row(measurement):
+            return _NOTHING
         positions = measurement.positions_m
         headings = measurement.headings_rad
         if not (np.all(np.isfinite(positions)) and np.all(np.isfinite(headings))):
@@ -193,53 +270,169 @@ class FailureZoneKernel(SensorModel):
             )
         probabilities = self.state_probabilities(measurement)
         states = np.argmax(probabilities, axis=1)
-        if self.config.mixture == "one-hot":
-            theta = np.eye(3)[states]
-        else:
-            theta = probabilities
         emit = self._select_rows(positions, states)
+        if not emit.any():
+            return Observations.empty()
         depth = measurement.depth_m
         parts = []
-        sector_cache: dict[tuple[float, float], FloatArray] = {}
         for row in np.flatnonzero(emit):
             reach, gamma, eta = self.parameters(float(depth[row]))
-            if theta[row, 0] + theta[row, 1] > 0:
-                key = (reach, eta)
-                if key not in sector_cache:
-                    sector_cache[key] = sector_offsets(reach, eta, self.config.sector_spacing_m)
-                local = sector_cache[key]
-            else:  # contact only: range 0, the fingertip alone
-                local = np.zeros((1, 2))
-            targets, weights = mixture_targets(
-                np.hypot(local[:, 0], local[:, 1]), gamma, theta[row], (reach, reach, 0.0)
-            )
+            if self.config.mixture == "one-hot":
+                local, targets, weights = self._one_hot_sector(reach, gamma, eta, int(states[row]))
+            else:
+                local, targets, weights = self._soft_sector(reach, gamma, eta, probabilities[row])
             c, s = math.cos(headings[row]), math.sin(headings[row])
             points = local @ np.array([[c, s], [-s, c]]) + positions[row]
+            parts.append(Observations(points, targets, weights))
+        return parts[0] if len(parts) == 1 else Observations.concatenate(parts)
+
+    def _quiet_single_row(self, measurement: LocatedMeasurement) -> bool:
+        """True when a one-row measurement emits nothing; then the travel state is updated.
+
+        The closed loop observes one sample per tick and most emit nothing: this answers
+        those in plain floats, with the same decision as :meth:`_select_rows`. Rows that
+        emit (or are invalid) return False untouched and take the general path.
+        """
+        previous = self._previous_position
+        spacing = self.config.observation_spacing_m
+        if previous is None or spacing <= 0:
+            return False
+        x, y = measurement.positions_m[0].tolist()
+        heading = float(measurement.headings_rad[0])
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(heading)):
+            return False
+        row = measurement.probabilities[0].tolist()
+        columns = self._state_columns(tuple(measurement.classes))
+        totals = [0.0, 0.0, 0.0]
+        for column, value in zip(columns, row):
+            totals[column] += value
+        state = max(range(3), key=totals.__getitem__)  # first maximum, as np.argmax
+        if state != self._previous_state:
+            return False
+        travel = self._travel_m + math.sqrt((x - previous[0]) ** 2 + (y - previous[1]) ** 2)
+        if math.floor(travel / spacing) > math.floor(self._travel_m / spacing):
+            return False
+        self._travel_m = travel
+        self._previous_position = (x, y)
+        return True
+
+    def _state_columns(self, classes: tuple[str, ...]) -> list[int]:
+        """Kernel state index of each class column (cached per class tuple)."""
+        columns = self._column_cache.get(classes)
+        if columns is None:
+            columns = [int(k) for k in np.argmax(self._state_matrix(classes), axis=1)]
+            self._column_cache[classes] = columns
+        return columns
+
+    def _sector(self, outer_m: float, eta: float) -> FloatArray:
+        """Polar grid of a sector reaching ``outer_m`` (the fingertip alone for 0)."""
+        if outer_m <= 0:
+            return np.zeros((1, 2))
+        key = (outer_m, eta)
+        local = self._sector_cache.get(key)
+        if local is None:
+            if len(self._sector_cache) > _CACHE_SIZE:
+                self._sector_cache.clear()
+            local = sector_offsets(outer_m, eta, self.config.sector_spacing_m)
+            self._sector_cache[key] = local
+        return local
+
+    def _one_hot_sector(
+        self, reach: float, gamma: float, eta: float, state: int
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Local points, targets and weights of one state's sector (cached)."""
+        key = (reach, eta, state, self.pair_count == 0)
+        cached = self._target_cache.get(key)
+        if cached is not None:
+            return cached
+        if len(self._target_cache) > _CACHE_SIZE:
+            self._target_cache.clear()
+        c = self.config
+        inner, outer = self.state_ranges(reach)
+        half_angle = eta * c.jamming_angle_scale if state == 1 else eta
+        theta = np.eye(3)[state]
+        if state == 1 and c.jamming_shape == "disc":
+            near_edge = c.jamming_disc_offset_scale * reach
+            local = disc_offsets(
+                near_edge + c.jamming_disc_radius_m, c.jamming_disc_radius_m, c.sector_spacing_m
+            )
+            distance = np.hypot(local[:, 0], local[:, 1])
+            targets = kernel_targets(distance, gamma, 1)
+            weights = np.ones(distance.size)
+        else:
+            local = self._sector(float(outer[state]), half_angle)
+            distance = np.hypot(local[:, 0], local[:, 1])
+            targets, weights = mixture_targets(
+                distance, gamma * (c.free_gamma_scale if state == 0 else 1.0), theta, outer, inner
+            )
+        if state > 0:
+            weights = weights * c.interaction_weight
+            if self.pair_count == 0:
+                weights = weights * c.first_pair_weight
+        keep = weights > 0
+        cached = (local[keep], targets[keep], weights[keep])
+        self._target_cache[key] = cached
+        return cached
+
+    def _soft_sector(
+        self, reach: float, gamma: float, eta: float, theta: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Local points, targets and weights of a soft mixture (not cached: θ varies).
+
+        With the 'sector' jamming region the states share the sector and Eq. 3.4's mixture
+        is renormalised where they overlap; the 'disc' lies apart from the free sector, so
+        each state's region is emitted with its probability as weight.
+        """
+        if self.config.jamming_shape == "disc":
+            parts = [self._one_hot_sector(reach, gamma, eta, k) for k in range(3) if theta[k] > 0]
+            local = np.concatenate([p[0] for p in parts])
+            targets = np.concatenate([p[1] for p in parts])
+            weights = np.concatenate(
+                [p[2] * theta[k] for p, k in zip(parts, [k for k in range(3) if theta[k] > 0])]
+            )
             keep = weights > 0
-            parts.append(Observations(points[keep], targets[keep], weights[keep]))
-        return Observations.concatenate(parts)
+            return local[keep], targets[keep], weights[keep]
+        inner, outer = self.state_ranges(reach)
+        reaching = outer[theta > 0]
+        local = self._sector(float(reaching.max()) if reaching.size else 0.0, eta)
+        distance = np.hypot(local[:, 0], local[:, 1])
+        targets, _ = mixture_targets(distance, gamma, theta, outer, inner)
+        # Free movement counts once, jamming and contact with the interaction weight.
+        scale = np.array([1.0, self.config.interaction_weight, self.config.interaction_weight])
+        weights = state_coverage(distance, outer, inner).astype(np.float64) @ (theta * scale)
+        keep = weights > 0
+        return local[keep], targets[keep], weights[keep]
 
     def _select_rows(self, positions: FloatArray, states: NDArray[np.intp]) -> NDArray[np.bool_]:
-        """Which rows to emit; updates the travel state carried across calls."""
-        first_of_movement = self._previous_position is None
-        anchor = positions[0] if first_of_movement else self._previous_position
-        steps = np.diff(np.vstack([anchor, positions]), axis=0)
-        # Sequential cumulative sum seeded with the carried value: bit-identical whether the
-        # rows arrive together or one by one.
-        travel = np.cumsum(np.concatenate([[self._travel_m], np.hypot(steps[:, 0], steps[:, 1])]))
+        """Which rows to emit; updates the travel state carried across calls.
+
+        A plain-float loop: the closed loop sends one row at a time, where numpy's per-call
+        overhead would dominate, and rows arriving together or one by one give the same
+        floats.
+        """
         spacing = self.config.observation_spacing_m
-        if spacing > 0:
-            marks = np.floor(travel / spacing)
-            emit = marks[1:] > marks[:-1]
-        else:
-            emit = np.ones(len(positions), dtype=bool)
-        previous_states = np.concatenate([[self._previous_state], states[:-1]])
-        emit |= states != previous_states
-        if first_of_movement:
-            emit[0] = True
-        self._travel_m = float(travel[-1])
-        self._previous_position = positions[-1].copy()
-        self._previous_state = int(states[-1])
+        emit = np.zeros(len(positions), dtype=bool)
+        previous = self._previous_position
+        travel = self._travel_m
+        previous_state = self._previous_state
+        for i, (x, y) in enumerate(positions.tolist()):
+            state = int(states[i])
+            if previous is None:
+                emit[i] = True
+            else:
+                before = travel
+                travel = before + math.sqrt((x - previous[0]) ** 2 + (y - previous[1]) ** 2)
+                if spacing > 0:
+                    emit[i] = math.floor(travel / spacing) > math.floor(before / spacing)
+                else:
+                    emit[i] = True
+                if state != previous_state:
+                    emit[i] = True
+            previous = (x, y)
+            previous_state = state
+        self._travel_m = travel
+        self._previous_position = previous
+        self._previous_state = previous_state
         return emit
 
     def describe(self) -> dict[str, Any]:

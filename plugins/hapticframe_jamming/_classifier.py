@@ -4,6 +4,14 @@ The force magnitude is low-pass filtered (Butterworth, second-order sections wit
 state) and differentiated over the sample timestamps; the pair (filtered force, force rate)
 is placed against the thresholds of thesis Figure 3.4.
 
+Speed
+-----
+The Butterworth sections are designed in numpy (:func:`._functional.butterworth_sos`), so
+building a classifier does not import ``scipy.signal`` (about 0.6 s), and a closed loop's
+one-sample updates run the filter, the rate and the softmax in plain floats
+(:meth:`ForceRateJammingClassifier._update_single`, about 10 µs instead of 0.45 ms); both
+paths give the same numbers to rounding, and batches take the array path.
+
 Invalid samples
 ---------------
 A sample whose force is NaN or infinite, or that the batch marks invalid, is replaced by the
@@ -17,9 +25,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import signal
 
 from hapticframe.kinds import (
     BuildContext,
@@ -92,8 +101,8 @@ class ForceRateTracker:
         start = int(np.argmax(initialised))  # initialised rows form a suffix
         if self._zi is None:
             # Start at rest on the first valid value: no step response from zero.
-            self._zi = signal.sosfilt_zi(self._sos) * held[start]
-        y, self._zi = signal.sosfilt(self._sos, held[start:], zi=self._zi)
+            self._zi = F.sos_step_state(self._sos) * held[start]
+        y, self._zi = F.sos_filter(self._sos, held[start:], self._zi)
         previous_y = y[0] if self._last_y is None else self._last_y
         previous_t = t[start] - 1.0 if self._last_t is None else self._last_t
         force[start:] = y
@@ -138,6 +147,12 @@ class ForceRateJammingClassifier(Classifier):
         except ValueError as exc:
             raise ValueError(f"classifier {self.id!r}: {exc}") from exc
         self._tracker = ForceRateTracker(sos)
+        # Plain-float copies for the one-sample path: (b0, b1, b2, a1, a2) per section
+        # (a0 = 1), and the thresholds with their softness scales.
+        self._sos_rows = [(float(r[0]), float(r[1]), float(r[2]), float(r[4]), float(r[5]))
+                          for r in sos]
+        self._rule = (*(float(v) for v in self.thresholds), float(cfg.force_scale_n),
+                      float(cfg.rate_scale_n_per_s))
 
     # --- Classifier interface ------------------------------------------------------------
 
@@ -169,6 +184,10 @@ class ForceRateJammingClassifier(Classifier):
         self.reset()
 
     def update(self, batch: SampleBatch) -> ClassProbabilities:
+        if len(batch) == 1:
+            single = self._update_single(batch)
+            if single is not None:
+                return single
         force, rate, initialised = self._track(batch)
         probabilities = np.full((len(batch), len(CLASSES)), 1.0 / len(CLASSES))
         if initialised.any():
@@ -179,6 +198,49 @@ class ForceRateJammingClassifier(Classifier):
                 self.config.force_scale_n,
                 self.config.rate_scale_n_per_s,
             )
+        return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
+
+    def _update_single(self, batch: SampleBatch) -> ClassProbabilities | None:
+        """The one-sample update of a closed loop, in plain floats (same numbers as the
+        array path to rounding; None when the sample needs the general path)."""
+        tracker = self._tracker
+        name = self.config.force_channel
+        channel = batch.channels.get(name)
+        if channel is None or tracker._zi is None or tracker._last_y is None:
+            return None
+        valid = batch.valid.get(name)
+        if (valid is not None and not bool(valid[0])) or channel.size > 3:
+            return None
+        components = channel.ravel().tolist()
+        magnitude = math.sqrt(sum(v * v for v in components))
+        t = float(batch.timestamps_s[0])
+        if not (math.isfinite(magnitude) and magnitude <= F.MAX_FORCE_N):
+            return None
+        if t <= tracker._last_seen_t:
+            return None  # the general path raises the error
+        tracker._last_seen_t = t
+        sample = magnitude
+        state = tracker._zi.tolist()
+        for (b0, b1, b2, a1, a2), registers in zip(self._sos_rows, state):
+            y = b0 * sample + registers[0]
+            registers[0] = b1 * sample - a1 * y + registers[1]
+            registers[1] = b2 * sample - a2 * y
+            sample = y
+        tracker._zi[...] = state
+        rate = (sample - tracker._last_y) / (t - tracker._last_t)
+        tracker._held = magnitude
+        tracker._last_y = sample
+        tracker._last_t = t
+        fj, rj, fc, rc, force_scale, rate_scale = self._rule
+        m_j = min((sample - fj) / force_scale, (rate - rj) / rate_scale)
+        m_c = min((sample - fc) / force_scale, (rate - rc) / rate_scale)
+        limit = F._MAX_LOGIT
+        jam = min(max(m_j, -limit), limit)
+        contact = min(max(m_c + max(m_j, 0.0), -limit), limit)
+        top = max(0.0, jam, contact)
+        w0, w1, w2 = math.exp(-top), math.exp(jam - top), math.exp(contact - top)
+        total = w0 + w1 + w2
+        probabilities = np.array([[w0 / total, w1 / total, w2 / total]])
         return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
 
     def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:

@@ -16,6 +16,19 @@ from hapticframe.kinds import BuildContext, Map, Observations, Region, RunOutcom
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig, benchmark_bhm
 from hapticframe_bhm import plugin as bhm_plugin
 from hapticframe_bhm._bench import labelled_points, roc_auc, two_object_scene
+from hapticframe_bhm._config import length_scale_from_bandwidth_per_cm2
+
+
+#: Table 3.1's map: 2.24 / 3.54 cm length scales switched per region, a zero-mean prior of
+#: variance 10 and the Monte-Carlo std of Eq. 3.8 (the defaults are calibrated, see _map).
+THESIS = {
+    "length_scale_free_m": float(np.sqrt(1 / (2 * 0.1)) / 100),
+    "region_dependent_smoothing": True,
+    "prior_variance": 10.0,
+    "prior_occupancy": 0.5,
+    "std_method": "monte_carlo",
+    "max_iterations_update": 3,
+}
 
 
 def build(seed: int = 0, scene: Scene | None = None, **config) -> BayesianHilbertMap:
@@ -51,8 +64,10 @@ def test_region_comes_from_config_then_scene_then_default() -> None:
 
 def test_config_validation() -> None:
     config = BayesianHilbertMapConfig()
-    assert config.length_scale_free_m == pytest.approx(np.sqrt(1 / (2 * 0.1)) / 100)
+    assert config.length_scale_free_m == pytest.approx(0.033)
     assert config.length_scale_interaction_m == pytest.approx(np.sqrt(1 / (2 * 0.04)) / 100)
+    thesis = BayesianHilbertMapConfig(**THESIS)
+    assert thesis.length_scale_free_m == pytest.approx(length_scale_from_bandwidth_per_cm2(0.1))
     for bad in (
         {"hinge_spacing_m": 0.0},
         {"hinge_spacing_m": float("inf")},
@@ -61,6 +76,8 @@ def test_config_validation() -> None:
         {"monte_carlo_samples": 1},
         {"std_method": "bootstrap"},
         {"max_iterations_first": 0},
+        {"prior_occupancy": 0.0},
+        {"prior_occupancy": 1.0},
         {"unknown_key": 1},
     ):
         with pytest.raises(ValidationError):
@@ -95,11 +112,24 @@ def test_registration_is_import_light_and_resolves() -> None:
 
 @pytest.mark.parametrize("method", ["monte_carlo", "surrogate"])
 def test_prior_map_is_uninformed(method) -> None:
-    bhm = build(std_method=method)
+    bhm = build(std_method=method, prior_occupancy=0.5)
     estimate = bhm.query([[0.1, 0.1], [0.5, 0.3], [5.0, -3.0]])
     np.testing.assert_allclose(estimate.mean, 0.5)
     assert np.all(np.isfinite(estimate.std)) and np.all(estimate.std > 0)
     np.testing.assert_allclose(bhm.log_odds([[0.1, 0.1]]), 0.0)
+
+
+def test_prior_occupancy_sets_the_map_where_no_data_reaches() -> None:
+    from hapticframe_bhm import _functional as fn
+
+    bhm = build(prior_occupancy=0.05, prior_variance=0.45)
+    assert bhm.belief.mean[-1] == pytest.approx(np.log(0.05 / 0.95))
+    np.testing.assert_allclose(bhm.belief.mean[:-1], 0.0)
+    # Far outside every hinge only the bias speaks: sigma(kappa logit(0.05)).
+    far = bhm.query([[5.0, -3.0]]).mean[0]
+    assert far == pytest.approx(fn.probit_probability(np.log(0.05 / 0.95), 0.45))
+    near = bhm.query([[0.3, 0.2]]).mean[0]
+    assert 0.0 < near < 0.5
 
 
 def test_queries_accept_empty_float32_single_and_outside_points(data) -> None:
@@ -155,12 +185,13 @@ def test_auc_on_the_two_object_scene(data, smoothing) -> None:
 def test_std_falls_near_data(data) -> None:
     train, test = data
     left = train.points_m[:, 0] < 0.35
-    bhm = build()
-    bhm.fit(Observations(train.points_m[left], train.targets[left]))
-    std = bhm.query(test.points_m).std
     observed = test.points_m[:, 0] < 0.3
     unobserved = test.points_m[:, 0] > 0.45
-    assert np.median(std[observed]) < 0.25 * np.median(std[unobserved])
+    for config, ratio in ((THESIS, 0.25), ({}, 0.5)):
+        bhm = build(**config)
+        bhm.fit(Observations(train.points_m[left], train.targets[left]))
+        std = bhm.query(test.points_m).std
+        assert np.median(std[observed]) < ratio * np.median(std[unobserved]), config
 
 
 def test_sequential_updates_approximate_one_batch_fit(data) -> None:
@@ -241,9 +272,11 @@ def test_extreme_length_scales_stay_finite_without_warnings(data, scale) -> None
 def test_zero_weight_observations_change_nothing(data) -> None:
     train, _ = data
     bhm = build()
+    prior = bhm.query([[0.25, 0.25]]).mean
     bhm.update(Observations(train.points_m, train.targets, np.zeros(len(train))))
-    np.testing.assert_allclose(bhm.belief.mean, 0.0, atol=1e-12)
-    np.testing.assert_allclose(bhm.query([[0.25, 0.25]]).mean, 0.5)
+    np.testing.assert_allclose(bhm.belief.mean[:-1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(bhm.belief.mean[-1], np.log(0.05 / 0.95), atol=1e-12)
+    np.testing.assert_allclose(bhm.query([[0.25, 0.25]]).mean, prior)
 
 
 # --- region-dependent smoothing ---------------------------------------------------------------
@@ -251,7 +284,7 @@ def test_zero_weight_observations_change_nothing(data) -> None:
 
 def test_interaction_observations_switch_nearby_hinges(data) -> None:
     train, _ = data
-    bhm = build(interaction_radius_m=0.05)
+    bhm = build(interaction_radius_m=0.05, **THESIS)
     free = train.targets < 0.5
     bhm.update(Observations(train.points_m[free], train.targets[free]))
     assert not bhm.interaction_hinges.any()
@@ -272,7 +305,7 @@ def test_interaction_observations_switch_nearby_hinges(data) -> None:
             Observations(hit, np.array([0.9])),
         ]
     )
-    fresh = build(interaction_radius_m=0.05)
+    fresh = build(interaction_radius_m=0.05, **THESIS)
     fresh.fit(everything)
     np.testing.assert_array_equal(fresh.interaction_hinges, bhm.interaction_hinges)
     np.testing.assert_allclose(fresh.belief.mean, bhm.belief.mean, rtol=1e-10, atol=1e-12)
@@ -282,7 +315,7 @@ def test_hinges_with_occupancy_above_one_half_switch_at_the_next_update() -> Non
     rng = np.random.default_rng(3)
     points = rng.uniform([0, 0], [0.75, 0.5], size=(3000, 2))
     targets = (np.hypot(points[:, 0] - 0.4, points[:, 1] - 0.25) < 0.05).astype(float)
-    bhm = build(interaction_radius_m=0.0)  # rule (b) off: only exact hits would count
+    bhm = build(**{**THESIS, "interaction_radius_m": 0.0})  # rule (b) off
     bhm.fit(Observations(points, targets))
     assert not bhm.interaction_hinges.any()
     assert bhm.query([[0.4, 0.25]]).mean[0] > 0.5
@@ -307,7 +340,7 @@ def test_plain_mode_never_switches(data) -> None:
 
 def test_reset_returns_to_the_prior(data) -> None:
     train, _ = data
-    bhm = build()
+    bhm = build(**THESIS)
     bhm.fit(train)
     assert bhm.interaction_hinges.any()
     bhm.reset()
@@ -336,7 +369,8 @@ def test_probability_grid_equals_query(data, method, smoothing) -> None:
 
 def test_monte_carlo_std_is_seeded_and_stable_between_queries(data) -> None:
     train, test = data
-    first, second, other = build(seed=4), build(seed=4), build(seed=5)
+    mc = {"std_method": "monte_carlo"}
+    first, second, other = build(seed=4, **mc), build(seed=4, **mc), build(seed=5, **mc)
     for bhm in (first, second, other):
         bhm.fit(train)
     points = test.points_m[:500]

@@ -143,3 +143,54 @@ def test_uncertainty_fraction() -> None:
         cf.uncertainty_fraction([np.nan], "mean-std", 0.1)
     with pytest.raises(ValueError):
         cf.uncertainty_fraction([0.1], "median", 0.1)
+
+
+# --- approach directions ------------------------------------------------------------------------
+
+
+def test_largest_angular_gap() -> None:
+    from hapticframe_coverage._functional import largest_angular_gap_deg
+
+    assert largest_angular_gap_deg([]) == 360.0
+    assert largest_angular_gap_deg([45.0]) == 360.0
+    assert largest_angular_gap_deg([0.0, 180.0]) == 180.0
+    assert largest_angular_gap_deg([350.0, 10.0, 100.0]) == pytest.approx(250.0)
+    assert largest_angular_gap_deg([0.0, 90.0, 180.0, 270.0, 720.0]) == pytest.approx(90.0)
+    with pytest.raises(ValueError):
+        largest_angular_gap_deg([np.nan])
+
+
+def test_bearing_gap_scores() -> None:
+    from hapticframe_coverage._functional import bearing_gap_scores_deg
+
+    np.testing.assert_allclose(bearing_gap_scores_deg([0.0, 90.0], []), [180.0, 180.0])
+    np.testing.assert_allclose(
+        bearing_gap_scores_deg([0.0, 90.0, 200.0, 355.0], [10.0, 180.0]), [10.0, 80.0, 20.0, 15.0]
+    )
+
+
+def test_allowed_sweep_mask_keeps_the_separation_and_forgets_the_oldest() -> None:
+    from hapticframe_coverage._functional import allowed_sweep_mask
+
+    candidates = np.arange(0.0, 360.0, 5.0)
+    ok = allowed_sweep_mask(candidates, [0.0], 30.0)
+    gaps = np.minimum(candidates % 180, 180 - candidates % 180)
+    np.testing.assert_array_equal(ok, gaps >= 30 - 1e-9)
+    # Six directions 30 degrees apart leave nothing: the oldest is forgotten.
+    used = [0.0, 30.0, 60.0, 90.0, 120.0, 150.0]
+    ok = allowed_sweep_mask(candidates, used, 30.0)
+    assert ok.any()
+    assert not ok[candidates % 180 == 150.0].any()
+    with pytest.raises(ValueError):
+        allowed_sweep_mask(candidates, used, 95.0)
+
+
+def test_ray_exit_distance() -> None:
+    from hapticframe_coverage._functional import ray_exit_distance
+
+    box = (0.0, 0.75, 0.0, 0.5)
+    np.testing.assert_allclose(
+        ray_exit_distance([0.25, 0.1], [0.0, 90.0, 180.0, 270.0], box), [0.5, 0.4, 0.25, 0.1]
+    )
+    assert ray_exit_distance([0.25, 0.1], [45.0], box)[0] == pytest.approx(0.4 * np.sqrt(2))
+    np.testing.assert_allclose(ray_exit_distance([1.0, 1.0], [0.0, 90.0], box), 0.0)

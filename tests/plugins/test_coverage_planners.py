@@ -33,9 +33,25 @@ from hapticframe_coverage import (
     TwoPhaseCoverageConfig,
 )
 from hapticframe_coverage import plugin as coverage_plugin
-from hapticframe_coverage._functional import angle_gap_deg, binary_search_order
+from hapticframe_coverage._functional import (
+    angle_gap_deg,
+    binary_search_order,
+    largest_angular_gap_deg,
+    outer_last_order,
+)
 
 BOX = (0.0, 0.75, 0.0, 0.50)
+#: The dissertation's strategy as first implemented: 3.5 cm binary-search lines, the whole
+#: region shrinking by 25 %, random sweep angles, the λ stopping rule.
+THESIS = {
+    "line_spacing_m": 0.035,
+    "phase1_order": "binary",
+    "phase2_region_size_m": None,
+    "min_region_size_m": 0.10,
+    "sweep_rule": "random",
+    "stop_rule": "uncertain-area",
+    "met_from": "heading",
+}
 
 
 class BlobMap(Map):
@@ -138,7 +154,7 @@ def never(_: ExploratoryMovement) -> None:
 
 
 def test_phase1_visits_lines_in_binary_search_order() -> None:
-    planner = two_phase(BlobMap())
+    planner = two_phase(BlobMap(), **THESIS)
     assert planner.phase == "phase1"
     results = run(planner, never)
     starts, _ = planner.phase1_lines
@@ -151,7 +167,7 @@ def test_phase1_visits_lines_in_binary_search_order() -> None:
 
 
 def test_reverse_pass_after_first_interaction() -> None:
-    planner = two_phase(BlobMap())
+    planner = two_phase(BlobMap(), **THESIS)
     stop = np.array([0.31, 0.2])
     results = run(planner, {2: stop, 3: np.array([0.36, 0.2])}, limit=40)
     third, fourth, fifth = (r.movement for r in results[2:5])
@@ -167,7 +183,7 @@ def test_reverse_pass_after_first_interaction() -> None:
 
 
 def phase2_run(map_: Map, **config: object) -> tuple[TwoPhaseCoverage, list[MovementResult]]:
-    planner = two_phase(map_, **config)
+    planner = two_phase(map_, **{**THESIS, **config})
     hit = circle_hit(getattr(map_, "centre_m", (0.3, 0.2)), 0.04)
     return planner, run(planner, hit)
 
@@ -221,7 +237,7 @@ def test_phase2_picks_the_line_through_the_blob() -> None:
 
 def test_stops_when_uncertainty_is_low() -> None:
     map_ = BlobMap(std=0.3)
-    planner = two_phase(map_)
+    planner = two_phase(map_, **THESIS)
     hit = circle_hit(map_.centre_m, 0.04)
     results = []
     for i in range(50):
@@ -249,10 +265,29 @@ def test_confident_map_stops_after_min_phase2_movements(rule: str) -> None:
     assert planner.phase_metrics()["ems_phase2"] == 4
 
 
+class LowMap(BlobMap):
+    """Nothing reaches even the lowest fallback level (0.3)."""
+
+    def query(self, points_m) -> MapEstimate:
+        p = np.asarray(points_m, dtype=float).reshape(-1, 2)
+        return MapEstimate(np.full(len(p), 0.2), np.full(len(p), float(self.std)))
+
+
 def test_centroid_falls_back_to_interaction_points() -> None:
-    planner = two_phase(FlatMap(), max_phase2_movements=1)
+    planner = two_phase(LowMap(), max_phase2_movements=1, **THESIS)
     run(planner, {5: np.array([0.2, 0.3]), 6: np.array([0.3, 0.31])})
     np.testing.assert_allclose(planner.centroid_m, [0.25, 0.305])
+
+
+def test_centroid_falls_back_to_a_weaker_blob_before_the_interaction_points() -> None:
+    class WeakBlob(BlobMap):  # peaks at 0.45: below the outline level, above 0.4
+        def query(self, points_m) -> MapEstimate:
+            estimate = super().query(points_m)
+            return MapEstimate(0.45 * estimate.mean, estimate.std)
+
+    planner = two_phase(WeakBlob(centre_m=(0.5, 0.2)), max_phase2_movements=1, **THESIS)
+    run(planner, {5: np.array([0.42, 0.2]), 6: np.array([0.47, 0.2])})
+    np.testing.assert_allclose(planner.centroid_m, [0.5, 0.2], atol=0.005)
 
 
 def test_uses_probability_grid_when_the_map_has_one() -> None:
@@ -263,7 +298,7 @@ def test_uses_probability_grid_when_the_map_has_one() -> None:
 
 
 def test_without_a_map_phase2_runs_to_the_cap() -> None:
-    planner = two_phase(None, max_phase2_movements=3)
+    planner = two_phase(None, max_phase2_movements=3, **THESIS)
     results = run(planner, circle_hit((0.3, 0.2), 0.04))
     assert planner.phase_metrics()["ems_phase2"] == 3
     assert results[-1].movement.phase == "phase2"
@@ -279,7 +314,7 @@ def test_deterministic_given_the_seed() -> None:
 
 
 def test_total_cap_on_movements() -> None:
-    planner = two_phase(BlobMap(), max_movements=4)
+    planner = two_phase(BlobMap(), max_movements=4, **THESIS)
     assert len(run(planner, never)) == 4
     assert planner.max_movements == 4
 
@@ -302,7 +337,7 @@ def test_simulated_searches_find_the_object() -> None:
     for trial in range(10):
         centre = rng.uniform([0.06, 0.06], [0.69, 0.44])
         map_ = BlobMap(centre_m=centre, std=0.3)
-        planner = two_phase(map_, seed=trial, max_phase2_movements=4)
+        planner = two_phase(map_, seed=trial, max_phase2_movements=4, **THESIS)
         results = run(planner, circle_hit(centre, 0.04))
         metrics = planner.phase_metrics()
         assert metrics["ems_phase2"] == 4
@@ -374,3 +409,88 @@ def test_registration() -> None:
 @parametrize_with_checks(list(coverage_plugin.hapticframe_planners()))
 def test_conformance(spec, check) -> None:
     check(spec)
+
+
+# --- the calibrated defaults ----------------------------------------------------------------------
+
+
+def test_default_phase1_rakes_10_cm_lines_outer_ones_last() -> None:
+    planner = two_phase(BlobMap())
+    results = run(planner, never)
+    starts, _ = planner.phase1_lines
+    np.testing.assert_allclose(starts[:, 1], [0.05, 0.15, 0.25, 0.35, 0.45])
+    visited = [int(np.argmin(np.linalg.norm(starts - r.movement.start_m, axis=1))) for r in results]
+    assert visited == outer_last_order(5) == [2, 3, 1, 0, 4]
+
+
+def met_from_spread(planner: TwoPhaseCoverage) -> float:
+    return largest_angular_gap_deg(planner._met_from())
+
+
+@pytest.mark.parametrize("centre", [(0.3, 0.2), (0.55, 0.32), (0.2, 0.3)])
+def test_default_phase2_meets_the_object_from_every_side(centre) -> None:
+    map_ = BlobMap(centre_m=centre)
+    planner = two_phase(map_)
+    results = run(planner, circle_hit(centre, 0.04))
+    phase2 = [r for r in results if r.movement.phase == "phase2"]
+    assert planner.phase == "done"
+    assert 1 <= len(phase2) <= 4
+    # Stopped because no approach direction is left more than 55 degrees from a met side.
+    assert met_from_spread(planner) <= planner.config.max_gap_deg + 1e-9
+    assert planner.last_uncertainty * 360 <= planner.config.max_gap_deg + 1e-9
+    for r in phase2:
+        a, b = r.movement.start_m, r.movement.end_m
+        t = np.clip(np.dot(np.subtract(centre, a), b - a) / np.dot(b - a, b - a), 0, 1)
+        assert np.linalg.norm(a + t * (b - a) - centre) <= 0.012  # aimed at the estimate
+        assert np.linalg.norm(a - centre) >= planner.config.min_start_distance_m - 1e-9
+        assert r.halted  # every aimed line reaches the object
+    # The first phase-2 region is the configured square around the estimate.
+    first = planner._regions[0]
+    assert first[1] - first[0] == pytest.approx(0.32)
+    assert first[3] - first[2] == pytest.approx(0.32)
+
+
+def test_widest_gap_approaches_from_the_side_not_met_yet() -> None:
+    centre = np.array([0.4, 0.25])
+    planner = two_phase(BlobMap(centre_m=centre))
+    hits = circle_hit(centre, 0.04)
+    results = []
+    while not any(r.movement.phase == "phase2" for r in results):
+        movement = planner.propose()
+        results.append(finish(len(results), movement, hits(movement)))
+        planner.on_movement_end(results[-1])
+    # Phase 1 met the object from the left and the right (lines along x) ...
+    phase1 = [r for r in results if r.movement.phase == "phase1" and r.halted]
+    assert len(phase1) == 2
+    first_phase2 = next(r for r in results if r.movement.phase == "phase2")
+    # ... so the first aimed line comes from above or below.
+    heading = np.degrees(first_phase2.movement.heading_rad) % 180
+    assert abs(heading - 90) <= 30
+
+
+def test_edges_of_the_region_do_not_count_as_open_sides() -> None:
+    centre = (0.4, 0.045)  # 4.5 cm from the bottom edge: nothing can come from below
+    planner = two_phase(BlobMap(centre_m=centre))
+    results = run(planner, circle_hit(centre, 0.04))
+    assert planner.phase == "done"
+    assert planner.phase_metrics()["ems_phase2"] <= 4
+    for r in results:
+        if r.movement.phase == "phase2":
+            assert r.movement.start_m[1] >= centre[1] - 1e-9  # never started below it
+
+
+def test_heading_and_stop_point_met_from_agree_for_aimed_lines() -> None:
+    centre = (0.35, 0.2)
+    planners = [two_phase(BlobMap(centre_m=centre), met_from=rule)
+                for rule in ("heading", "stop-point")]
+    for planner in planners:
+        run(planner, circle_hit(centre, 0.04))
+    for planner in planners:
+        assert planner.phase == "done"
+    # Aimed phase-2 lines stop on the line through the centre: both readings agree there.
+    stop_point = planners[1]
+    headings = stop_point.met_from_deg
+    bearings = stop_point._met_from()
+    for h, b, point in zip(headings, bearings, stop_point.interaction_points):
+        if abs(point[1] - 0.25) > 1e-9 and abs(point[1] - 0.15) > 1e-9:  # not a phase-1 line
+            assert min(abs(h - b), 360 - abs(h - b)) <= 15

@@ -22,6 +22,18 @@ from hapticframe_failure_zone import _functional as fz
 from hapticframe_failure_zone import plugin as fz_plugin
 
 CLASSES = ("free", "jamming", "contact")
+#: The dissertation's sensor model exactly (Eqs. 3.2-3.4, Table 3.1); the defaults are calibrated.
+THESIS = {
+    "schedule": "empirical",
+    "free_range_scale": 1.0,
+    "free_gamma_scale": 1.0,
+    "jamming_shape": "sector",
+    "jamming_inner_scale": 0.0,
+    "jamming_range_scale": 1.0,
+    "jamming_angle_scale": 1.0,
+    "interaction_weight": 1.0,
+    "first_pair_weight": 1.0,
+}
 ONE_HOT = {"free": [1.0, 0.0, 0.0], "jamming": [0.0, 1.0, 0.0], "contact": [0.0, 0.0, 1.0]}
 
 
@@ -192,7 +204,7 @@ def test_contact_gives_range_zero() -> None:
 
 
 def test_free_sector_targets_and_extent() -> None:
-    model = make_model()
+    model = make_model(**THESIS)
     reach, _, eta = model.parameters()
     obs = model.observe(measurement([[0.1, 0.1]], ["free"]))
     dist = np.linalg.norm(obs.points_m - [0.1, 0.1], axis=1)
@@ -202,6 +214,7 @@ def test_free_sector_targets_and_extent() -> None:
     assert np.all(obs.weights == 1.0)
     jam = model.observe(measurement([[0.1, 0.1]], ["jamming"], t0=1.0))
     assert jam.targets.min() == pytest.approx(0.5) and jam.targets.max() == pytest.approx(1.0)
+    assert np.linalg.norm(jam.points_m - [0.1, 0.1], axis=1).max() == pytest.approx(reach)
 
 
 @pytest.mark.parametrize("heading", [0.0, 0.7, math.pi / 2, -2.5, math.pi])
@@ -245,7 +258,7 @@ def random_path(rng: np.random.Generator, n: int) -> LocatedMeasurement:
                        depth=rng.uniform(0.02, 0.05, n))
 
 
-@pytest.mark.parametrize("schedule", ["empirical", "analytic"])
+@pytest.mark.parametrize("schedule", ["hybrid", "empirical", "analytic"])
 @pytest.mark.parametrize("mixture", ["one-hot", "soft"])
 def test_streaming_equals_batch(schedule: str, mixture: str) -> None:
     rng = np.random.default_rng(3)
@@ -303,7 +316,7 @@ def test_observation_spacing_thins_free_movement() -> None:
 def test_first_non_free_sample_is_always_emitted() -> None:
     positions = np.column_stack([0.001 * np.arange(6), np.zeros(6)])  # 5 mm of travel
     states = ["free", "free", "free", "jamming", "jamming", "jamming"]
-    model = make_model(observation_spacing_m=0.01)
+    model = make_model(observation_spacing_m=0.01, **THESIS)  # sectors start at the fingertip
     obs = model.observe(measurement(positions, states))
     emitted = [bool(np.any(np.all(obs.points_m == p, axis=1))) for p in positions]
     assert emitted == [True, False, False, True, False, False]
@@ -333,7 +346,7 @@ def test_two_class_classifier() -> None:
 
 
 def test_empirical_schedule_counts_pairs() -> None:
-    model = make_model()
+    model = make_model(**THESIS)
     assert model.parameters()[1] == pytest.approx(1e4 / 72)
     model.on_movement_end(result(0, "interaction", "jamming"))
     assert model.pair_count == 0
@@ -369,6 +382,97 @@ def test_shear_band_angle_sources() -> None:
     assert math.degrees(make_model().shear_band_angle_rad) == pytest.approx(31.5)
 
 
+# --- calibrated defaults -------------------------------------------------------------------------
+
+
+def test_hybrid_schedule_takes_the_range_from_depth_and_the_angle_from_table_3_1() -> None:
+    model = make_model()
+    reach, gamma, eta = model.parameters(depth_m=0.034)
+    assert reach == pytest.approx(0.034 / math.tan(math.radians(31.5)))
+    assert gamma == pytest.approx(math.log(2) / reach**2)
+    assert math.degrees(eta) == pytest.approx(50.0)
+    model.on_movement_end(result(0, "interaction", "jamming"))
+    model.on_movement_end(result(1, "interaction", "jamming"))
+    assert math.degrees(model.parameters(depth_m=0.034)[2]) == pytest.approx(57.0)
+    # Unknown depth: the depth schedule, 4.4 cm less 1 and 0.5 cm after two interactions.
+    assert model.parameters()[0] == pytest.approx(0.029 / math.tan(math.radians(31.5)))
+
+
+def test_default_free_sector_is_short_and_nearly_free() -> None:
+    model = make_model()
+    reach = model.parameters(depth_m=0.044)[0]
+    obs = model.observe(measurement([[0.2, 0.2]], ["free"], depth=0.044))
+    dist = np.linalg.norm(obs.points_m - [0.2, 0.2], axis=1)
+    assert dist.max() == pytest.approx(0.85 * reach)
+    # The free kernel with 0.04 γ_r: 1 − 2^(−0.04 · 0.85²) ≈ 0.02 at the sector's end.
+    assert obs.targets.max() == pytest.approx(1 - 2 ** (-0.04 * 0.85**2))
+    assert np.all(obs.weights == 1.0)
+
+
+@pytest.mark.parametrize("heading", [0.0, 2.0, -math.pi / 2])
+def test_jamming_disc_lies_ahead_of_the_fingertip(heading: float) -> None:
+    model = make_model()
+    reach, gamma, _ = model.parameters(depth_m=0.044)
+    origin = np.array([0.3, 0.25])
+    obs = model.observe(measurement(origin, ["jamming"], headings=heading, depth=0.044))
+    radius = model.config.jamming_disc_radius_m
+    ahead = np.array([math.cos(heading), math.sin(heading)])
+    centre = origin + (0.45 * reach + radius) * ahead
+    offsets = np.linalg.norm(obs.points_m - centre, axis=1)
+    assert offsets.max() == pytest.approx(radius) and offsets.min() == pytest.approx(0.0)
+    dist = np.linalg.norm(obs.points_m - origin, axis=1)
+    assert dist.min() == pytest.approx(0.45 * reach)
+    np.testing.assert_allclose(obs.targets, fz.kernel_targets(dist, gamma, 1))
+    assert np.all(obs.targets >= 0.5)
+
+
+def test_first_pair_of_interactions_counts_half() -> None:
+    model = make_model()
+    jam = model.observe(measurement([[0.3, 0.2]], ["jamming"], depth=0.03))
+    np.testing.assert_allclose(jam.weights, 0.5)
+    free = model.observe(measurement([[0.35, 0.2]], ["free"], depth=0.03, t0=1.0))
+    np.testing.assert_allclose(free.weights, 1.0)
+    model.on_movement_end(result(0, "interaction", "jamming"))
+    model.on_movement_end(result(1, "interaction", "jamming"))
+    again = model.observe(measurement([[0.3, 0.2]], ["jamming"], depth=0.03, t0=2.0))
+    np.testing.assert_allclose(again.weights, 1.0)
+    contact = model.observe(measurement([[0.3, 0.2]], ["contact"], depth=0.03, t0=3.0))
+    assert len(contact) == 1 and contact.targets[0] == 1.0
+
+
+def test_soft_mixture_with_the_disc_weights_each_region_by_its_probability() -> None:
+    model = make_model(mixture="soft", first_pair_weight=1.0)
+    theta = np.array([[0.25, 0.75, 0.0]])
+    obs = model.observe(measurement([[0.3, 0.2]], probabilities=theta, depth=0.044))
+    free = make_model().observe(measurement([[0.3, 0.2]], ["free"], depth=0.044))
+    jam = make_model(first_pair_weight=1.0).observe(
+        measurement([[0.3, 0.2]], ["jamming"], depth=0.044))
+    assert len(obs) == len(free) + len(jam)
+    np.testing.assert_allclose(np.sort(obs.weights), np.sort(np.r_[0.25 * free.weights,
+                                                                     0.75 * jam.weights]))
+
+
+def test_disc_offsets() -> None:
+    disc = fz.disc_offsets(0.1, 0.03, 0.01)
+    np.testing.assert_allclose(disc[0], [0.1, 0.0])
+    assert np.linalg.norm(disc - [0.1, 0.0], axis=1).max() == pytest.approx(0.03)
+    assert len(np.unique(np.round(disc, 12), axis=0)) == len(disc)
+    assert len(fz.disc_offsets(0.1, 0.0, 0.01)) == 1
+    with pytest.raises(ValueError):
+        fz.disc_offsets(0.1, -0.01, 0.01)
+    with pytest.raises(ValueError):
+        fz.disc_offsets(0.1, 0.03, 0.0)
+
+
+def test_calibration_fields_are_validated() -> None:
+    with pytest.raises(ValueError):
+        FailureZoneConfig(jamming_inner_scale=1.2, jamming_range_scale=1.0)
+    with pytest.raises(ValueError):
+        FailureZoneConfig(first_pair_weight=0.0)
+    with pytest.raises(ValueError):
+        FailureZoneConfig(jamming_shape="ring")
+
+
 # --- extremes -----------------------------------------------------------------------------------
 
 
@@ -393,7 +497,7 @@ def test_empty_measurement() -> None:
     ],
 )
 def test_extreme_depths_give_finite_observations(depth: float, expected_range: float) -> None:
-    model = make_model(schedule="analytic")
+    model = make_model(**{**THESIS, "schedule": "analytic"})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FailureZoneAngleWarning)
         obs = model.observe(measurement([[0.1, 0.1]], ["jamming"], depth=depth))

@@ -300,3 +300,64 @@ def test_missing_channel_is_a_clear_error():
         make().update(batch_of(np.ones((3, 2)), channel="wrench"))
     ok = make(force_channel="wrench").predict_proba(batch_of(np.ones((3, 2)), channel="wrench"))
     assert len(ok) == 3
+
+
+# --- the numpy Butterworth filter -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4])
+@pytest.mark.parametrize(("cutoff", "rate"), [(3.0, 100.0), (0.5, 100.0), (20.0, 50.0)])
+def test_butterworth_matches_scipy(order, cutoff, rate):
+    from scipy import signal
+
+    ours = F.butterworth_sos(cutoff, rate, order)
+    theirs = signal.butter(order, cutoff, btype="low", output="sos", fs=rate)
+    assert ours.shape == theirs.shape
+    impulse = np.zeros(400)
+    impulse[0] = 1.0
+    np.testing.assert_allclose(
+        signal.sosfilt(ours, impulse), signal.sosfilt(theirs, impulse), rtol=0, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        F.sos_step_state(ours), signal.sosfilt_zi(ours), rtol=1e-10, atol=1e-12
+    )
+
+
+def test_filter_state_holds_a_constant_and_both_paths_agree():
+    sos = F.butterworth_sos(3.0, 100.0, 4)
+    out, state = F.sos_filter(sos, np.full(50, 2.5), F.sos_step_state(sos) * 2.5)
+    np.testing.assert_allclose(out, 2.5, rtol=1e-12)
+    np.testing.assert_allclose(state, F.sos_step_state(sos) * 2.5, rtol=1e-12)
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal(600)  # longer than the plain-float path takes
+    long_out, long_state = F.sos_filter(sos, x, np.zeros((2, 2)))
+    short_out, short_state = F.sos_filter(sos, x[:200], np.zeros((2, 2)))
+    rest_out, rest_state = F.sos_filter(sos, x[200:400], short_state)
+    last_out, last_state = F.sos_filter(sos, x[400:], rest_state)
+    np.testing.assert_allclose(np.concatenate([short_out, rest_out, last_out]), long_out,
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(last_state, long_state, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="order"):
+        F.butterworth_sos(3.0, 100.0, 0)
+
+
+def test_classifying_a_stream_does_not_import_scipy_signal():
+    root = Path(__file__).resolve().parents[2]
+    code = (
+        "import sys, numpy as np;"
+        "from hapticframe.kinds import BuildContext, SampleBatch;"
+        "from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig;"
+        "clf = ForceRateJammingClassifier(ForceRateJammingConfig(),"
+        " BuildContext(id='j', rng=np.random.default_rng(0)));"
+        "[clf.update(SampleBatch(np.array([0.01 * (k + 1)]),"
+        " {'force_n': np.array([[3.0 + k, 1.0]])})) for k in range(30)];"
+        "sys.exit(1 if 'scipy.signal' in sys.modules else 0)"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        check=False,
+        env={"PYTHONPATH": f"{root / 'plugins'}:{root}"},
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
