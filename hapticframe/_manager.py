@@ -232,6 +232,8 @@ def _register_module(pm: PluginManager, module_name: str, module_dir: Path | Non
     finally:
         if added:
             sys.path.remove(str(module_dir))
+    if pm.is_registered(module):
+        return  # already loaded through its entry point: the same module, nothing to add
     pm.register_source(module, Source("<plugin_modules>", "", module_name, module_name))
 
 

@@ -123,9 +123,37 @@ class Session:
 
     # --- the loops ----------------------------------------------------------------------
 
+    @property
+    def training_sensors(self) -> frozenset[str]:
+        """Sensors read only to fit components before the run (``run.train_from``)."""
+        return frozenset(self.settings.train_from.values())
+
+    def fit_before_run(self) -> None:
+        """Fit feature extractors and classifiers on the training sensors' recordings."""
+        sources = self.settings.train_from
+        if not sources:
+            return
+        from ._train import collect_recordings, fit_components  # _train imports this module
+
+        started = time.perf_counter()
+        recordings = collect_recordings(self.components, sources)
+        self.echo(
+            f"fitting before the run on {len(recordings)} recordings of "
+            f"{', '.join(sorted(set(sources.values())))}"
+        )
+        trained = fit_components(
+            self.experiment, self.components, recordings, self.settings.label_channel, self.echo
+        )
+        self.metadata["training"] = {
+            "recordings": len(recordings),
+            "trained": trained,
+            "reports": {cid: getattr(self.components[cid], "training_report", None) for cid in trained},
+            "wall_time_s": time.perf_counter() - started,
+        }
+
     def run_loop(self) -> None:
         planners, robots = self.of_kind(Kind.PLANNER), self.of_kind(Kind.ROBOT)
-        flow = Dataflow(self.experiment, self.components, self.recorder)
+        flow = Dataflow(self.experiment, self.components, self.recorder, self.training_sensors)
         if planners or robots:
             if len(planners) != 1 or len(robots) != 1:
                 raise RunError(
@@ -138,24 +166,28 @@ class Session:
 
     def _closed_loop(self, flow: Dataflow, planner: Planner, robot: Robot) -> None:
         limit = min(self.settings.max_movements, planner.max_movements)
+        # Settings read once: the step loop below runs some 20,000 times per search.
+        every = self.settings.map_update_every_steps
+        halt_on_interaction = self.settings.halt_on_interaction
+        max_steps = self.settings.max_steps_per_movement
         for index in range(limit):
             movement = planner.propose()
             if movement is None:
                 return
             flow.start_stream()
             robot.begin(movement)
+            robot_id = robot.id
             halted_by_loop = ""
             steps = 0
-            for steps in range(1, self.settings.max_steps_per_movement + 1):
+            for steps in range(1, max_steps + 1):
                 state = robot.step()
                 if state is None:
                     break
-                flow.record_robot_state(robot.id, state, index)
+                flow.record_robot_state(robot_id, state, index)
                 flow.tick()
-                every = self.settings.map_update_every_steps
                 if every and steps % every == 0:
                     flow.flush_maps()
-                if self.settings.halt_on_interaction and not halted_by_loop:
+                if halt_on_interaction and not halted_by_loop:
                     detected = flow.interaction_detected()
                     if detected is not None:
                         halted_by_loop = "interaction"
@@ -182,7 +214,9 @@ class Session:
         self.echo(f"stopped after {limit} movements (the movement limit)")
 
     def _open_loop(self, flow: Dataflow) -> None:
-        sensors: list[Sensor] = self.of_kind(Kind.SENSOR)  # type: ignore[assignment]
+        sensors: list[Sensor] = [
+            s for s in self.of_kind(Kind.SENSOR) if s.id not in self.training_sensors  # type: ignore[misc]
+        ]
         if not sensors:
             raise RunError("nothing to run: the experiment has no sensors and no robot")
         for reads in range(1, self.settings.max_reads + 1):
@@ -362,6 +396,7 @@ def run_experiment(
     status, error = "failed", None
     try:
         session.hook.hapticframe_session_start(session=session)
+        session.fit_before_run()
         session.run_loop()
         metrics = session.metrics(time.perf_counter() - session.started)
         session.recorder.save(str(out / "trace.npz"))

@@ -26,7 +26,7 @@ from ._session import _write_json, build_components
 from ._version import __version__
 from .kinds import Classifier, FeatureExtractor, SampleBatch, Sensor
 
-__all__ = ["labels_at", "train_experiment"]
+__all__ = ["collect_recordings", "fit_components", "labels_at", "train_experiment"]
 
 
 def labels_at(times_s: np.ndarray, source: SampleBatch, channel: str) -> np.ndarray:
@@ -46,18 +46,64 @@ def labels_at(times_s: np.ndarray, source: SampleBatch, channel: str) -> np.ndar
     return np.rint(labels).astype(np.int64)
 
 
-def _recordings(experiment: Experiment, components: Mapping[str, Any]) -> list[dict[str, SampleBatch]]:
-    per_sensor = {}
-    for entry in experiment.of_kind(Kind.SENSOR):
-        sensor: Sensor = components[entry.id]
-        per_sensor[entry.id] = list(sensor.iter_recordings())
-    if not per_sensor:
+def collect_recordings(
+    components: Mapping[str, Any], sources: Mapping[str, str]
+) -> list[dict[str, SampleBatch]]:
+    """The recordings (trials) of finite sensors, one dict per trial.
+
+    ``sources`` maps the sensor id the recordings stand in for to the id of the sensor that
+    delivers them; every source must deliver the same number of recordings.
+    """
+    if not sources:
         raise UsageError("nothing to train on: the experiment has no sensors")
+    per_sensor = {}
+    for target, source in sources.items():
+        sensor: Sensor = components[source]
+        per_sensor[target] = list(sensor.iter_recordings())
     counts = {sid: len(recs) for sid, recs in per_sensor.items()}
     if len(set(counts.values())) != 1:
         raise RunError(f"sensors deliver different numbers of recordings: {counts}")
     count = next(iter(counts.values()))
+    if count == 0:
+        raise RunError("the training sensors delivered no recordings")
     return [{sid: recs[i] for sid, recs in per_sensor.items()} for i in range(count)]
+
+
+def fit_components(
+    experiment: Experiment,
+    components: Mapping[str, Any],
+    recordings: list[dict[str, SampleBatch]],
+    label_channel: str,
+    echo: Callable[[str], None] = print,
+) -> list[str]:
+    """Fit the feature extractors and classifiers in build order; the ids fitted.
+
+    Each feature extractor is fitted on its inputs and then transforms them for the
+    components after it; each classifier is fitted with labels from ``label_channel``.
+    ``recordings`` is extended in place with every extractor's output.
+    """
+    sensor_ids = [e.id for e in experiment.of_kind(Kind.SENSOR) if e.id in recordings[0]]
+    trained: list[str] = []
+    for entry in experiment.components:
+        component = components[entry.id]
+        if entry.kind not in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
+            continue
+        names = [i for i in entry.inputs if i in recordings[0]]
+        if not names:
+            continue  # reads nothing that was recorded: left as configured
+        inputs = [merge_batches([rec[i] for i in names], entry.id) for rec in recordings]
+        if isinstance(component, FeatureExtractor):
+            echo(f"fitting {entry.id} ({entry.type})")
+            component.fit(inputs)
+            for rec, batch in zip(recordings, inputs):
+                rec[entry.id] = component.transform(batch)
+        elif isinstance(component, Classifier):
+            echo(f"fitting {entry.id} ({entry.type})")
+            labels = [labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
+                                label_channel) for rec, batch in zip(recordings, inputs)]
+            component.fit(inputs, labels)
+        trained.append(entry.id)
+    return trained
 
 
 def train_experiment(
@@ -75,27 +121,13 @@ def train_experiment(
     components = build_components(experiment)
     label_channel = experiment.model.run.label_channel  # type: ignore[attr-defined]
     try:
-        recordings = _recordings(experiment, components)
+        # With run.train_from, the training sensors stand in for the sensors a run streams.
+        sources = dict(experiment.model.run.train_from) or {  # type: ignore[attr-defined]
+            e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
+        }
+        recordings = collect_recordings(components, sources)
         echo(f"training on {len(recordings)} recordings")
-        sensor_ids = [e.id for e in experiment.of_kind(Kind.SENSOR)]
-        trained: list[str] = []
-        for entry in experiment.components:
-            component = components[entry.id]
-            if entry.kind not in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
-                continue
-            inputs = [merge_batches([rec[i] for i in entry.inputs if i in rec], entry.id)
-                      for rec in recordings]
-            if isinstance(component, FeatureExtractor):
-                echo(f"fitting {entry.id} ({entry.type})")
-                component.fit(inputs)
-                for rec, batch in zip(recordings, inputs):
-                    rec[entry.id] = component.transform(batch)
-            elif isinstance(component, Classifier):
-                echo(f"fitting {entry.id} ({entry.type})")
-                labels = [labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
-                                    label_channel) for rec, batch in zip(recordings, inputs)]
-                component.fit(inputs, labels)
-            trained.append(entry.id)
+        trained = fit_components(experiment, components, recordings, label_channel, echo)
         out.mkdir(parents=True, exist_ok=True)
         saved = _save(components, trained, out)
         record = {

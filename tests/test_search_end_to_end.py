@@ -37,3 +37,24 @@ def test_search_ellipse_finds_and_outlines_the_object(tmp_path, capsys):
         assert forces.ndim == 2 and forces.shape[1] == 2 and np.all(np.isfinite(forces))
         assert len(trace["robot/arm/position_m"]) == len(forces)
         assert len(trace["sensor_model/failure-zone/targets"]) > 0
+
+
+def test_an_object_touching_the_region_edge_is_searched_without_failure(tmp_path):
+    # A circle whose rim touches the region's left edge: paths, kernels and maps all meet
+    # the boundary at once. The run must finish, stay within the force limit and report
+    # finite figures (whether the object is found is the benchmark's business).
+    text = (ROOT / "examples" / "search-ellipse.yaml").read_text().replace(
+        "- {shape: ellipse, center_m: [0.42, 0.21], semi_axes_m: [0.045, 0.025], orientation_deg: 35}",
+        "- {shape: circle, center_m: [0.04, 0.30], radius_m: 0.04}",
+    )
+    assert "shape: circle" in text
+    path = tmp_path / "edge.yaml"
+    path.write_text(text.replace("../schemas/", str(ROOT / "schemas") + "/"))
+    out = tmp_path / "edge"
+    assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["max_force_n"] <= 80.0 and metrics["movements"] >= 1
+    if metrics["object_found"]:
+        assert np.isfinite(metrics["centroid_error_m"]) and metrics["centroid_error_m"] < 0.05
+    else:
+        assert metrics["centroid_error_m"] is None

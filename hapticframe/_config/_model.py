@@ -45,7 +45,16 @@ class RunSettings(BaseModel):
         None, description="Map id scored against the scene; default: the planner's map."
     )
     label_channel: str = Field(
-        "contact", description="Sensor channel holding per-sample class labels for `hapticframe train`."
+        "contact",
+        description="Sensor channel holding per-sample class labels for `hapticframe train` "
+        "and `train_from`.",
+    )
+    train_from: dict[Annotated[str, Field(pattern=ID_PATTERN)], Annotated[str, Field(pattern=ID_PATTERN)]] = Field(
+        default_factory=dict,
+        description="Fit the feature extractors and classifiers before the run, as `hapticframe "
+        "train` would: maps the id of a sensor the run streams to the id of a finite sensor "
+        "whose recordings stand in for it while fitting. Training sensors are not streamed "
+        "during the run and no component may name them in its inputs.",
     )
     figures: bool = Field(
         True, description="Let components write their figures (benchmarks switch this off)."

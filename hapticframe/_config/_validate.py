@@ -115,6 +115,7 @@ def validate_data(
     if model is not None and not issues:
         entries = _entries(model, registry)
         issues.extend(_check_graph(entries, loaded))
+        issues.extend(_check_train_from(model.run.train_from, entries, loaded))  # type: ignore[attr-defined]
         if not issues:
             return Experiment(file, model, tuple(_build_order(entries)), registry, pm)
     issues.sort(key=lambda i: (i.line or 0, i.path))
@@ -277,6 +278,35 @@ def _check_graph(entries: list[ComponentEntry], loaded: LoadedFile) -> list[Issu
                 f"{first.path}.inputs",
                 "inputs form a cycle: " + " -> ".join(cycle + [cycle[0]]),
                 loaded.line_of(f"{first.path}.inputs"),
+            ))
+    return issues
+
+
+def _check_train_from(
+    train_from: Mapping[str, str], entries: list[ComponentEntry], loaded: LoadedFile
+) -> list[Issue]:
+    """``run.train_from`` pairs a streamed sensor with a training-only sensor."""
+    issues: list[Issue] = []
+    sensors = {e.id for e in entries if e.kind is Kind.SENSOR}
+    read_by = {name: e.id for e in entries for name in e.inputs}
+    for target, source in train_from.items():
+        where = f"run.train_from.{target}"
+        line = loaded.line_of(where) or loaded.line_of("run.train_from")
+        for role, name in (("key", target), ("value", source)):
+            if name not in sensors:
+                close = difflib.get_close_matches(name, sorted(sensors), n=3, cutoff=0.5)
+                hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+                issues.append(Issue(where, f"{role} {name!r} is not the id of a sensor{hint}", line))
+        if source == target:
+            issues.append(Issue(where, f"sensor {target!r} cannot stand in for itself", line))
+        elif source in train_from:
+            issues.append(Issue(where, f"{source!r} is both streamed and a training sensor", line))
+        elif source in read_by:
+            issues.append(Issue(
+                where,
+                f"training sensor {source!r} is an input of {read_by[source]!r}; training "
+                "sensors are only read while fitting, so no component may name them",
+                line,
             ))
     return issues
 

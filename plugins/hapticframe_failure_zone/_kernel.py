@@ -306,7 +306,12 @@ class FailureZoneKernel(SensorModel):
         totals = [0.0, 0.0, 0.0]
         for column, value in zip(columns, row):
             totals[column] += value
-        state = max(range(3), key=totals.__getitem__)  # first maximum, as np.argmax
+        # The first maximum, as np.argmax picks it (the totals are finite).
+        state, best = 0, totals[0]
+        if totals[1] > best:
+            state, best = 1, totals[1]
+        if totals[2] > best:
+            state = 2
         if state != self._previous_state:
             return False
         travel = self._travel_m + math.sqrt((x - previous[0]) ** 2 + (y - previous[1]) ** 2)

@@ -58,10 +58,17 @@ class ForceRateTracker:
 
     def __init__(self, sos: NDArray[np.float64]) -> None:
         self._sos = sos
+        # Plain-float copies for the one-sample path: (b0, b1, b2, a1, a2) per section (a0 = 1).
+        self._sections = [
+            (float(r[0]), float(r[1]), float(r[2]), float(r[4]), float(r[5])) for r in sos
+        ]
         self.reset()
 
     def reset(self) -> None:
         self._zi: NDArray[np.float64] | None = None
+        # The filter state as plain floats while one-sample updates run; when set, it is
+        # the current state and _zi is stale (process() converts it back).
+        self._registers: list[list[float]] | None = None
         self._held: float | None = None  # last valid raw magnitude
         self._last_y: float | None = None
         self._last_t: float | None = None  # time of the last filtered sample
@@ -88,6 +95,9 @@ class ForceRateTracker:
                 "call reset() before replaying a recording"
             )
         self._last_seen_t = float(t[-1])
+        if self._registers is not None:
+            self._zi = np.array(self._registers, dtype=np.float64)
+            self._registers = None
         ok = valid & np.isfinite(magnitude)
         # Forward-fill: each row takes the latest valid value at or before it.
         source = np.maximum.accumulate(np.where(ok, np.arange(n), -1))
@@ -113,6 +123,34 @@ class ForceRateTracker:
         self._last_y = float(y[-1])
         self._last_t = float(t[-1])
         return force, rate, initialised
+
+    def process_one(self, t: float, magnitude: float) -> tuple[float, float] | None:
+        """Filtered force and force rate of one valid, finite sample, in plain floats.
+
+        The same recursion as :meth:`process` (transposed direct form II) without arrays,
+        for a closed loop's one-sample updates. Returns None, changing nothing, when the
+        sample needs :meth:`process`: the filter is not initialised yet, or ``t`` does not
+        follow the previous sample (process() raises the error).
+        """
+        if self._last_y is None or self._last_t is None or t <= self._last_seen_t:
+            return None
+        registers = self._registers
+        if registers is None:
+            if self._zi is None:
+                return None
+            registers = self._registers = self._zi.tolist()
+        self._last_seen_t = t
+        sample = magnitude
+        for (b0, b1, b2, a1, a2), section in zip(self._sections, registers):
+            y = b0 * sample + section[0]
+            section[0] = b1 * sample - a1 * y + section[1]
+            section[1] = b2 * sample - a2 * y
+            sample = y
+        rate = (sample - self._last_y) / (t - self._last_t)
+        self._held = magnitude
+        self._last_y = sample
+        self._last_t = t
+        return sample, rate
 
 
 class ForceRateJammingClassifier(Classifier):
@@ -147,10 +185,7 @@ class ForceRateJammingClassifier(Classifier):
         except ValueError as exc:
             raise ValueError(f"classifier {self.id!r}: {exc}") from exc
         self._tracker = ForceRateTracker(sos)
-        # Plain-float copies for the one-sample path: (b0, b1, b2, a1, a2) per section
-        # (a0 = 1), and the thresholds with their softness scales.
-        self._sos_rows = [(float(r[0]), float(r[1]), float(r[2]), float(r[4]), float(r[5]))
-                          for r in sos]
+        # The thresholds with their softness scales, as plain floats for the one-sample path.
         self._rule = (*(float(v) for v in self.thresholds), float(cfg.force_scale_n),
                       float(cfg.rate_scale_n_per_s))
 
@@ -203,34 +238,20 @@ class ForceRateJammingClassifier(Classifier):
     def _update_single(self, batch: SampleBatch) -> ClassProbabilities | None:
         """The one-sample update of a closed loop, in plain floats (same numbers as the
         array path to rounding; None when the sample needs the general path)."""
-        tracker = self._tracker
         name = self.config.force_channel
         channel = batch.channels.get(name)
-        if channel is None or tracker._zi is None or tracker._last_y is None:
+        if channel is None or channel.size > 3:
             return None
         valid = batch.valid.get(name)
-        if (valid is not None and not bool(valid[0])) or channel.size > 3:
+        if valid is not None and not bool(valid[0]):
             return None
-        components = channel.ravel().tolist()
-        magnitude = math.sqrt(sum(v * v for v in components))
-        t = float(batch.timestamps_s[0])
+        magnitude = math.sqrt(sum([v * v for v in channel.ravel().tolist()]))
         if not (math.isfinite(magnitude) and magnitude <= F.MAX_FORCE_N):
             return None
-        if t <= tracker._last_seen_t:
-            return None  # the general path raises the error
-        tracker._last_seen_t = t
-        sample = magnitude
-        state = tracker._zi.tolist()
-        for (b0, b1, b2, a1, a2), registers in zip(self._sos_rows, state):
-            y = b0 * sample + registers[0]
-            registers[0] = b1 * sample - a1 * y + registers[1]
-            registers[1] = b2 * sample - a2 * y
-            sample = y
-        tracker._zi[...] = state
-        rate = (sample - tracker._last_y) / (t - tracker._last_t)
-        tracker._held = magnitude
-        tracker._last_y = sample
-        tracker._last_t = t
+        filtered = self._tracker.process_one(float(batch.timestamps_s[0]), magnitude)
+        if filtered is None:
+            return None
+        sample, rate = filtered
         fj, rj, fc, rc, force_scale, rate_scale = self._rule
         m_j = min((sample - fj) / force_scale, (rate - rj) / rate_scale)
         m_c = min((sample - fc) / force_scale, (rate - rc) / rate_scale)

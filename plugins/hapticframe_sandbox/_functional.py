@@ -22,6 +22,7 @@ __all__ = [
     "first_hit_distances",
     "free_drag_n",
     "jamming_force_n",
+    "plate_edge_offsets",
     "plate_edge_points",
     "rupture_distance_m",
     "sector_ray_points",
@@ -156,6 +157,9 @@ def first_hit_distances(
     radii_m: FloatArray,
     occupied: Callable[[FloatArray], NDArray[np.bool_]],
     refine_iterations: int = 12,
+    *,
+    directions: FloatArray | None = None,
+    ray_offsets: FloatArray | None = None,
 ) -> FloatArray:
     """Distance along each ray to the first occupied point, ``inf`` where a ray hits nothing.
 
@@ -173,11 +177,18 @@ def first_hit_distances(
         Maps ``(p, 2)`` points to a ``(p,)`` bool mask (``Scene.occupied``).
     refine_iterations : int
         Bisection steps; the error is the radial spacing divided by ``2**refine_iterations``.
+    directions, ray_offsets : array, optional
+        ``unit_vector(ray_angles_rad)`` (m, 2) and ``radii_m[None, :, None] *
+        directions[:, None, :]`` (m, k, 2), when the caller keeps them between calls
+        with the same rays (a robot within one movement); computed here otherwise.
     """
     origin = np.asarray(position_m, dtype=np.float64)
-    directions = unit_vector(ray_angles_rad)
+    if directions is None:
+        directions = unit_vector(ray_angles_rad)
     m, k = directions.shape[0], radii_m.size
-    pts = origin + radii_m[None, :, None] * directions[:, None, :]
+    if ray_offsets is None:
+        ray_offsets = radii_m[None, :, None] * directions[:, None, :]
+    pts = origin + ray_offsets
     mask = np.asarray(occupied(pts.reshape(-1, 2)), dtype=bool).reshape(m, k)
     hit = mask.any(axis=1)
     out = np.full(m, np.inf)
@@ -206,9 +217,16 @@ def plate_edge_points(
     position_m: ArrayLike, heading_rad: float, plate_width_m: float, n: int = 9
 ) -> FloatArray:
     """``(n, 2)`` points across the plate face, perpendicular to the direction of motion."""
+    return np.asarray(position_m, dtype=np.float64) + plate_edge_offsets(
+        heading_rad, plate_width_m, n
+    )
+
+
+def plate_edge_offsets(heading_rad: float, plate_width_m: float, n: int = 9) -> FloatArray:
+    """``(n, 2)`` offsets of :func:`plate_edge_points` from the fingertip."""
     normal = unit_vector(heading_rad + np.pi / 2)
     offsets = np.linspace(-plate_width_m / 2, plate_width_m / 2, n)
-    return np.asarray(position_m, dtype=np.float64) + offsets[:, None] * normal
+    return offsets[:, None] * normal
 
 
 def free_drag_n(depth_m: ArrayLike, drag_coefficient_n_per_m2: float) -> FloatArray | float:
@@ -229,6 +247,10 @@ def startup_factor(travelled_m: ArrayLike, rupture_distance: float) -> FloatArra
     The failure zone needs about one rupture distance of travel to develop from rest; a
     linear build-up over that distance keeps the start-up force rate at its lowest.
     """
+    if type(travelled_m) is float:  # a robot step: the same clip in plain floats
+        if rupture_distance <= 0:
+            return 1.0
+        return min(max(travelled_m / rupture_distance, 0.0), 1.0)
     s = np.asarray(travelled_m, dtype=np.float64)
     if rupture_distance <= 0:
         out = np.ones_like(s)
@@ -243,6 +265,8 @@ def shear_cycle_factor(phase: ArrayLike, amplitude: ArrayLike) -> FloatArray | f
     Within a cycle (``phase`` in [0, 1)) the drag builds linearly from ``1 − A/2`` to
     ``1 + A/2`` as the shear band steepens, then drops when a new band nucleates.
     """
+    if type(phase) is float and type(amplitude) is float:  # a robot step, in plain floats
+        return 1.0 + amplitude * (min(max(phase, 0.0), 1.0) - 0.5)
     p = np.asarray(phase, dtype=np.float64)
     a = np.asarray(amplitude, dtype=np.float64)
     out = 1.0 + a * (np.clip(p, 0.0, 1.0) - 0.5)

@@ -130,10 +130,11 @@ class SandboxRobot(Robot):
                 f"robot {context.id!r}: shear-band angle {self._beta_deg}° from the scene "
                 "material is outside (0, 90)"
             )
-        # Bounding circles let far-away objects be skipped without sampling the sector.
+        # Bounding circles let far-away objects be skipped without sampling the sector:
+        # (centre x, centre y, radius) in plain floats for the per-step test.
         self._bounds = [
             (
-                obj.centroid_m,
+                *np.asarray(obj.centroid_m, dtype=np.float64).tolist(),
                 float(np.max(np.linalg.norm(obj.outline(512) - obj.centroid_m, axis=1))),
             )
             for obj in self._scene.objects
@@ -152,9 +153,9 @@ class SandboxRobot(Robot):
         self._state = RobotState(0.0, home, 0.0, config.depth_m, 0.0)
         # Ground-truth log, kept as growing lists and turned into arrays on demand.
         self._log_t: list[float] = []
-        self._log_pos: list[NDArray[np.float64]] = []
+        self._log_pos: list[tuple[float, float]] = []
         self._log_state: list[int] = []
-        self._log_force: list[NDArray[np.float64]] = []
+        self._log_force: list[tuple[float, float]] = []
         self._log_index: list[int] = []
         self._log_depth: list[float] = []
         self._movements: list[MovementTruth] = []
@@ -189,8 +190,19 @@ class SandboxRobot(Robot):
         self._heading = movement.heading_rad
         self._direction = F.unit_vector(self._heading)
         self._start = movement.start_m
+        # The per-step arithmetic runs on plain floats: the same IEEE operations, element by
+        # element, as on these arrays, without numpy's per-call overhead.
+        self._direction_xy = tuple(self._direction.tolist())
+        self._start_xy = tuple(np.asarray(self._start, dtype=np.float64).tolist())
+        self._decay = math.exp(-self._dt / cfg.drag_fluctuation_time_s)
+        self._sector_geometry: tuple[NDArray[np.float64], ...] | None = None
+        self._innovation = math.sqrt(1 - self._decay * self._decay)
         self._travelled = 0.0
         self._rupture = F.rupture_distance_m(depth, cfg.rake_angle_deg, self._beta_deg)
+        # An object matters once the fingertip is within its bounding radius plus the
+        # failure zone's reach and the plate: (x, y, that distance squared) per object.
+        reach = self._rupture + cfg.plate_width_m
+        self._near_limits = [(cx, cy, (radius + reach) ** 2) for cx, cy, radius in self._bounds]
         self._eta_deg = (
             cfg.side_crescent_angle_deg
             if cfg.side_crescent_angle_deg is not None
@@ -217,11 +229,14 @@ class SandboxRobot(Robot):
         self._travelled += advance
         # Time from the global step count: exact, and strictly increasing across movements.
         self._time = (len(self._log_t) + 1) * self._dt
-        position = self._start + self._travelled * self._direction
+        (sx, sy), (dx, dy), travelled = self._start_xy, self._direction_xy, self._travelled
+        position = (sx + travelled * dx, sy + travelled * dy)
         force, true_state = self._interaction(position, advance)
-        self._record(position, force, true_state)
-        self._state = RobotState(self._time, position, self._heading, self._depth, self._speed)
-        if float(np.hypot(*force)) > self.config.force_limit_n:
+        magnitude = self._record(position, force, true_state)
+        self._state = RobotState(
+            self._time, np.array(position), self._heading, self._depth, self._speed
+        )
+        if magnitude > self.config.force_limit_n:
             self.halt("force_limit")
         elif self._travelled >= self._length:
             self._active = False
@@ -275,6 +290,10 @@ class SandboxRobot(Robot):
         f = np.asarray(self._log_force[first:], dtype=np.float64).reshape(t.size, 2)
         return t, f
 
+    def true_force_of_step(self, index: int) -> tuple[float, tuple[float, float]]:
+        """Timestamp and true force ``(x, y)`` of step ``index`` (0-based, all movements)."""
+        return self._log_t[index], self._log_force[index]
+
     @property
     def movements(self) -> tuple[MovementTruth, ...]:
         """Truth of every finished movement (a movement finishes at the next begin or end call)."""
@@ -306,9 +325,9 @@ class SandboxRobot(Robot):
         )
 
     def _interaction(
-        self, position: NDArray[np.float64], advance: float
-    ) -> tuple[NDArray[np.float64], int]:
-        """True force vector and state after the plate moved ``advance`` to ``position``."""
+        self, position: tuple[float, float], advance: float
+    ) -> tuple[tuple[float, float], int]:
+        """True force ``(x, y)`` and state after the plate moved ``advance`` to ``position``."""
         cfg = self.config
         # Shear-band nucleation: the drag builds over a cycle, then drops at a new band.
         self._cycle_position += advance
@@ -316,8 +335,7 @@ class SandboxRobot(Robot):
             self._cycle_position -= self._cycle_length
             self._new_shear_cycle()
         # Slow multiplicative fluctuation (an AR(1) process with the configured correlation time).
-        decay = math.exp(-self._dt / cfg.drag_fluctuation_time_s)
-        self._fluctuation = decay * self._fluctuation + math.sqrt(1 - decay * decay) * (
+        self._fluctuation = self._decay * self._fluctuation + self._innovation * (
             cfg.drag_fluctuation_fraction * self._rng.standard_normal()
         )
         scale = max(0.0, 1.0 + self._fluctuation)
@@ -327,7 +345,8 @@ class SandboxRobot(Robot):
             * F.shear_cycle_factor(self._cycle_position / self._cycle_length, self._cycle_amplitude)
             * scale
         )
-        force = -drag * self._direction
+        dx, dy = self._direction_xy
+        fx, fy = -drag * dx, -drag * dy
         hit_distance, hit_angle, in_contact = self._locate_objects(position)
         state = FREE
         if math.isfinite(hit_distance) and hit_distance <= self._rupture:
@@ -339,40 +358,68 @@ class SandboxRobot(Robot):
                 self._depth,
                 cfg.jamming_exponent,
             )
-            force = force - surge * scale * F.unit_vector(hit_angle)
+            push = surge * scale
+            ux, uy = F.unit_vector(hit_angle).tolist()
+            fx, fy = fx - push * ux, fy - push * uy
         if in_contact:
             state = CONTACT
             self._penetration += advance
-            force = (
-                force
-                - F.contact_force_n(self._penetration, cfg.contact_stiffness_n_per_m)
-                * self._direction
-            )
+            spring = F.contact_force_n(self._penetration, cfg.contact_stiffness_n_per_m)
+            fx, fy = fx - spring * dx, fy - spring * dy
         else:
             self._penetration = 0.0
-        return force, state
+        return (fx, fy), state
 
-    def _locate_objects(self, position: NDArray[np.float64]) -> tuple[float, float, bool]:
+    def _locate_objects(self, xy: tuple[float, float]) -> tuple[float, float, bool]:
         """Nearest object distance in the failure zone, its direction, and plate contact."""
-        cfg = self.config
-        reach = self._rupture + cfg.plate_width_m
-        near = any(np.linalg.norm(position - c) <= radius + reach for c, radius in self._bounds)
-        if not near:
+        x, y = xy
+        # Rounding in this test cannot change the answer: an object just outside the
+        # bound lies a plate half-width beyond anything the sector or plate samples.
+        for cx, cy, limit_squared in self._near_limits:
+            if (x - cx) ** 2 + (y - cy) ** 2 <= limit_squared:
+                break
+        else:
             return math.inf, self._heading, False
+        position = np.array(xy)
+        geometry = self._sector_geometry
+        if geometry is None:
+            geometry = self._sector_geometry = self._fan_geometry()
+        angles, radii, directions, ray_offsets, edge_offsets = geometry
+        hits = F.first_hit_distances(
+            position, angles, radii, self._scene.occupied,
+            directions=directions, ray_offsets=ray_offsets,
+        )
+        best = int(np.argmin(hits))
+        in_contact = bool(
+            hits[best] == 0.0 or self._scene.occupied(position + edge_offsets).any()
+        )
+        return float(hits[best]), float(angles[best]), in_contact
+
+    def _fan_geometry(self) -> tuple[NDArray[np.float64], ...]:
+        """The current movement's sector rays and plate face relative to the fingertip.
+
+        Fixed for a movement (heading, rupture distance and side angle change only between
+        movements), so they are computed at the first step near an object and reused:
+        ray angles, radii, ray directions, ``radii x directions`` and the plate-edge
+        offsets, each exactly as :func:`F.first_hit_distances` and
+        :func:`F.plate_edge_points` would compute them.
+        """
+        cfg = self.config
         eta = math.radians(self._eta_deg)
         n_rays = cfg.sector_angular_samples
         offsets = np.zeros(1) if n_rays == 1 else np.linspace(-eta, eta, n_rays)
         angles = self._heading + offsets
         radii = np.linspace(0.0, self._rupture, cfg.sector_radial_samples)
-        hits = F.first_hit_distances(position, angles, radii, self._scene.occupied)
-        best = int(np.argmin(hits))
-        edge = F.plate_edge_points(position, self._heading, cfg.plate_width_m)
-        in_contact = bool(hits[best] == 0.0 or self._scene.occupied(edge).any())
-        return float(hits[best]), float(angles[best]), in_contact
+        directions = F.unit_vector(angles)
+        ray_offsets = radii[None, :, None] * directions[:, None, :]
+        edge_offsets = F.plate_edge_offsets(self._heading, cfg.plate_width_m)
+        return angles, radii, directions, ray_offsets, edge_offsets
 
     def _record(
-        self, position: NDArray[np.float64], force: NDArray[np.float64], state: int
-    ) -> None:
+        self, position: tuple[float, float], force: tuple[float, float], state: int
+    ) -> float:
+        """Log one step; returns the force magnitude."""
+        # numpy's hypot (the C library's), not math.hypot, whose last bit can differ.
         magnitude = float(np.hypot(force[0], force[1]))
         if state >= JAMMING and math.isnan(self._jam_onset):
             self._jam_onset = self._time
@@ -387,6 +434,7 @@ class SandboxRobot(Robot):
         self._log_force.append(force)
         self._log_index.append(self._index)
         self._log_depth.append(self._depth)
+        return magnitude
 
     def _close_movement(self) -> None:
         """Book the current movement once: its truth record and the depth schedule."""

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
+import numpy as np
+
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch, Sensor
 
 from ._config import SandboxForceSensorConfig
@@ -52,6 +54,16 @@ class SandboxForceSensor(Sensor):
 
     def read(self) -> SampleBatch:
         """Noisy force samples for the robot steps since the previous read (maybe none)."""
+        if self._robot.steps_taken == self._cursor + 1:
+            # A closed loop reads after every step: one sample, built from plain floats
+            # (the same draws and sums as the array path below).
+            t, (fx, fy) = self._robot.true_force_of_step(self._cursor)
+            self._cursor += 1
+            scale = self.config.noise_std_n
+            nx, ny = self._rng.standard_normal(2).tolist()
+            return SampleBatch(
+                np.array([t]), {FORCE_CHANNEL: np.array([[fx + scale * nx, fy + scale * ny]])}
+            )
         timestamps, forces = self._robot.true_forces_since(self._cursor)
         self._cursor += timestamps.size
         if timestamps.size == 0:

@@ -361,3 +361,33 @@ def test_classifying_a_stream_does_not_import_scipy_signal():
         text=True,
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("order", [1, 2, 4])
+def test_one_sample_filter_steps_equal_the_array_filter(order):
+    """process_one (plain floats) and process (arrays) hand the filter state back and forth
+    and give bit-identical force and rate to one pass over everything."""
+    from hapticframe_jamming._classifier import ForceRateTracker
+
+    rng = np.random.default_rng(order)
+    magnitude = np.abs(approach_signal(rng, n=240)[:, 0])
+    t = np.arange(magnitude.size) / RATE_HZ
+    sos = F.butterworth_sos(4.0, RATE_HZ, order)
+    whole = ForceRateTracker(sos).process(t, magnitude, np.ones(t.size, dtype=bool))
+    mixed = ForceRateTracker(sos)
+    assert mixed.process_one(t[0], magnitude[0]) is None  # not initialised yet
+    force, rate = np.empty(t.size), np.empty(t.size)
+    k = 0
+    while k < t.size:
+        size = int(rng.integers(1, 6))
+        if size == 1 and k > 0:
+            force[k], rate[k] = mixed.process_one(float(t[k]), float(magnitude[k]))
+            assert mixed.process_one(float(t[k]), 1.0) is None  # time must move on
+        else:
+            rows = slice(k, k + size)
+            force[rows], rate[rows], _ = mixed.process(
+                t[rows], magnitude[rows], np.ones(t[rows].size, dtype=bool)
+            )
+        k += size
+    np.testing.assert_array_equal(force, whole[0])
+    np.testing.assert_array_equal(rate, whole[1])

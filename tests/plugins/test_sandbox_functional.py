@@ -141,3 +141,43 @@ def test_jamming_force_grows_as_the_plate_approaches():
 
 def test_contact_force_is_a_spring_on_penetration():
     np.testing.assert_allclose(F.contact_force_n([-0.01, 0.0, 0.002], 3000.0), [0.0, 0.0, 6.0])
+
+
+# --- plain-float paths of a robot step equal the array paths ---------------------------------
+
+
+def test_scalar_factors_equal_the_array_factors():
+    rng = np.random.default_rng(2)
+    travelled = np.concatenate([rng.uniform(-0.1, 0.3, 200), [0.0, -0.0, 0.07, np.nan]])
+    for rupture in (0.071, 0.0, -1.0):
+        for s in travelled.tolist():
+            scalar = F.startup_factor(s, rupture)
+            assert type(scalar) is float
+            array = F.startup_factor(np.array([s]), rupture)[0]
+            assert scalar == array or (math.isnan(scalar) and math.isnan(array))
+    phases, amplitudes = rng.uniform(-0.5, 1.5, 200).tolist(), rng.uniform(0, 1, 200).tolist()
+    for phase, amplitude in zip(phases, amplitudes):
+        scalar = F.shear_cycle_factor(phase, amplitude)
+        assert type(scalar) is float
+        assert scalar == F.shear_cycle_factor(np.array([phase]), np.array(amplitude))[0]
+    assert math.isnan(F.shear_cycle_factor(math.nan, 0.2))
+
+
+def test_first_hits_with_kept_rays_equal_fresh_ones():
+    rng = np.random.default_rng(4)
+    scene = Scene(objects=[Circle(center_m=(0.3, 0.25), radius_m=0.04)])
+    angles = 0.4 + np.linspace(-0.9, 0.9, 9)
+    radii = np.linspace(0.0, 0.07, 15)
+    directions = F.unit_vector(angles)
+    kept = radii[None, :, None] * directions[:, None, :]
+    hits = 0
+    for position in rng.uniform((0.18, 0.13), (0.42, 0.37), (200, 2)):
+        fresh = F.first_hit_distances(position, angles, radii, scene.occupied)
+        reused = F.first_hit_distances(
+            position, angles, radii, scene.occupied, directions=directions, ray_offsets=kept
+        )
+        np.testing.assert_array_equal(reused, fresh)
+        hits += np.isfinite(fresh).any()
+    assert hits > 20  # the bisection was exercised
+    edge = F.plate_edge_points((0.1, 0.2), 0.7, 0.02)
+    np.testing.assert_array_equal(edge, np.array([0.1, 0.2]) + F.plate_edge_offsets(0.7, 0.02))

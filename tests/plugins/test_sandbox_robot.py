@@ -397,3 +397,27 @@ def test_finalize_reports_metrics_and_writes_the_force_figure(tmp_path):
     assert metrics["object_interactions"] == 2
     png = tmp_path / "run" / "forces.png"
     assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_one_step_reads_equal_the_array_path():
+    """A read after every step (plain floats) gives the true force plus the same draws."""
+    robot, sensor = build(seed=5, noise=0.4)
+    draws = np.random.default_rng(5 + 1000)  # the sensor's generator, replayed
+    robot.begin(straight_at_circle(standoff=0.1))
+    steps = 0
+    while robot.step() is not None:
+        batch = sensor.read()
+        t, force = robot.true_forces_since(robot.steps_taken - 1)
+        expected = force + 0.4 * draws.standard_normal(force.shape)
+        np.testing.assert_array_equal(batch.timestamps_s, t)
+        np.testing.assert_array_equal(batch.channels["force_n"], expected)
+        steps += 1
+    assert steps > 100
+    # Several steps at once take the array path and continue the same stream of draws.
+    robot.begin(miss())
+    for _ in range(3):
+        robot.step()
+    t, force = robot.true_forces_since(robot.steps_taken - 3)
+    np.testing.assert_array_equal(
+        sensor.read().channels["force_n"], force + 0.4 * draws.standard_normal(force.shape)
+    )

@@ -34,6 +34,7 @@ class SweepConfig(PluginConfig):
     samples: int = Field(400, ge=1, description="Samples in the recording.")
     chunk: int = Field(25, ge=1, description="Samples per read.")
     noise_n: float = Field(0.2, ge=0, description="Force noise (N).")
+    peak_n: float = Field(40.0, ge=0, description="Force added at the disc's centre (N).")
 
 
 class SweepSensor(Sensor):
@@ -46,7 +47,7 @@ class SweepSensor(Sensor):
         x = np.linspace(0.05, 0.70, n)
         self._pos = np.column_stack([x, np.full(n, 0.25)])
         near = np.exp(-((x - 0.40) / 0.03) ** 2)
-        force = 5.0 + 40.0 * near + config.noise_n * context.rng.standard_normal(n)
+        force = 5.0 + config.peak_n * near + config.noise_n * context.rng.standard_normal(n)
         self._force = np.column_stack([force, np.zeros(n)])
         self._contact = (np.abs(x - 0.40) < 0.03).astype(float)
         self._next = 0
