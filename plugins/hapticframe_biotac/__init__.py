@@ -1,7 +1,9 @@
 """SynTouch BioTac fingertip: frame layout, SPI wire decoding, an emulator, replay, and the sensor.
 
-Registers the sensor ``biotac``; the synthetic granular-media generator lives in ``_synthetic``. Importing this package is cheap; the implementation modules
-load on first attribute access.
+Registers the sensor ``biotac``; the synthetic granular-media generator lives in ``_synthetic``.
+A real SPI adapter is a separate package that registers a backend factory by name in the
+``hapticframe.biotac_spi`` entry-point group (see ``_backends``). Importing this package is
+cheap; the implementation modules load on first attribute access.
 """
 
 from __future__ import annotations

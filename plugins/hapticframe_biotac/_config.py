@@ -11,7 +11,7 @@ from hapticframe import PluginConfig
 
 __all__ = ["BioTacSensorConfig"]
 
-_REFERENCE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+_BACKEND_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,63}$")
 
 
 class BioTacSensorConfig(PluginConfig):
@@ -58,11 +58,22 @@ class BioTacSensorConfig(PluginConfig):
         0.5, gt=0, description="Synthetic: time between the last frame of a trial and the first of the next."
     )
 
+    tare_frames: int = Field(
+        0,
+        ge=0,
+        le=10_000,
+        description="Synthetic and replay: subtract from every channel its mean over the first "
+        "tare_frames frames of each trial (recording), causally (frame k < tare_frames uses the "
+        "frames so far), as BioTac users zero the sensor before a trial; 0 (default) delivers raw "
+        "12-bit counts. The perception benchmark uses 10 (100 ms).",
+    )
+
     # -- spi ---------------------------------------------------------------------------------
     spi_backend: str = Field(
         "emulator",
-        description="SPI: 'emulator', or 'package.module:factory' of a real adapter backend, "
-        "called as factory(variant) and returning an SpiBatchBackend.",
+        description="SPI: 'emulator', or the name of an adapter backend that an installed "
+        "package registers in the 'hapticframe.biotac_spi' entry-point group (a factory called "
+        "as factory(variant) that returns an SpiBatchBackend). Never an import path.",
     )
     emulator_frames: int | None = Field(
         None, ge=0, description="SPI emulator: end after this many frames (None: endless resting signal)."
@@ -82,8 +93,11 @@ class BioTacSensorConfig(PluginConfig):
     @field_validator("spi_backend")
     @classmethod
     def _backend_name(cls, value: str) -> str:
-        if value != "emulator" and not _REFERENCE.match(value):
-            raise ValueError(f"spi_backend must be 'emulator' or 'module:factory', got {value!r}")
+        if not _BACKEND_NAME.match(value):
+            raise ValueError(
+                f"spi_backend must be a backend name such as 'emulator' (letters, digits, '_' "
+                f"and '-'), not {value!r}; backends are registered by name, never by import path"
+            )
         return value
 
     @model_validator(mode="after")
@@ -93,6 +107,8 @@ class BioTacSensorConfig(PluginConfig):
                 raise ValueError("source 'replay' needs a path to a .npz or .csv recording")
             if not self.path.lower().endswith((".npz", ".csv")):
                 raise ValueError(f"replay path {self.path!r} must end in .npz or .csv")
+        if self.source == "spi" and self.tare_frames:
+            raise ValueError("tare_frames applies to the synthetic and replay sources only")
         if self.source == "synthetic" and self.variant != "biotac":
             raise ValueError("the synthetic generator models the 19-electrode BioTac only; use variant 'biotac'")
         return self

@@ -10,25 +10,35 @@ import numpy as np
 
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch, Sensor
 
+from ._backends import EMULATOR, backend_factory
 from ._config import BioTacSensorConfig
 from ._emulator import EmulatedBioTac, FaultPlan, SpiBatchBackend
 from ._frame import BioTacFrames, FrameLayout, layout_for
 from ._replay import load_recording
+from ._tare import tare_reference
 from ._wire import DecoderStats, WordStreamDecoder
 
-__all__ = ["BioTacSensor"]
+__all__ = ["BioTacSensor", "tare_frames"]
 
 
-def _load_backend_factory(reference: str) -> Any:
-    """Import ``"package.module:factory"`` of a hardware backend, with a clear error."""
-    module_name, _, attribute = reference.partition(":")
-    try:
-        obj: Any = importlib.import_module(module_name)
-        for part in attribute.split("."):
-            obj = getattr(obj, part)
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"SPI backend {reference!r} cannot be loaded: {exc}") from exc
-    return obj
+def tare_frames(frames: BioTacFrames, n_frames: int) -> BioTacFrames:
+    """One recording with each signal channel minus its causal tare reference.
+
+    See :mod:`._tare`; invalid frames of a channel stay out of its reference. Returns
+    ``frames`` itself when ``n_frames`` is 0.
+    """
+    if n_frames <= 0 or len(frames) == 0:
+        return frames
+    tared = {
+        name: getattr(frames, name)
+        - tare_reference(getattr(frames, name), n_frames, frames.channel_valid(name))
+        for name in ("pac", "pdc", "tac", "tdc", "electrodes")
+    }
+    return BioTacFrames(
+        frames.layout, frames.timestamps_s, tared["pac"], tared["pdc"], tared["tac"],
+        tared["tdc"], tared["electrodes"], word_valid=frames.word_valid,
+        frame_index=frames.frame_index, position_m=frames.position_m, contact=frames.contact,
+    )
 
 
 class _FrameSource:
@@ -96,6 +106,7 @@ class _SyntheticSource(_FrameSource):
         self._buffer = BioTacFrames.empty(layout, ground_truth=True)
         self._last_time: float | None = None
         self._next_index = 0
+        self.tare_frames = config.tare_frames
 
     def _append_trial(self) -> None:
         spec = self._specs[self._trial_number % len(self._specs)]
@@ -110,6 +121,7 @@ class _SyntheticSource(_FrameSource):
             frame_index=self._next_index + np.arange(n),
             position_m=trial.position_m, contact=np.asarray(trial.contact, dtype=np.float64),
         )
+        frames = tare_frames(frames, self.tare_frames)
         self.trials_left -= 1
         if n:
             self._last_time = float(t[-1])
@@ -123,6 +135,14 @@ class _SyntheticSource(_FrameSource):
         self._buffer = self._buffer.select(slice(count, None))
         return part
 
+    def next_trial(self) -> BioTacFrames:
+        """The frames left of the trial being read, or the whole next trial."""
+        if len(self._buffer) == 0 and self.trials_left > 0:
+            self._append_trial()
+        part = self._buffer
+        self._buffer = part.select(slice(0, 0))
+        return part
+
     @property
     def exhausted(self) -> bool:
         return self.trials_left <= 0 and len(self._buffer) == 0
@@ -132,7 +152,7 @@ class _SpiSource(_FrameSource):
     """Words from an SPI-batch backend through the decoder."""
 
     def __init__(self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator) -> None:
-        if config.spi_backend == "emulator":
+        if config.spi_backend == EMULATOR:
             backend: Any = EmulatedBioTac(
                 config.variant,
                 rng,
@@ -145,7 +165,7 @@ class _SpiSource(_FrameSource):
                 jitter_s=config.jitter_s,
             )
         else:
-            backend = _load_backend_factory(config.spi_backend)(config.variant)
+            backend = backend_factory(config.spi_backend)(config.variant)
         if not isinstance(backend, SpiBatchBackend):
             raise TypeError(f"SPI backend {config.spi_backend!r} built {type(backend).__name__}, not an SpiBatchBackend")
         self.backend: SpiBatchBackend = backend
@@ -184,7 +204,7 @@ class BioTacSensor(Sensor):
         elif config.source == "replay":
             recording = load_recording(config.path or "", config.variant)
             self.metadata = recording.metadata
-            self._source = _RecordedSource(recording.frames)
+            self._source = _RecordedSource(tare_frames(recording.frames, config.tare_frames))
         else:
             self._source = _SpiSource(config, self.layout, context.rng)
         self._channels = self.layout.channel_infos(ground_truth=self._source.ground_truth)

@@ -73,7 +73,14 @@ class RecurrentConfig(PluginConfig):
     batch_size: int = Field(32, ge=1, description="Training windows per Adam step.")
     max_epochs: int = Field(40, ge=1, description="Upper bound on training epochs.")
     patience: int = Field(
-        5, ge=1, description="Epochs without a lower validation loss before training stops."
+        5, ge=1, description="Epochs without a better validation score before training stops."
+    )
+    early_stopping: Literal["balanced_accuracy", "loss"] = Field(
+        "balanced_accuracy",
+        description="Validation score that picks the best epoch and drives patience: frame "
+        "balanced accuracy (ties broken by the loss), or the cross-entropy alone. The loss "
+        "keeps rising once a few frames at contact onset and release are confidently wrong, "
+        "while the accuracy is still improving, so stopping on it ends training at epoch 1-2.",
     )
     validation_fraction: float = Field(
         0.2,

@@ -151,6 +151,19 @@ class RecurrentClassifier(Classifier):
         self._state = state
         return ClassProbabilities(batch.timestamps_s, softmax_rows(logits), CLASSES)
 
+    def predict_sequence(self, batch: SampleBatch) -> ClassProbabilities:
+        """Probabilities for a whole recording in one network call, from a fresh state.
+
+        The same computation as :meth:`predict_proba` (which steps frame by frame, as a
+        stream does), run as one sequence through the GRUs: equal up to float32 rounding
+        and far quicker for scoring many recordings. The streaming state is not touched.
+        """
+        x = torch.from_numpy(self._scaled(batch).astype(np.float32))
+        with torch.no_grad():
+            out, _ = self.net(x[None], self.net.initial_state(1))
+        logits = out[0].numpy().astype(np.float64)
+        return ClassProbabilities(batch.timestamps_s, softmax_rows(logits), CLASSES)
+
     # -- training ----------------------------------------------------------------------
 
     def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:

@@ -4,8 +4,10 @@ Sequence labelling on sliding windows: every frame of a 50-frame window carries 
 label and contributes to the cross-entropy. Windows step by 10 frames over trials without
 contact and by 5 over trials with contact (the thesis's oversampling of the smaller class);
 validation trials are held out whole and scored on windows stepped by ``window_frames``.
-Adam with ``weight_decay`` (the L2 penalty), early stopping on the validation loss with
-``patience``, and the best epoch's weights restored at the end.
+Adam with ``weight_decay`` (the L2 penalty), early stopping with ``patience`` on the
+validation frames' balanced accuracy (ties broken by the validation loss) or, with
+``early_stopping="loss"``, on the loss alone, and the best epoch's weights restored at the
+end.
 
 All randomness (trial split, window order, dropout masks) comes from a seed drawn from the
 component's ``context.rng``: a :class:`numpy.random.Generator` and a
@@ -153,6 +155,8 @@ def _train(
     bar = _progress(config.max_epochs, config.progress)
     best_state = copy.deepcopy(net.state_dict())
     best_loss, best_epoch, stale, epoch = np.inf, 0, 0, 0
+    best_score = -np.inf
+    keep_val = (y_val != _IGNORE).numpy()
     train_loss = val_loss = float("nan")
     for epoch in range(1, config.max_epochs + 1):
         net.train()
@@ -172,12 +176,22 @@ def _train(
         net.eval()
         if x_val.shape[0]:
             with torch.no_grad():
-                val_loss = float(_loss(net, x_val, y_val, weights, None))
+                logits, _ = net(x_val, net.initial_state(x_val.shape[0]))
+                val_loss = float(torch.nn.functional.cross_entropy(
+                    logits.reshape(-1, logits.shape[-1]), y_val.reshape(-1), weight=weights,
+                    ignore_index=_IGNORE))
             monitored = val_loss
+            score = -np.inf
+            if config.early_stopping == "balanced_accuracy" and keep_val.any():
+                predicted = logits.argmax(dim=-1).numpy()[keep_val]
+                score = balanced_accuracy(y_val.numpy()[keep_val], predicted)
         else:
-            monitored = train_loss
-        if monitored < best_loss - 1e-6:
+            monitored, score = train_loss, -np.inf
+        better = (score > best_score + 1e-4
+                  or (score >= best_score - 1e-4 and monitored < best_loss - 1e-6))
+        if better:
             best_loss, best_epoch, stale = monitored, epoch, 0
+            best_score = max(score, best_score)
             best_state = copy.deepcopy(net.state_dict())
         else:
             stale += 1

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, hookimpl
+from hapticframe import BenchSpec, ClassifierSpec, hookimpl
 
 from ._config import DEFAULT_CODE_SIZES, FusionRNNConfig, LinearSVMConfig, SFRNNConfig
 
@@ -58,4 +58,16 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         install_hint=_LEARN_HINT,
         consumes=dict(_CODES),
         sample_rate_hz=100.0,
+    )
+
+
+@hookimpl
+def hapticframe_benchmarks() -> Iterator[BenchSpec]:
+    """Yield the perception benchmark (`hapticframe bench perception`)."""
+    yield BenchSpec(
+        name="perception",
+        summary="Dissertation Tables 2.2, 2.3, 2.4 and A.1 on the synthetic BioTac dataset, "
+        "plus the streaming chain's latency per frame.",
+        factory="hapticframe_sfrnn._bench_suite:run_perception",
+        install_hint=_LEARN_HINT,
     )

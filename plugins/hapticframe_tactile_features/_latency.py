@@ -3,7 +3,10 @@
 :func:`measure_chain_latency` streams synthetic BioTac-like frames one at a time through
 ``emd-features`` (all three modalities) and ``sparse-coding`` and times each frame from
 the sensor values' arrival to the three sparse codes, on one thread (BLAS and OpenMP pools
-limited with threadpoolctl). The classifier step is not included.
+limited with threadpoolctl), with the split per stage. The classifier step is not
+included. Passing ``EMDFeaturesConfig(emd_backend="numpy")`` and
+``SparseCodingConfig(encoder="sklearn")`` times the reference implementations in the
+same way, for side-by-side figures.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import os
 import platform
 import time
+from contextlib import AbstractContextManager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -18,8 +22,9 @@ import numpy as np
 from hapticframe.kinds import BuildContext, SampleBatch
 
 from ._config import EMDFeaturesConfig, SparseCodingConfig
-from ._emd import emd
+from ._emd import _use_kernel, emd
 from ._emd_features import EMDFeatureExtractor
+from ._sparse import _use_numba
 from ._sparse_coding import SparseCodingExtractor
 
 __all__ = ["compare_emd_with_pyemd", "measure_chain_latency", "synthetic_biotac_frames"]
@@ -59,6 +64,19 @@ def synthetic_biotac_frames(
     )
 
 
+def _one_thread() -> AbstractContextManager[Any]:
+    """Limit BLAS/OpenMP pools to one thread with threadpoolctl (scikit-learn depends on it).
+
+    Without threadpoolctl nothing is limited here: set ``OMP_NUM_THREADS=1`` and
+    ``OPENBLAS_NUM_THREADS=1`` (or ``MKL_NUM_THREADS=1``) before starting Python instead.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return nullcontext()
+    return threadpool_limits(limits=1)
+
+
 def measure_chain_latency(
     n_frames: int = 2000,
     *,
@@ -84,11 +102,21 @@ def measure_chain_latency(
     Returns
     -------
     dict
-        ``latency_ms_median``, ``latency_ms_p99``, ``latency_ms_max``, the split
-        ``emd_ms_median`` / ``coding_ms_median``, ``frames``, ``threads`` and ``machine``.
-    """
-    from threadpoolctl import threadpool_limits
+        ``latency_ms_median``, ``latency_ms_p99``, ``latency_ms_max`` (wall clock);
+        ``cpu_ms_median``, ``cpu_ms_p99`` (this thread's CPU time per frame: on a loaded
+        machine the wall-clock tail holds time-slices given to other processes, the CPU
+        time does not, so the two bracket the figure an idle machine would give); per stage
+        ``emd_ms_median`` / ``emd_ms_p99`` (``emd-features.update``: ring buffers and the
+        pac and pdc EMDs) and ``coding_ms_median`` / ``coding_ms_p99``
+        (``sparse-coding.update``: three normalised lasso encodes); ``emd_backend`` and
+        ``encoder`` (what ``"auto"`` resolved to), ``frames``, ``threads`` and ``machine``.
 
+    Notes
+    -----
+    One thread: BLAS/OpenMP pools are limited to 1 with threadpoolctl (see
+    :func:`_one_thread` for running without it); the numba kernels are serial. The
+    compiled kernels are loaded (or compiled) before timing starts, by one untimed frame.
+    """
     rng = np.random.default_rng(seed)
     emd_cfg = emd_config or EMDFeaturesConfig()
     code_cfg = coding_config or SparseCodingConfig()
@@ -98,28 +126,40 @@ def measure_chain_latency(
     coder = SparseCodingExtractor(
         code_cfg, BuildContext("latency-codes", np.random.default_rng(seed + 1))
     )
-    with threadpool_limits(limits=1):
+    with _one_thread():
         if fit_frames > 0:
             coder.fit([extractor.transform(synthetic_biotac_frames(fit_frames, rng))])
         frames = synthetic_biotac_frames(n_frames, rng)
+        # Load (or compile) the numba kernels outside the timed loop.
+        coder.update(extractor.transform(synthetic_biotac_frames(emd_cfg.delay_frames + 1, rng)))
         extractor.reset()
         emd_ms = np.zeros(n_frames)
         total_ms = np.zeros(n_frames)
+        cpu_ms = np.zeros(n_frames)
         for i in range(n_frames):
             frame = frames.select(slice(i, i + 1))
+            cpu_start = time.thread_time()
             start = time.perf_counter()
             features = extractor.update(frame)
             middle = time.perf_counter()
             coder.update(features)
             end = time.perf_counter()
+            cpu_ms[i] = 1e3 * (time.thread_time() - cpu_start)
             emd_ms[i] = 1e3 * (middle - start)
             total_ms[i] = 1e3 * (end - start)
+    coding_ms = total_ms - emd_ms
     return {
         "latency_ms_median": float(np.median(total_ms)),
         "latency_ms_p99": float(np.percentile(total_ms, 99)),
         "latency_ms_max": float(total_ms.max()),
+        "cpu_ms_median": float(np.median(cpu_ms)),
+        "cpu_ms_p99": float(np.percentile(cpu_ms, 99)),
         "emd_ms_median": float(np.median(emd_ms)),
-        "coding_ms_median": float(np.median(total_ms - emd_ms)),
+        "emd_ms_p99": float(np.percentile(emd_ms, 99)),
+        "coding_ms_median": float(np.median(coding_ms)),
+        "coding_ms_p99": float(np.percentile(coding_ms, 99)),
+        "emd_backend": "numba" if _use_kernel(emd_cfg.emd_backend) else "numpy",
+        "encoder": "numba" if _use_numba(code_cfg.encoder) else "sklearn",
         "frames": n_frames,
         "threads": 1,
         "machine": f"{platform.machine()} {platform.system()}, {os.cpu_count()} CPUs, "
@@ -134,11 +174,12 @@ def compare_emd_with_pyemd(
 
     Two pairings: each library with its own defaults, and both sifting exactly 10 times per
     IMF (``sd_threshold=0, max_sifts=10`` against ``EMD(FIXE=10)``), where they compute the
-    same decomposition. PyEMD (PyPI ``EMD-signal``) is imported here only; it is a test and
-    benchmark dependency. Figures are medians in milliseconds.
+    same decomposition. Ours runs with ``backend="auto"`` (the numba kernel when installed;
+    ``emd_numpy_ms_default`` times the numpy path too). PyEMD (PyPI ``EMD-signal``) is
+    imported here only; it is a test and benchmark dependency. Figures are medians in
+    milliseconds.
     """
     from PyEMD import EMD
-    from threadpoolctl import threadpool_limits
 
     rng = np.random.default_rng(seed)
     t = np.arange(n_samples) / 2200.0
@@ -156,8 +197,10 @@ def compare_emd_with_pyemd(
             times.append(time.perf_counter() - start)
         return 1e3 * float(np.median(times))
 
-    with threadpool_limits(limits=1):
+    with _one_thread():
+        emd(x[:64], 8)  # load (or compile) the numba kernel outside the timing
         ours_default = median_ms(lambda: emd(x, 8))
+        ours_numpy = median_ms(lambda: emd(x, 8, backend="numpy"))
         theirs_default = median_ms(lambda: EMD().emd(x, max_imf=8))
         ours_fixed = median_ms(lambda: emd(x, 8, sd_threshold=0.0, max_sifts=10, residue_ratio=0.0))
         theirs_fixed = median_ms(
@@ -168,6 +211,8 @@ def compare_emd_with_pyemd(
         "emd_ms_default": ours_default,
         "pyemd_ms_default": theirs_default,
         "speedup_default": theirs_default / ours_default,
+        "emd_backend": "numba" if _use_kernel("auto") else "numpy",
+        "emd_numpy_ms_default": ours_numpy,
         "emd_ms_fixed10": ours_fixed,
         "pyemd_ms_fixed10": theirs_fixed,
         "speedup_fixed10": theirs_fixed / ours_fixed,

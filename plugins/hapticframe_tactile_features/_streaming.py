@@ -71,9 +71,13 @@ class RingBuffer:
         if n >= self.capacity:
             values = values[n - self.capacity :]
             n = self.capacity
-        slots = (self._start + np.arange(n)) % self.capacity
-        self._data[slots] = values
-        self._data[slots + self.capacity] = values
+        # At most two contiguous runs of slots (before and after the wrap): slices, not a
+        # fancy index, since this runs for every channel of every frame.
+        first = min(n, self.capacity - self._start)
+        for offset in (0, self.capacity):
+            begin = self._start + offset
+            self._data[begin : begin + first] = values[:first]
+            self._data[offset : offset + n - first] = values[first:]
         self._start = (self._start + n) % self.capacity
 
     def view(self) -> FloatArray:
@@ -94,6 +98,8 @@ def hold_invalid(values: FloatArray, valid: BoolArray, held: FloatArray) -> Floa
     held : (...) float64
         The last valid value before ``values[0]``.
     """
+    if valid.all():
+        return values.copy()
     out = np.concatenate((held[np.newaxis], values), axis=0)
     ok = np.concatenate((np.ones((1, *held.shape), dtype=bool), valid), axis=0)
     index = np.where(ok, np.arange(out.shape[0]).reshape(-1, *([1] * held.ndim)), 0)
@@ -202,6 +208,7 @@ class FeatureStream:
             "max_sifts": cfg.max_sifts,
             "residue_ratio": cfg.residue_ratio,
             "n_mirror": cfg.mirrored_extrema,
+            "backend": cfg.emd_backend,
         }
         if "pac" in self.modalities:
             result = emd(self._pac.view(), cfg.pac_imfs, **settings)

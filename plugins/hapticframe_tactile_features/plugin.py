@@ -1,7 +1,8 @@
 """Registration of the BioTac feature extractors ``emd-features`` and ``sparse-coding``.
 
 Import-light: only hapticframe and the pydantic config module load here; numpy/scipy
-(``emd-features``) and scikit-learn (``sparse-coding``) load when a component is built.
+(``emd-features``) and scikit-learn (``sparse-coding``) load when a component is built,
+and numba (optional: the compiled EMD and lasso kernels) when one first computes.
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         config=EMDFeaturesConfig,
         factory="hapticframe_tactile_features._emd_features:EMDFeatureExtractor",
         requires=("scipy",),
+        # numba is optional: without it the numpy EMD runs (same numbers, ~15x slower,
+        # too slow for the 10 ms streaming budget).
+        install_hint="pip install 'hapticframe[learn]' (numba for the compiled EMD kernel)",
         consumes=dict(_SENSOR_CHANNELS),
         sample_rate_hz=100.0,
         # The defaults already use the smallest windows allowed (512 and 64 samples); a

@@ -149,20 +149,55 @@ def test_config_errors_are_clear():
         BioTacSensorConfig(source="replay", path="x.txt")
     with pytest.raises(ValidationError, match="19-electrode"):
         BioTacSensorConfig(source="synthetic", variant="biotac_sp")
-    with pytest.raises(ValidationError, match="module:factory"):
-        BioTacSensorConfig(source="spi", spi_backend="cheetah")
+    with pytest.raises(ValidationError, match="never by import path"):
+        BioTacSensorConfig(source="spi", spi_backend="my_lab.cheetah:Backend")
     with pytest.raises(ValidationError):
         BioTacSensorConfig(frames_per_read=0)
 
 
-def test_an_spi_backend_named_by_reference(registry):
-    sensor = build(registry, source="spi", spi_backend="hapticframe_biotac._emulator:EmulatedBioTac")
+def _registered(monkeypatch, **targets: str) -> None:
+    """Pretend installed packages register these SPI backends (name -> "module:attr")."""
+    import importlib.metadata
+
+    from hapticframe_biotac import _backends
+
+    entries = [
+        importlib.metadata.EntryPoint(name, value, _backends.ENTRY_POINT_GROUP)
+        for name, value in targets.items()
+    ]
+    monkeypatch.setattr(_backends, "_entry_points", lambda: entries)
+
+
+def test_an_spi_backend_is_chosen_by_its_registered_name(registry, monkeypatch):
+    _registered(
+        monkeypatch,
+        cheetah="hapticframe_biotac._emulator:EmulatedBioTac",
+        broken="no_such_module_here:Backend",
+        wrong="hapticframe_biotac._frame:layout_for",
+    )
+    sensor = build(registry, source="spi", spi_backend="cheetah")
     batch = sensor.read()
     assert len(batch) == 1 and batch.valid["pac"].all()
-    with pytest.raises(ValueError, match="cannot be loaded"):
-        build(registry, source="spi", spi_backend="no_such_module_here:Backend")
+    with pytest.raises(ValueError, match=r"no SPI backend named 'aardvark'.*known: broken, cheetah, emulator, wrong"):
+        build(registry, source="spi", spi_backend="aardvark")
+    with pytest.raises(ValueError, match="'broken' cannot be loaded: ModuleNotFoundError"):
+        build(registry, source="spi", spi_backend="broken")
     with pytest.raises(TypeError, match="not an SpiBatchBackend"):
-        build(registry, source="spi", spi_backend="hapticframe_biotac._frame:layout_for")
+        build(registry, source="spi", spi_backend="wrong")
+
+
+def test_a_backend_name_registered_twice_is_refused(registry, monkeypatch):
+    from hapticframe_biotac import _backends
+
+    import importlib.metadata
+
+    twice = [
+        importlib.metadata.EntryPoint("cheetah", "a.b:C", _backends.ENTRY_POINT_GROUP),
+        importlib.metadata.EntryPoint("cheetah", "d.e:F", _backends.ENTRY_POINT_GROUP),
+    ]
+    monkeypatch.setattr(_backends, "_entry_points", lambda: twice)
+    with pytest.raises(ValueError, match="registered more than once"):
+        build(registry, source="spi", spi_backend="cheetah")
 
 
 def test_synthetic_source_streams_trials_with_ground_truth(registry):

@@ -76,6 +76,18 @@ def test_latency_probe_reports_its_figures() -> None:
     assert report["frames"] == 40 and report["threads"] == 1
     assert 0 < report["latency_ms_median"] <= report["latency_ms_p99"] <= report["latency_ms_max"]
     assert report["emd_ms_median"] > 0 and report["coding_ms_median"] >= 0
+    assert 0 < report["cpu_ms_median"] <= report["cpu_ms_p99"]
+    assert report["emd_ms_median"] <= report["emd_ms_p99"]
+    assert report["coding_ms_median"] <= report["coding_ms_p99"]
+    assert report["emd_backend"] in {"numba", "numpy"}
+    assert report["encoder"] in {"numba", "sklearn"}
+    reference = measure_chain_latency(
+        20,
+        fit_frames=0,
+        emd_config=EMDFeaturesConfig(emd_backend="numpy"),
+        coding_config=SparseCodingConfig(encoder="sklearn"),
+    )
+    assert (reference["emd_backend"], reference["encoder"]) == ("numpy", "sklearn")
 
 
 def test_pyemd_comparison_reports_both_pairings() -> None:

@@ -4,10 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hapticframe_tactile_features._emd import MIN_SAMPLES, cubic_spline, emd, find_extrema
+from hapticframe_tactile_features._emd import (
+    MIN_SAMPLES,
+    cubic_spline,
+    emd,
+    find_extrema,
+    numba_available,
+)
 from scipy.interpolate import CubicSpline
 
 RATE_HZ = 2200.0
+
+# Both implementations of emd(): the numpy reference and the numba kernel (the default when
+# numba is installed). Tests of the stopping rules and guards run on both.
+needs_numba = pytest.mark.skipif(not numba_available(), reason="numba is not installed")
+BACKENDS = ["numpy", pytest.param("numba", marks=needs_numba)]
 
 
 def _two_tone(
@@ -59,16 +70,17 @@ def test_sifting_cap_and_fixed_sifting() -> None:
     assert fixed.sift_counts[0] == 4 and fixed.sift_counts.max() == 4
 
 
-def test_residue_rule_stops_once_the_residue_is_small() -> None:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_residue_rule_stops_once_the_residue_is_small(backend: str) -> None:
     # A fast oscillation plus a weak slow one: after IMF1 the residue (the slow wave, six
     # extrema) is far below 10 % of IMF1's norm, so the thesis's rule stops there.
     t = np.arange(1000) / 1000.0
     x = np.sin(2 * np.pi * 40 * t) + 0.03 * np.sin(2 * np.pi * 3 * t)
-    result = emd(x, 8)
+    result = emd(x, 8, backend=backend)
     assert result.n_found == 1
     assert np.linalg.norm(result.residue) < 0.1 * np.linalg.norm(result.imfs[0])
     # Without the rule, the slow wave becomes IMF2.
-    assert emd(x, 8, residue_ratio=0.0).n_found > 1
+    assert emd(x, 8, residue_ratio=0.0, backend=backend).n_found > 1
 
 
 def test_monotonic_residue_ends_the_decomposition() -> None:
@@ -80,41 +92,48 @@ def test_monotonic_residue_ends_the_decomposition() -> None:
     assert maxima.size + minima.size < 3
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("value", [0.0, 3.0, -1e9, 1e-12])
-def test_constant_signal_gives_zero_imfs(value: float) -> None:
+def test_constant_signal_gives_zero_imfs(value: float, backend: str) -> None:
     x = np.full(300, value)
-    result = emd(x, 5)
+    result = emd(x, 5, backend=backend)
     assert result.n_found == 0
     assert np.all(result.imfs == 0.0) and result.imfs.shape == (5, 300)
     assert np.array_equal(result.residue, x)
 
 
-def test_rounding_noise_on_a_large_constant_counts_as_constant() -> None:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_rounding_noise_on_a_large_constant_counts_as_constant(backend: str) -> None:
     x = 1e9 + np.array([0.0, 1.2e-7, 0.0, -1.2e-7] * 50)  # one ulp of 1e9 is 1.2e-7
-    assert emd(x, 5).n_found == 0
+    assert emd(x, 5, backend=backend).n_found == 0
+    # A spread of 2e-5 (~170 ulps) is above the 64-ulp limit (1.4e-5): a signal again.
+    assert emd(1e9 + np.array([0.0, 1e-5, 0.0, -1e-5] * 50), 5, backend=backend).n_found > 0
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
-def test_non_finite_input_raises_a_clear_error(bad: float) -> None:
+def test_non_finite_input_raises_a_clear_error(bad: float, backend: str) -> None:
     x = np.sin(np.arange(100.0))
     x[37] = bad
     with pytest.raises(ValueError, match="NaN or infinity.*sample 37"):
-        emd(x)
+        emd(x, backend=backend)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("n", [0, 1, 2, 3])
-def test_signals_shorter_than_four_samples_are_all_residue(n: int) -> None:
+def test_signals_shorter_than_four_samples_are_all_residue(n: int, backend: str) -> None:
     x = np.arange(n, dtype=float) ** 2 - 1.0
-    result = emd(x, 8)
+    result = emd(x, 8, backend=backend)
     assert n < MIN_SAMPLES
     assert result.n_found == 0 and result.imfs.shape == (8, n)
     assert np.array_equal(result.residue, x)
 
 
-def test_four_samples_with_three_extrema_cannot_hold_them_and_stay_residue() -> None:
-    result = emd(np.array([0.0, 1.0, -1.0, 0.5]), 3)  # two interior extrema only
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_four_samples_with_three_extrema_cannot_hold_them_and_stay_residue(backend: str) -> None:
+    result = emd(np.array([0.0, 1.0, -1.0, 0.5]), 3, backend=backend)  # two interior extrema
     assert result.n_found == 0
-    result = emd(np.array([0.0, 1.0, -1.0, 1.0, 0.0]), 3)  # three: one IMF
+    result = emd(np.array([0.0, 1.0, -1.0, 1.0, 0.0]), 3, backend=backend)  # three: one IMF
     assert result.n_found == 1
 
 
@@ -125,13 +144,16 @@ def test_bad_arguments_raise() -> None:
         emd(np.zeros(10), 0)
     with pytest.raises(ValueError):
         emd(np.zeros(10), sd_threshold=-1.0)
+    with pytest.raises(ValueError, match="backend"):
+        emd(np.zeros(10), backend="fortran")
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("scale", [1e-9, 1e9])
-def test_decomposition_is_invariant_to_the_signal_scale(scale: float) -> None:
+def test_decomposition_is_invariant_to_the_signal_scale(scale: float, backend: str) -> None:
     x = _fixtures()["two_tone_noise"]
-    reference = emd(x, 8)
-    scaled = emd(scale * x, 8)
+    reference = emd(x, 8, backend=backend)
+    scaled = emd(scale * x, 8, backend=backend)
     assert scaled.n_found == reference.n_found
     assert np.array_equal(scaled.sift_counts, reference.sift_counts)
     assert np.allclose(scaled.imfs / scale, reference.imfs, rtol=0, atol=1e-9 * np.abs(x).max())
@@ -178,22 +200,24 @@ def test_cubic_spline_equals_scipy_cubic_spline(n_knots: int) -> None:
 # different mirror rule or spline end condition changes IMF1 near the ends by ~1e-2).
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", ["two_tone_noise", "chirp", "random_walk"])
 @pytest.mark.parametrize("sifts", [5, 10])
-def test_agrees_with_pyemd_under_matched_settings(name: str, sifts: int) -> None:
+def test_agrees_with_pyemd_under_matched_settings(name: str, sifts: int, backend: str) -> None:
     pyemd = pytest.importorskip("PyEMD")
     x = _fixtures()[name]
     reference = pyemd.EMD(FIXE=sifts, range_thr=0.0, total_power_thr=0.0)
     reference.emd(x, max_imf=8)
     ref_imfs, ref_residue = reference.get_imfs_and_residue()
-    ours = emd(x, 8, sd_threshold=0.0, max_sifts=sifts, residue_ratio=0.0)
+    ours = emd(x, 8, sd_threshold=0.0, max_sifts=sifts, residue_ratio=0.0, backend=backend)
     assert ours.n_found == ref_imfs.shape[0]
     tolerance = 1e-9 * np.abs(x).max()
     assert np.abs(ours.imfs[: ours.n_found] - ref_imfs).max() <= tolerance
     assert np.abs(ours.residue - ref_residue).max() <= tolerance
 
 
-def test_random_short_and_quantised_signals_never_break_the_decomposition() -> None:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_random_short_and_quantised_signals_never_break_the_decomposition(backend: str) -> None:
     # Plateaus, repeated values and few extrema are where mirroring and splines can fail
     # (duplicate knots, singular systems); quantised pdc and saturated electrodes look so.
     rng = np.random.default_rng(12)
@@ -208,7 +232,68 @@ def test_random_short_and_quantised_signals_never_break_the_decomposition() -> N
             x = rng.standard_normal(n)
         else:
             x = np.repeat(rng.standard_normal(n // 3 + 1), 3)[:n]
-        result = emd(x, int(rng.integers(1, 9)), max_sifts=int(rng.integers(1, 30)))
+        result = emd(
+            x, int(rng.integers(1, 9)), max_sifts=int(rng.integers(1, 30)), backend=backend
+        )
         assert np.isfinite(result.imfs).all()
         rebuilt = result.imfs.sum(axis=0) + result.residue
         assert np.abs(rebuilt - x).max() <= 1e-9 * max(1.0, np.abs(x).max())
+
+
+# -- the numba kernel against the numpy reference ------------------------------------------
+
+
+@needs_numba
+@pytest.mark.parametrize("name", list(_fixtures()))
+@pytest.mark.parametrize("settings", [{}, {"sd_threshold": 0.0, "max_sifts": 7}, {"max_sifts": 3}])
+def test_numba_kernel_computes_the_numpy_decomposition(name: str, settings: dict) -> None:
+    x = _fixtures()[name]
+    reference = emd(x, 8, backend="numpy", **settings)
+    compiled = emd(x, 8, backend="numba", **settings)
+    assert compiled.n_found == reference.n_found
+    assert np.array_equal(compiled.sift_counts, reference.sift_counts)
+    # Measured: ~4e-17 of the amplitude (the spline solves differ in rounding only).
+    assert np.abs(compiled.imfs - reference.imfs).max() <= 1e-12 * np.abs(x).max()
+    assert np.abs(compiled.residue - reference.residue).max() <= 1e-12 * np.abs(x).max()
+
+
+@needs_numba
+def test_numba_kernel_matches_numpy_on_random_streaming_windows() -> None:
+    # Noisy tones and random walks of the pac/pdc window sizes, as the stream sees them.
+    rng = np.random.default_rng(21)
+    t = np.arange(512) / RATE_HZ
+    for trial in range(60):
+        if trial % 2:
+            x = np.round(2000.0 + 5.0 * np.cumsum(rng.standard_normal(64)))
+        else:
+            f = rng.uniform(20.0, 400.0)
+            x = np.round(2048 + 60 * np.sin(2 * np.pi * f * t) + 25 * rng.standard_normal(512))
+        reference = emd(x, 8, backend="numpy")
+        compiled = emd(x, 8, backend="numba")
+        assert compiled.n_found == reference.n_found
+        assert np.array_equal(compiled.sift_counts, reference.sift_counts)
+        assert np.abs(compiled.imfs - reference.imfs).max() <= 1e-12 * np.abs(x).max()
+
+
+@needs_numba
+@pytest.mark.parametrize("n_knots", [2, 3, 4, 5, 9, 40, 160])
+def test_compiled_spline_equals_scipy_cubic_spline(n_knots: int) -> None:
+    from hapticframe_tactile_features._emd_kernel import STATUS_OK, spline_on_grid
+
+    rng = np.random.default_rng(100 + n_knots)
+    knots = np.cumsum(rng.uniform(0.01, 9.0, n_knots)) - 10.0  # irregular, some very close
+    values = rng.standard_normal(n_knots)
+    grid = np.linspace(knots[0] - 3.0, knots[-1] + 3.0, 777)  # extrapolation at both ends
+    expected = CubicSpline(knots, values)(grid)
+    out = np.empty_like(grid)
+    assert spline_on_grid(knots, values, grid, out) == STATUS_OK
+    assert np.allclose(out, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+@needs_numba
+def test_compiled_spline_reports_repeated_knots() -> None:
+    from hapticframe_tactile_features._emd_kernel import STATUS_SINGULAR, spline_on_grid
+
+    out = np.empty(5)
+    knots = np.array([0.0, 1.0, 1.0, 2.0, 3.0])
+    assert spline_on_grid(knots, np.ones(5), np.arange(5.0), out) == STATUS_SINGULAR

@@ -99,6 +99,16 @@ def test_start_of_stream_pads_with_the_first_frame() -> None:
     assert np.array_equal(window, np.repeat(frames.channels["electrodes"][0][:, None], 5, axis=1))
 
 
+def test_numba_and_numpy_backends_give_the_same_feature_tensors() -> None:
+    pytest.importorskip("numba")
+    frames = _frames(80, seed=5)
+    compiled = _extractor(delay_frames=2, emd_backend="numba").transform(frames)
+    reference = _extractor(delay_frames=2, emd_backend="numpy").transform(frames)
+    for name, array in reference.channels.items():
+        scale = np.abs(array).max()
+        assert np.abs(compiled.channels[name] - array).max() <= 1e-12 * scale, name
+
+
 @pytest.mark.parametrize("seed", [0, 1])
 def test_streaming_in_any_chunks_equals_the_batch_path(seed: int) -> None:
     fx = _extractor(delay_frames=3)

@@ -1,0 +1,457 @@
+"""``hapticframe bench perception``: dissertation Tables 2.2, 2.3, 2.4 and A.1 on synthetic data.
+
+Protocol (Jia 2022, §2.6-2.7): cottonwood-bead trials at 4 cm/s (one in three with
+contact) split 60/20/20 by whole trials for training, validation (early stopping) and test;
+the robustness set (§2.6.3) rakes all five media at 2 cm/s with the fingertip at 0° or 20°
+and the object at 0 or +3.5 cm. Every trial is tared over its first 10 frames (100 ms), as
+BioTac users zero the sensor before a trial (``hapticframe_biotac._tare``), and turned into
+EMD tensors and sparse codes once (:mod:`._perception_data`); the six architectures of
+:mod:`._perception_models` are then trained per modality set and seed.
+
+Outputs in ``options.out_dir``: ``perception.json`` (everything, see :func:`run_suite`),
+``perception.md`` (the tables in the thesis's layout beside its numbers) and
+``perception.png`` (test and robustness accuracy bars).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hapticframe import BenchOptions
+
+from ._perception_data import build_perception_data
+from ._perception_models import Architecture, TrainedModel, score, step_time_ms, train_architecture
+from ._perception_report import render_markdown, save_figure
+
+__all__ = [
+    "ARCHITECTURES",
+    "FULL_PLAN",
+    "MODALITY_SETS",
+    "QUICK_PLAN",
+    "SuitePlan",
+    "measure_streaming_latency",
+    "plan_for",
+    "run_perception",
+    "run_suite",
+]
+
+#: Columns of Tables 2.2 and 2.3, in the thesis's order.
+ARCHITECTURES: tuple[Architecture, ...] = (
+    Architecture("b", "svm"), Architecture("c", "svm"), Architecture("d", "svm"),
+    Architecture("b", "rnn"), Architecture("c", "rnn"), Architecture("d", "rnn"),
+)
+#: Rows: the unimodal sets (Table 2.2), then the multimodal ones (Table 2.3).
+MODALITY_SETS: tuple[tuple[str, ...], ...] = (
+    ("pac",), ("pdc",), ("electrodes",),
+    ("pac", "pdc"), ("pac", "electrodes"), ("pdc", "electrodes"), ("pac", "pdc", "electrodes"),
+)
+ALL = ("pac", "pdc", "electrodes")
+MEDIA = ("poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads")
+
+
+@dataclass(frozen=True)
+class SuitePlan:
+    """Sizes of one run (the thesis's in a full run, smaller in a quick one).
+
+    ``rnn_settings``, ``svm_settings`` and ``coder_settings`` override the component
+    configs (``SFRNNConfig``/``FusionRNNConfig``, ``LinearSVMConfig``,
+    ``SparseCodingConfig``).
+    """
+
+    cottonwood_trials: int
+    robustness_per_medium: int
+    seeds: int
+    max_epochs: int
+    patience: int
+    latency_frames: int
+    coder_fit_frames: int
+    quick: bool
+    rnn_settings: dict[str, Any] = field(default_factory=dict)
+    svm_settings: dict[str, Any] = field(default_factory=dict)
+    coder_settings: dict[str, Any] = field(default_factory=dict)
+    emd_settings: dict[str, Any] = field(default_factory=dict)
+    modality_sets: tuple[tuple[str, ...], ...] = MODALITY_SETS
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: (dict(v) if isinstance(v, dict) else [list(m) for m in v]
+                    if k == "modality_sets" else v) for k, v in self.__dict__.items()}
+
+
+#: The quick run: 45 cottonwood trials, 3 per medium, 2 seeds, short training.
+QUICK_PLAN = SuitePlan(
+    cottonwood_trials=45, robustness_per_medium=3, seeds=2, max_epochs=6, patience=3,
+    latency_frames=2000, coder_fit_frames=2000, quick=True,
+    rnn_settings={"batch_size": 128, "learning_rate": 3e-3, "free_stride_frames": 20,
+                  "contact_stride_frames": 10, "weight_decay": 1e-3, "modality_dropout": 0.2},
+    svm_settings={"calibration_folds": 2, "max_iter": 1000},
+    coder_settings={"fit_epochs": 2},
+)
+#: The full run: the thesis's 750 cottonwood trials and 75 per medium, 3 seeds. Both plans
+#: regularise every recurrent model alike (weight decay 1e-3, and one modality in five
+#: zeroed per training window, which also prepares them for Table A.1's missing inputs);
+#: the thesis used neither.
+FULL_PLAN = SuitePlan(
+    cottonwood_trials=750, robustness_per_medium=75, seeds=3, max_epochs=40, patience=5,
+    latency_frames=5000, coder_fit_frames=30000, quick=False,
+    rnn_settings={"batch_size": 128, "learning_rate": 3e-3, "weight_decay": 1e-3,
+                  "modality_dropout": 0.2},
+)
+
+
+def plan_for(options: BenchOptions) -> SuitePlan:
+    """The run's sizes; ``options.trials`` sets the number of seeds per table cell."""
+    if options.trials is not None and int(options.trials) < 1:
+        raise ValueError("--trials (seeds per table cell) must be at least 1")
+    plan = QUICK_PLAN if options.quick else FULL_PLAN
+    if options.trials is not None:
+        plan = SuitePlan(**{**plan.__dict__, "seeds": int(options.trials)})
+    return plan
+
+
+def _mean_std(values: Sequence[float]) -> dict[str, float]:
+    arr = np.asarray(values, dtype=np.float64)
+    return {"mean": float(arr.mean()), "std": float(arr.std(ddof=1)) if arr.size > 1 else 0.0,
+            "n": int(arr.size)}
+
+
+def _key(modalities: Sequence[str]) -> str:
+    return "+".join(modalities)
+
+
+def _subsets(modalities: Sequence[str]) -> list[tuple[str, ...]]:
+    mods = tuple(modalities)
+    out: list[tuple[str, ...]] = []
+    for mask in range(1, 2 ** len(mods)):
+        out.append(tuple(m for j, m in enumerate(mods) if mask >> j & 1))
+    return sorted(out, key=lambda s: (len(s), [ALL.index(m) for m in s]))
+
+
+_JOB_DATA: dict[str, Any] = {}
+
+
+def _run_job(
+    job: tuple[int, tuple[str, ...], int, dict[str, Any], dict[str, Any], str | None],
+) -> dict[str, Any]:
+    """Train and score the six architectures on one modality set with one seed (a worker)."""
+    import torch
+
+    s, mods, seed, rnn_settings, svm_settings, save_dir = job
+    torch.set_num_threads(1)
+    data = _JOB_DATA["data"]
+    splits = {k: data.by_split(k) for k in ("train", "validation", "test", "robustness")}
+    out: dict[str, Any] = {"seed_index": s, "modalities": mods, "cells": {}, "robustness": {},
+                           "a1": {}, "step_ms": {}, "train_time_s": {}, "diagnostics": None}
+    for arch in ARCHITECTURES:
+        model = train_architecture(data, arch, mods, seed * 1000 + s, rnn_settings, svm_settings)
+        cell = {k: score(model, splits[k])["balanced_accuracy"]
+                for k in ("train", "validation", "test")}
+        out["cells"][arch.label] = cell
+        out["train_time_s"][arch.label] = model.train_time_s
+        if s == 0:
+            out["step_ms"][arch.label] = step_time_ms(model, splits["test"][0])
+        if mods == ALL:
+            per: dict[str, list[float]] = {m: [] for m in MEDIA}
+            _robustness(model, splits["robustness"], per)
+            out["robustness"][arch.label] = {m: v[0] for m, v in per.items() if v}
+        if arch == Architecture("d", "rnn"):
+            a1: dict[str, dict[str, list[float]]] = {}
+            _table_a1(model, splits["test"], a1, cell["test"])
+            out["a1"] = {k: {t: v[0] for t, v in per.items()} for k, per in a1.items()}
+            if mods == ALL:
+                out["diagnostics"] = _diagnostics(model, cell)
+                if save_dir is not None and s == 0:
+                    model.component.save(save_dir)
+    return out
+
+
+def _progress_line(r: dict[str, Any], done: int, total: int) -> str:
+    sf = r["cells"][Architecture("d", "rnn").label]
+    return (f"[{done}/{total}] seed {r['seed_index']} {_key(r['modalities'])}: SF-RNN "
+            f"validation {sf['validation']:.3f} test {sf['test']:.3f}")
+
+
+def _map_jobs(jobs: list[Any], workers: int, data: Any,
+              echo: Callable[[str], None]) -> list[dict[str, Any]]:
+    _JOB_DATA["data"] = data
+    results: list[dict[str, Any]] = []
+    try:
+        if workers <= 1 or len(jobs) <= 1:
+            for job in jobs:
+                results.append(_run_job(job))
+                echo(_progress_line(results[-1], len(results), len(jobs)))
+            return results
+        # fork: the workers share the cached features with this process (copy on write).
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
+            futures = [pool.submit(_run_job, job) for job in jobs]
+            for future in as_completed(futures):
+                results.append(future.result())
+                echo(_progress_line(results[-1], len(results), len(jobs)))
+        order = {(j[0], j[1]): i for i, j in enumerate(jobs)}
+        return sorted(results, key=lambda r: order[(r["seed_index"], tuple(r["modalities"]))])
+    finally:
+        _JOB_DATA.clear()
+
+
+def run_suite(
+    plan: SuitePlan,
+    seed: int,
+    workers: int | None,
+    echo: Callable[[str], None],
+    model_dir: str | None = None,
+) -> dict[str, Any]:
+    """Run every table of a plan and return the results (json-ready) and the fitted coder.
+
+    Keys: ``tables`` (``table_2_2``, ``table_2_3``: per modality set and architecture the
+    train, validation and test balanced accuracy as mean/std over seeds and the step time;
+    ``table_2_4``: per architecture and medium; ``table_a_1``: per training set and tested
+    subset), ``sfrnn_test_accuracy`` (all three modalities, cottonwood test split, mean
+    over seeds), ``sfrnn_robustness_mean`` and ``best_baseline_robustness`` (mean over
+    media), ``training`` (train/validation diagnostics of the SF-RNN), ``dataset``,
+    ``plan`` and ``timing_s``. ``model_dir`` receives the seed-0 all-modality SF-RNN.
+    """
+    started = time.perf_counter()
+    n_workers = int(workers or min(os.cpu_count() or 1, 8))
+    data = build_perception_data(
+        cottonwood_trials=plan.cottonwood_trials,
+        robustness_per_medium=plan.robustness_per_medium,
+        seed=seed, workers=n_workers, coder_fit_frames=plan.coder_fit_frames,
+        coder_settings=plan.coder_settings, emd_settings=plan.emd_settings, echo=echo,
+    )
+    features_done = time.perf_counter()
+    rnn_settings = {"max_epochs": plan.max_epochs, "patience": plan.patience, "threads": 1,
+                    **plan.rnn_settings}
+    jobs = [(s, mods, seed, rnn_settings, plan.svm_settings, model_dir)
+            for s in range(plan.seeds) for mods in plan.modality_sets]
+    echo(f"training {len(jobs) * len(ARCHITECTURES)} models on {n_workers} workers")
+    results = _map_jobs(jobs, n_workers, data, echo)
+    cells: dict[str, dict[str, dict[str, list[float]]]] = {}
+    robustness: dict[str, dict[str, list[float]]] = {}
+    a1: dict[str, dict[str, list[float]]] = {}
+    step_ms: dict[str, dict[str, float]] = {}
+    train_time: dict[str, dict[str, list[float]]] = {}
+    diagnostics = []
+    for r in results:
+        key = _key(r["modalities"])
+        for label, cell in r["cells"].items():
+            target = cells.setdefault(key, {}).setdefault(
+                label, {"train": [], "validation": [], "test": []})
+            for split, value in cell.items():
+                target[split].append(value)
+            train_time.setdefault(key, {}).setdefault(label, []).append(r["train_time_s"][label])
+        step_ms.setdefault(key, {}).update(r["step_ms"])
+        for label, per in r["robustness"].items():
+            for medium, value in per.items():
+                robustness.setdefault(label, {}).setdefault(medium, []).append(value)
+        for trained, per in r["a1"].items():
+            for tested, value in per.items():
+                a1.setdefault(trained, {}).setdefault(tested, []).append(value)
+        if r["diagnostics"] is not None:
+            diagnostics.append(r["diagnostics"])
+    tables = {
+        "table_2_2": {_key(m): _summarise(cells[_key(m)], step_ms[_key(m)])
+                      for m in plan.modality_sets if len(m) == 1},
+        "table_2_3": {_key(m): _summarise(cells[_key(m)], step_ms[_key(m)])
+                      for m in plan.modality_sets if len(m) > 1},
+        "table_2_4": {label: {m: _mean_std(v) for m, v in per.items()}
+                      for label, per in robustness.items()},
+        "table_a_1": {k: {t: _mean_std(v) for t, v in per.items()} for k, per in a1.items()},
+    }
+    sfrnn_label = Architecture("d", "rnn").label
+    mean_over_media = {
+        label: float(np.mean([v["mean"] for v in per.values()]))
+        for label, per in tables["table_2_4"].items()
+    }
+    baselines = {k: v for k, v in mean_over_media.items() if k != sfrnn_label}
+    best_label = max(baselines, key=lambda k: baselines[k])
+    per_medium_wins = {
+        m: all(tables["table_2_4"][sfrnn_label][m]["mean"] > tables["table_2_4"][b][m]["mean"]
+               for b in baselines)
+        for m in tables["table_2_4"][sfrnn_label]
+    }
+    full = tables["table_2_3"][_key(ALL)][sfrnn_label]["test"]
+    return {
+        "sfrnn_test_accuracy": full["mean"],
+        "sfrnn_test_accuracy_std": full["std"],
+        "accuracy_metric": "balanced accuracy over frames (mean recall of free and contact)",
+        "sfrnn_robustness_mean": mean_over_media[sfrnn_label],
+        "best_baseline_robustness": {"architecture": best_label, "mean": baselines[best_label]},
+        "robustness_mean_by_architecture": mean_over_media,
+        "sfrnn_ahead_on_every_medium": per_medium_wins,
+        "tables": tables,
+        "training": {"sfrnn_all_modalities": diagnostics,
+                     "train_time_s": {k: {a: _mean_std(v) for a, v in per.items()}
+                                      for k, per in train_time.items()}},
+        "dataset": {
+            "tare_frames": data.tare_frames,
+            "trials": {k: len(data.by_split(k))
+                       for k in ("train", "validation", "test", "robustness")},
+            "frames": {k: int(sum(len(t) for t in data.by_split(k)))
+                       for k in ("train", "validation", "test", "robustness")},
+            "contact_fraction": {
+                k: float(np.mean(np.concatenate([t.labels for t in data.by_split(k)])))
+                for k in ("train", "validation", "test", "robustness") if data.by_split(k)},
+        },
+        "plan": plan.as_dict(),
+        "timing_s": {**data.timing_s, "features_wall": features_done - started,
+                     "models_wall": time.perf_counter() - features_done,
+                     "suite_wall": time.perf_counter() - started},
+    }, data.coder
+
+
+def _summarise(
+    per_arch: dict[str, dict[str, list[float]]], steps: dict[str, float]
+) -> dict[str, Any]:
+    return {
+        label: {"train": _mean_std(v["train"]), "validation": _mean_std(v["validation"]),
+                "test": _mean_std(v["test"]), "step_ms": steps[label]}
+        for label, v in per_arch.items()
+    }
+
+
+def _robustness(model: TrainedModel, trials: Sequence[Any], out: dict[str, list[float]]) -> None:
+    for medium in MEDIA:
+        chosen = [t for t in trials if t.medium == medium]
+        if chosen:
+            out[medium].append(score(model, chosen)["balanced_accuracy"])
+
+
+def _table_a1(model: TrainedModel, test: Sequence[Any], out: dict[str, dict[str, list[float]]],
+              full: float) -> None:
+    trained = _key(model.modalities)
+    for subset in _subsets(model.modalities):
+        value = (full if subset == model.modalities
+                 else score(model, test, subset)["balanced_accuracy"])
+        out.setdefault(trained, {}).setdefault(_key(subset), []).append(value)
+
+
+def _diagnostics(model: TrainedModel, cell: dict[str, float]) -> dict[str, Any]:
+    metrics = model.training_metrics
+    return {
+        "train_balanced_accuracy": cell["train"],
+        "validation_balanced_accuracy": cell["validation"],
+        "test_balanced_accuracy": cell["test"],
+        "epochs": metrics.get("epochs"),
+        "best_epoch": metrics.get("best_epoch"),
+        "train_loss": metrics.get("train_loss"),
+        "validation_loss": metrics.get("validation_loss"),
+    }
+
+
+def measure_streaming_latency(
+    coder: Any, model_dir: str | Path, frames: int, seed: int,
+    emd_settings: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Per-frame time of emd-features → sparse-coding → SF-RNN on robustness trials, one thread.
+
+    Fresh robustness trials, tared as in training, are streamed one frame at a time through
+    a new ``emd-features``, the run's fitted ``sparse-coding`` and the run's seed-0
+    all-modality SF-RNN (loaded from ``model_dir``); each stage is timed.
+    """
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    from hapticframe.kinds import BuildContext, SampleBatch
+    from hapticframe_biotac._frame import BioTacFrames, layout_for
+    from hapticframe_biotac._sensor import tare_frames
+    from hapticframe_biotac._synthetic import generate_trial, robustness_specs
+    from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig
+
+    from ._config import SFRNNConfig
+    from ._recurrent import SFRNNClassifier
+
+    model = SFRNNClassifier(SFRNNConfig(model_dir=str(model_dir), progress=False),
+                            BuildContext("sf-rnn", np.random.default_rng(seed)))
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 17]))
+    specs = robustness_specs(rng)
+    batches: list[SampleBatch] = []
+    total = 0
+    for i in rng.permutation(len(specs)):
+        trial = generate_trial(specs[i], rng)
+        recorded = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
+                                trial.tac, trial.tdc, trial.electrodes)
+        batches.append(tare_frames(recorded, 10).to_sample_batch())
+        total += len(batches[-1])
+        if total >= frames:
+            break
+    extractor = EMDFeatureExtractor(EMDFeaturesConfig(**(emd_settings or {})),
+                                    BuildContext("emd", np.random.default_rng(0)))
+    stage: dict[str, list[float]] = {"emd": [], "coding": [], "sfrnn": [], "total": []}
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with threadpool_limits(limits=1):
+            for batch in batches:
+                extractor.reset()
+                model.reset()
+                for i in range(len(batch)):
+                    if len(stage["total"]) >= frames:
+                        break
+                    frame = batch.select(slice(i, i + 1))
+                    t0 = time.perf_counter()
+                    features = extractor.update(frame)
+                    t1 = time.perf_counter()
+                    codes = coder.update(features)
+                    t2 = time.perf_counter()
+                    model.update(codes)
+                    t3 = time.perf_counter()
+                    for name, value in (("emd", t1 - t0), ("coding", t2 - t1), ("sfrnn", t3 - t2),
+                                        ("total", t3 - t0)):
+                        stage[name].append(1e3 * value)
+    finally:
+        torch.set_num_threads(previous)
+    total_ms = np.asarray(stage["total"])
+    return {
+        "latency_ms_median": float(np.median(total_ms)),
+        "latency_ms_p99": float(np.percentile(total_ms, 99)),
+        "latency_ms_max": float(total_ms.max()),
+        "frames": int(total_ms.size),
+        "stages_ms_median": {k: float(np.median(v)) for k, v in stage.items() if k != "total"},
+        "stages_ms_p99": {k: float(np.percentile(v, 99)) for k, v in stage.items() if k != "total"},
+        "threads": 1,
+    }
+
+
+def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict[str, Any]:
+    """``hapticframe bench perception``: write perception.json, .md and .png (and the model).
+
+    ``plan`` replaces the quick/full plan (tests run a tiny one).
+    """
+    started = time.perf_counter()
+    plan = plan or plan_for(options)
+    out = Path(options.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    model_dir = out / "sfrnn-model"
+    options.echo(f"perception bench ({'quick' if plan.quick else 'full'}): {plan.as_dict()}")
+    result, coder = run_suite(plan, options.seed, options.workers, options.echo, str(model_dir))
+    options.echo(f"latency: streaming {plan.latency_frames} frames through the chain, one thread")
+    result["latency"] = measure_streaming_latency(coder, model_dir, plan.latency_frames,
+                                                  options.seed, plan.emd_settings)
+    result["latency_ms_median"] = result["latency"]["latency_ms_median"]
+    result["latency_ms_p99"] = result["latency"]["latency_ms_p99"]
+    result["timing_s"]["total_wall"] = time.perf_counter() - started
+    result["machine"] = {"platform": platform.platform(), "cpus": os.cpu_count(),
+                         "python": platform.python_version(),
+                         "load_average_1min": os.getloadavg()[0]}
+    result["command"] = ("hapticframe bench perception" + (" --quick" if plan.quick else "")
+                         + f" --seed {options.seed}")
+    (out / "perception.json").write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
+                                         encoding="utf-8")
+    save_figure(result, out / "perception.png")
+    (out / "perception.md").write_text(render_markdown(result), encoding="utf-8")
+    options.echo(f"SF-RNN test {result['sfrnn_test_accuracy']:.3f}, robustness mean "
+                 f"{result['sfrnn_robustness_mean']:.3f} vs best baseline "
+                 f"{result['best_baseline_robustness']['mean']:.3f}; latency median "
+                 f"{result['latency_ms_median']:.2f} ms, p99 {result['latency_ms_p99']:.2f} ms; "
+                 f"{result['timing_s']['total_wall']:.0f} s")
+    return {k: result[k] for k in ("sfrnn_test_accuracy", "latency_ms_median", "latency_ms_p99")}

@@ -1,0 +1,196 @@
+"""The six architectures of dissertation Tables 2.2-2.3, trained and scored on cached features.
+
+An architecture is a stage of Figure 2.2 (``b``, ``c`` or ``d``, see
+:mod:`._perception_data`) and a classifier:
+
+- ``svm``: the ``linear-svm`` component (Platt-calibrated linear SVM, per frame);
+- ``rnn``: for stages ``b`` and ``c`` the ``fusion-rnn`` component (one GRU stack per
+  modality joined by a fully connected layer: the thesis's "RNN" for one modality and
+  "F-RNN" for several); for stage ``d`` the ``sf-rnn`` component (SF-RNN).
+
+The components are used through their public class API: inputs are handed over as the
+channels the component reads (``<modality>_code`` for the recurrent ones, with the code
+sizes set to the stage's sizes). Scores are balanced accuracies over all frames of a split
+(mean recall of "free" and "contact"), since about four frames in five are free movement.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hapticframe.kinds import BuildContext, SampleBatch
+
+from ._config import FusionRNNConfig, LinearSVMConfig, SFRNNConfig
+from ._functional import balanced_accuracy
+from ._perception_data import PerceptionData, TrialFeatures, stage_inputs
+
+ALL_MODALITIES = ("pac", "pdc", "electrodes")
+
+__all__ = ["Architecture", "TrainedModel", "score", "step_time_ms", "train_architecture"]
+
+
+@dataclass(frozen=True)
+class Architecture:
+    """A stage of Figure 2.2 and a classifier, e.g. ``Architecture("d", "rnn")`` = SF-RNN."""
+
+    stage: str
+    classifier: str
+
+    def __post_init__(self) -> None:
+        if self.stage not in ("b", "c", "d") or self.classifier not in ("svm", "rnn"):
+            raise ValueError(
+                f"unknown architecture ({self.stage!r}, {self.classifier!r}); stage is 'b', 'c' "
+                "or 'd' and classifier 'svm' or 'rnn'"
+            )
+
+    @property
+    def label(self) -> str:
+        if self.classifier == "svm":
+            return f"({self.stage})+Linear SVM"
+        return "(d)+RNN (SF-RNN)" if self.stage == "d" else f"({self.stage})+RNN"
+
+
+@dataclass
+class TrainedModel:
+    """A fitted component with what it was built for."""
+
+    architecture: Architecture
+    modalities: tuple[str, ...]
+    component: Any
+    train_time_s: float
+    training_metrics: dict[str, Any]
+    #: Contact is decided when p(contact) exceeds this: 0.5 for the recurrent models (trained
+    #: with class-balanced loss); the training contact rate for the SVM, whose Platt
+    #: calibration restores the class frequencies (the balanced decision, which is what the
+    #: thesis's oversampling of the contact class amounts to).
+    contact_threshold: float = 0.5
+
+
+def _channel(arch: Architecture, modality: str) -> str:
+    return f"{modality}_code" if arch.classifier == "rnn" else f"{modality}_{arch.stage}"
+
+
+def _batch(
+    trial: TrialFeatures, arch: Architecture, modalities: Sequence[str]
+) -> SampleBatch:
+    inputs = stage_inputs(trial, arch.stage, modalities)
+    times = (1 + np.arange(len(trial))) * 0.01
+    return SampleBatch(times, {_channel(arch, m): v for m, v in inputs.items()})
+
+
+def train_architecture(
+    data: PerceptionData,
+    arch: Architecture,
+    modalities: Sequence[str],
+    seed: int,
+    rnn_settings: dict[str, Any],
+    svm_settings: dict[str, Any] | None = None,
+) -> TrainedModel:
+    """Fit one architecture on the training trials (validation trials for early stopping).
+
+    The recurrent components hold out whole trials themselves (``validation_fraction``);
+    here they get the union of the cottonwood train and validation trials and a fraction
+    equal to the validation share, so their held-out trials are validation-sized.
+    """
+    mods = tuple(m for m in ("pac", "pdc", "electrodes") if m in modalities)
+    # Sizes from the data: the codes' sizes follow the coder's dictionaries.
+    first = data.by_split("train")[0]
+    width = {m: v.shape[1] for m, v in stage_inputs(first, arch.stage, ALL_MODALITIES).items()}
+    context = BuildContext(
+        f"{arch.stage}-{arch.classifier}", np.random.default_rng(np.random.SeedSequence([seed, 3]))
+    )
+    if arch.classifier == "svm":
+        config = LinearSVMConfig(
+            inputs={_channel(arch, m): width[m] for m in mods},
+            **(svm_settings or {}),
+        )
+        from ._linear_svm import LinearSVMClassifier
+
+        component: Any = LinearSVMClassifier(config, context)
+        trials = data.by_split("train")
+    else:
+        sizes = {f"{m}_code_size": width[m] for m in ALL_MODALITIES}
+        train, val = data.by_split("train"), data.by_split("validation")
+        trials = train + val
+        common = {"modalities": mods, **sizes, "progress": False,
+                  "validation_fraction": len(val) / max(len(trials), 1), **rnn_settings}
+        from ._recurrent import FusionRNNClassifier, SFRNNClassifier
+
+        # One settings dict serves both networks: each config takes the keys it knows
+        # (gru_* for the SF-RNN, branch_* for the fusion RNN).
+        cls, config_cls = ((SFRNNClassifier, SFRNNConfig) if arch.stage == "d"
+                           else (FusionRNNClassifier, FusionRNNConfig))
+        known = {k: v for k, v in common.items() if k in config_cls.model_fields}
+        component = cls(config_cls(**known), context)
+    batches = [_batch(t, arch, mods) for t in trials]
+    started = time.perf_counter()
+    component.fit(batches, [t.labels for t in trials])
+    elapsed = time.perf_counter() - started
+    metrics = dict(getattr(component, "training_metrics", {}) or {})
+    threshold = 0.5
+    if arch.classifier == "svm":
+        threshold = float(np.mean(np.concatenate([t.labels for t in trials])))
+    return TrainedModel(arch, mods, component, elapsed, metrics, threshold)
+
+
+def _predict(model: TrainedModel, trial: TrialFeatures, present: Sequence[str]) -> np.ndarray:
+    batch = _batch(trial, model.architecture, [m for m in model.modalities if m in present])
+    with warnings.catch_warnings():
+        # A modality left out on purpose (Table A.1) is zero-filled; no warning wanted.
+        warnings.simplefilter("ignore", UserWarning)
+        # Recurrent models score a trial in one sequence call (same as streaming up to
+        # float32 rounding); step_time_ms times the streaming path.
+        predict = getattr(model.component, "predict_sequence", model.component.predict_proba)
+        proba = predict(batch)
+    contact = np.asarray(proba.probabilities, dtype=np.float64)[:, 1]
+    return (contact > model.contact_threshold).astype(np.int64)
+
+
+def score(
+    model: TrainedModel,
+    trials: Sequence[TrialFeatures],
+    present: Sequence[str] | None = None,
+) -> dict[str, float]:
+    """Balanced and plain accuracy over the frames of ``trials``.
+
+    ``present`` names the modalities handed to the model (default: all it was trained
+    on); the others are absent and zero-filled by the component (Table A.1).
+    """
+    use = tuple(model.modalities if present is None else present)
+    truth, predicted = [], []
+    for trial in trials:
+        truth.append(trial.labels)
+        predicted.append(_predict(model, trial, use))
+    y, p = np.concatenate(truth), np.concatenate(predicted)
+    return {"balanced_accuracy": balanced_accuracy(y, p), "accuracy": float(np.mean(y == p)),
+            "frames": float(y.size)}
+
+
+def step_time_ms(model: TrainedModel, trial: TrialFeatures, frames: int = 200) -> float:
+    """Median time of one streaming step (one frame in, probabilities out), one thread."""
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    batch = _batch(trial, model.architecture, model.modalities)
+    n = min(frames, len(batch))
+    times = np.empty(n)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with threadpool_limits(limits=1):
+            model.component.reset()
+            for i in range(n):
+                frame = batch.select(slice(i, i + 1))
+                start = time.perf_counter()
+                model.component.update(frame)
+                times[i] = time.perf_counter() - start
+    finally:
+        torch.set_num_threads(previous)
+        model.component.reset()
+    return 1e3 * float(np.median(times))

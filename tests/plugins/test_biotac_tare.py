@@ -1,0 +1,91 @@
+"""Tare of BioTac recordings: causal reference, streaming = batch, and the sensor option."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+import hapticframe
+from hapticframe.testing import make_component
+
+from hapticframe_biotac import BioTacSensorConfig
+from hapticframe_biotac._frame import BioTacFrames, layout_for
+from hapticframe_biotac._sensor import tare_frames
+from hapticframe_biotac._synthetic import TrialSpec, generate_trial
+from hapticframe_biotac._tare import TareState, tare_reference
+from hapticframe_biotac.plugin import SPECS
+
+
+@pytest.fixture(scope="module")
+def registry():
+    return hapticframe.make_plugin_manager(modules=["hapticframe_biotac.plugin"]).registry
+
+
+def test_reference_is_the_running_mean_then_the_mean_of_the_first_frames():
+    x = np.arange(12.0).reshape(6, 2)
+    ref = tare_reference(x, 3)
+    expected = np.array([[0, 1], [1, 2], [2, 3], [2, 3], [2, 3], [2, 3]], dtype=float)
+    np.testing.assert_allclose(ref, expected)
+    # One frame: every frame is referred to frame 0.
+    np.testing.assert_allclose(tare_reference(x, 1), np.broadcast_to(x[0], x.shape))
+    # More tare frames than the recording: the running mean throughout.
+    np.testing.assert_allclose(tare_reference(x, 100)[-1], x.mean(axis=0))
+
+
+def test_streaming_in_chunks_equals_batch_and_skips_invalid_frames():
+    rng = np.random.default_rng(3)
+    x = rng.normal(2000.0, 50.0, (40, 3, 4))
+    valid = rng.random(40) > 0.3
+    batch = tare_reference(x, 10, valid)
+    state = TareState(10)
+    parts = [state.reference(x[a:b], valid[a:b]) for a, b in ((0, 1), (1, 7), (7, 25), (25, 40))]
+    np.testing.assert_allclose(np.concatenate(parts), batch, rtol=1e-13)
+    first_ten = np.flatnonzero(valid[:10])
+    np.testing.assert_allclose(batch[-1], x[first_ten].mean(axis=0))
+
+
+def test_reference_is_zero_until_a_valid_frame_and_never_nan():
+    x = np.array([[np.nan], [5.0], [7.0], [9.0]])
+    ref = tare_reference(x, 3, np.array([True, False, True, True]))
+    np.testing.assert_allclose(ref[:, 0], [0.0, 0.0, 7.0, 7.0])
+    with pytest.raises(ValueError, match="at least 1"):
+        TareState(0)
+    with pytest.raises(ValueError, match="shape"):
+        tare_reference(x, 2, np.ones(3, dtype=bool))
+
+
+def test_tare_removes_the_trial_offsets_of_a_synthetic_trial():
+    spec = TrialSpec("cottonwood_beads", 0.04, 0.0, 0.0, True)
+    trial = generate_trial(spec, np.random.default_rng(5))
+    frames = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc, trial.tac,
+                          trial.tdc, trial.electrodes)
+    tared = tare_frames(frames, 10)
+    # Resting electrode counts lie at 2,300-3,400; tared, the first 10 frames average zero
+    # and the object still shows (the largest change comes during contact).
+    assert np.abs(trial.electrodes[:10].mean(axis=0)).min() > 2000
+    np.testing.assert_allclose(tared.electrodes[:10].mean(axis=0), 0.0, atol=np.abs(
+        trial.electrodes[:10] - trial.electrodes[:10].mean(axis=0)).max())
+    np.testing.assert_allclose(tared.electrodes[10:] + trial.electrodes[:10].mean(axis=0),
+                               trial.electrodes[10:])
+    contact = trial.contact.astype(bool)
+    assert np.abs(tared.electrodes[contact]).max() > 3 * np.abs(tared.electrodes[:10]).max()
+    assert tare_frames(frames, 0) is frames
+
+
+def test_sensor_option_tares_each_trial_and_is_refused_for_spi(registry):
+    spec = SPECS[0]
+    raw = make_component(spec, registry=registry, seed=4, config={
+        "source": "synthetic", "n_trials": 2, "frames_per_read": 1000, "medium": "bbs"})
+    tared = make_component(spec, registry=registry, seed=4, config={
+        "source": "synthetic", "n_trials": 2, "frames_per_read": 1000, "medium": "bbs",
+        "tare_frames": 5})
+    raw_trials = list(raw.iter_recordings())
+    tared_trials = list(tared.iter_recordings())
+    assert len(raw_trials) == len(tared_trials) == 2
+    for a, b in zip(raw_trials, tared_trials, strict=True):
+        ref = a.channels["electrodes"][:5].mean(axis=0)
+        np.testing.assert_allclose(b.channels["electrodes"][5:], a.channels["electrodes"][5:] - ref)
+        np.testing.assert_array_equal(b.channels["contact"], a.channels["contact"])
+    with pytest.raises(ValidationError, match="tare_frames"):
+        BioTacSensorConfig(source="spi", tare_frames=3)

@@ -1,0 +1,120 @@
+"""``hapticframe bench perception`` on a tiny plan: files, keys, shapes and ranges."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")
+pytest.importorskip("sklearn")
+
+import hapticframe
+from hapticframe import BenchOptions
+
+from hapticframe_sfrnn._bench_suite import ARCHITECTURES, SuitePlan, plan_for, run_perception
+from hapticframe_sfrnn._perception_data import split_cottonwood, stage_inputs
+
+# Everything small: 12 cottonwood trials, one trial per medium, a cheap EMD, tiny networks.
+TINY = SuitePlan(
+    cottonwood_trials=12, robustness_per_medium=1, seeds=2, max_epochs=1, patience=1,
+    latency_frames=40, coder_fit_frames=600, quick=True,
+    rnn_settings={"batch_size": 64, "free_stride_frames": 60, "contact_stride_frames": 30,
+                  "window_frames": 20, "gru_layers": 1, "gru_units": 8, "fusion_units": 8,
+                  "branch_layers": 1, "branch_units": 8},
+    emd_settings={"max_sifts": 2, "delay_frames": 1},
+    svm_settings={"calibration_folds": 2, "max_iter": 200},
+    coder_settings={"fit_epochs": 1, "pac_atoms": 16, "pdc_atoms": 8, "electrodes_atoms": 8,
+                    "encode_max_iter": 100},
+    modality_sets=(("electrodes",), ("pac", "pdc", "electrodes")),
+)
+
+
+def _fractions(value):
+    assert math.isfinite(value) and 0.0 <= value <= 1.0, value
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("perception")
+    lines: list[str] = []
+    headline = run_perception(BenchOptions(out_dir=out, seed=1, quick=True, workers=1,
+                                           echo=lines.append), plan=TINY)
+    return out, headline, lines
+
+
+def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
+    out, headline, lines = tiny_run
+    result = json.loads((out / "perception.json").read_text())
+    for key in ("sfrnn_test_accuracy", "latency_ms_median", "latency_ms_p99", "tables"):
+        assert key in result
+    assert headline["sfrnn_test_accuracy"] == result["sfrnn_test_accuracy"]
+    _fractions(result["sfrnn_test_accuracy"])
+    assert 0 < result["latency_ms_median"] <= result["latency_ms_p99"] < 10_000
+    assert result["latency"]["frames"] == TINY.latency_frames
+    assert set(result["latency"]["stages_ms_median"]) == {"emd", "coding", "sfrnn"}
+    tables = result["tables"]
+    assert set(tables) == {"table_2_2", "table_2_3", "table_2_4", "table_a_1"}
+    labels = {a.label for a in ARCHITECTURES}
+    assert set(tables["table_2_2"]) == {"electrodes"}
+    assert set(tables["table_2_3"]) == {"pac+pdc+electrodes"}
+    for table in (tables["table_2_2"], tables["table_2_3"]):
+        for row in table.values():
+            assert set(row) == labels
+            for cell in row.values():
+                for split in ("train", "validation", "test"):
+                    _fractions(cell[split]["mean"])
+                    assert cell[split]["n"] == TINY.seeds and cell[split]["std"] >= 0
+                assert 0 < cell["step_ms"] < 10_000
+    assert set(tables["table_2_4"]) == labels
+    for per in tables["table_2_4"].values():
+        assert set(per) == {"poppy_seed", "plastic_pellets", "bbs", "pine_beads",
+                            "cottonwood_beads"}
+        for cell in per.values():
+            _fractions(cell["mean"])
+    # Table A.1: the three-modality SF-RNN tested with all 7 subsets, the unimodal one with 1.
+    assert len(tables["table_a_1"]["pac+pdc+electrodes"]) == 7
+    assert list(tables["table_a_1"]["electrodes"]) == ["electrodes"]
+    assert result["dataset"]["trials"]["robustness"] == 5
+    md = (out / "perception.md").read_text()
+    for title in ("Table 2.2", "Table 2.3", "Table 2.4", "Table A.1", "98.7", "p99"):
+        assert title in md
+    assert (out / "perception.png").stat().st_size > 1000
+    assert (out / "sfrnn-model" / "model.json").is_file()
+    assert any("SF-RNN test" in line for line in lines)
+
+
+def test_split_is_by_whole_trials_stratified_and_stage_inputs_have_thesis_sizes(tiny_run):
+    flags = [True] * 10 + [False] * 20
+    splits = split_cottonwood(flags, np.random.default_rng(0))
+    for kind, n in ((True, 10), (False, 20)):
+        got = [s for s, f in zip(splits, flags, strict=True) if f is kind]
+        assert got.count("train") == round(0.6 * n) and got.count("validation") == round(0.2 * n)
+    from hapticframe_sfrnn._perception_data import TrialFeatures
+
+    trial = TrialFeatures(0, "bbs", True, "train", np.zeros(4, dtype=np.int64),
+                          {"pac": np.ones((4, 8, 22)), "pdc": np.ones((4, 5, 5)),
+                           "electrodes": np.arange(4 * 19 * 5.0).reshape(4, 19, 5)})
+    b = stage_inputs(trial, "b", ("pac", "pdc", "electrodes"))
+    c = stage_inputs(trial, "c", ("pac", "pdc", "electrodes"))
+    assert {m: v.shape[1] for m, v in b.items()} == {"pac": 8, "pdc": 5, "electrodes": 19}
+    assert {m: v.shape[1] for m, v in c.items()} == {"pac": 176, "pdc": 25, "electrodes": 95}
+    np.testing.assert_array_equal(b["electrodes"], trial.tensors["electrodes"][:, :, -1])
+    with pytest.raises(ValueError, match="stage"):
+        stage_inputs(trial, "e", ("pac",))
+
+
+def test_bench_is_registered_and_plans_follow_the_options(tmp_path):
+    registry = hapticframe.get_registry()
+    assert "perception" in registry.benchmarks
+    spec, _source = registry.benchmarks["perception"]
+    assert spec.factory == "hapticframe_sfrnn._bench_suite:run_perception"
+    quick = plan_for(BenchOptions(out_dir=tmp_path, quick=True))
+    full = plan_for(BenchOptions(out_dir=tmp_path))
+    assert quick.quick and not full.quick and full.cottonwood_trials == 750
+    assert full.robustness_per_medium == 75
+    assert plan_for(BenchOptions(out_dir=tmp_path, trials=4)).seeds == 4
+    with pytest.raises(ValueError, match="seeds"):
+        plan_for(BenchOptions(out_dir=tmp_path, trials=0))
