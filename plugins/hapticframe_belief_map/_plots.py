@@ -73,6 +73,8 @@ def save_belief_figure(
     outlines: Sequence[FloatArray] = (),
 ) -> Path:
     """``P(object)`` on the grid ``(ny, nx)`` in red-blue, the fingertip as a black marker."""
+    from matplotlib.ticker import MaxNLocator
+
     path.parent.mkdir(parents=True, exist_ok=True)
     figure = _figure(6.5, 5.0)
     axes = figure.add_subplot(1, 1, 1)
@@ -91,6 +93,9 @@ def save_belief_figure(
         axes.legend(loc="upper right", fontsize=8)
     axes.set_xlim(extent[0], extent[1])
     axes.set_ylim(extent[2], extent[3])
+    # A narrow strip of a map would otherwise crowd its tick labels into each other.
+    axes.xaxis.set_major_locator(MaxNLocator(nbins=5))
+    axes.yaxis.set_major_locator(MaxNLocator(nbins=5))
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title)

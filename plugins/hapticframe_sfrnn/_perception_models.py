@@ -10,8 +10,11 @@ An architecture is a stage of Figure 2.2 (``b``, ``c`` or ``d``, see
 
 The components are used through their public class API: inputs are handed over as the
 channels the component reads (``<modality>_code`` for the recurrent ones, with the code
-sizes set to the stage's sizes). Scores are balanced accuracies over all frames of a split
-(mean recall of "free" and "contact"), since about four frames in five are free movement.
+sizes set to the stage's sizes). When the coder emitted amplitudes (``amplitude="channel"``),
+both stage-(d) models get them: the SF-RNN as ``<modality>_amplitude`` channels
+(``amplitude_inputs``), the SVM appended to each modality's code. Scores are balanced
+accuracies over all frames of a split (mean recall of "free" and "contact"), since about
+four frames in five are free movement.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from hapticframe.kinds import BuildContext, SampleBatch
 
 from ._config import FusionRNNConfig, LinearSVMConfig, SFRNNConfig
 from ._functional import balanced_accuracy
-from ._perception_data import PerceptionData, TrialFeatures, stage_inputs
+from ._perception_data import PerceptionData, TrialFeatures, stage_amplitudes, stage_inputs
 
 ALL_MODALITIES = ("pac", "pdc", "electrodes")
 
@@ -80,8 +83,17 @@ def _batch(
     trial: TrialFeatures, arch: Architecture, modalities: Sequence[str]
 ) -> SampleBatch:
     inputs = stage_inputs(trial, arch.stage, modalities)
+    amplitudes = stage_amplitudes(trial, modalities) if arch.stage == "d" else {}
     times = (1 + np.arange(len(trial))) * 0.01
-    return SampleBatch(times, {_channel(arch, m): v for m, v in inputs.items()})
+    if arch.classifier == "svm":
+        # One flat vector per modality: the code, then its amplitude (if any).
+        return SampleBatch(times, {
+            _channel(arch, m): np.hstack([v, amplitudes[m]]) if m in amplitudes else v
+            for m, v in inputs.items()
+        })  # fmt: skip
+    channels = {_channel(arch, m): v for m, v in inputs.items()}
+    channels.update({f"{m}_amplitude": a for m, a in amplitudes.items()})
+    return SampleBatch(times, channels)
 
 
 def train_architecture(
@@ -102,12 +114,17 @@ def train_architecture(
     # Sizes from the data: the codes' sizes follow the coder's dictionaries.
     first = data.by_split("train")[0]
     width = {m: v.shape[1] for m, v in stage_inputs(first, arch.stage, ALL_MODALITIES).items()}
+    amplitude_width = {m: v.shape[1] for m, v in stage_amplitudes(first, ALL_MODALITIES).items()}
+    with_amplitude = arch.stage == "d" and bool(amplitude_width)
     context = BuildContext(
         f"{arch.stage}-{arch.classifier}", np.random.default_rng(np.random.SeedSequence([seed, 3]))
     )
     if arch.classifier == "svm":
         config = LinearSVMConfig(
-            inputs={_channel(arch, m): width[m] for m in mods},
+            inputs={
+                _channel(arch, m): width[m] + (amplitude_width.get(m, 0) if with_amplitude else 0)
+                for m in mods
+            },
             **(svm_settings or {}),
         )
         from ._linear_svm import LinearSVMClassifier
@@ -119,6 +136,7 @@ def train_architecture(
         train, val = data.by_split("train"), data.by_split("validation")
         trials = train + val
         common = {"modalities": mods, **sizes, "progress": False,
+                  "amplitude_inputs": with_amplitude,
                   "validation_fraction": len(val) / max(len(trials), 1), **rnn_settings}
         from ._recurrent import FusionRNNClassifier, SFRNNClassifier
 

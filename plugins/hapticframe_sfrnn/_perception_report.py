@@ -122,6 +122,20 @@ def _table_a1(table: dict[str, Any]) -> list[str]:
     return lines + [""]
 
 
+def _amplitude_note(plan: dict[str, Any]) -> str:
+    if plan.get("coder_settings", {}).get("amplitude") != "channel":
+        return ("- Stage (d) as in the thesis: unit-norm sparse codes only (the tensor's size "
+                "is dropped by the coder's normalisation).")
+    return ("- Deviation from the thesis, stage (d): the sparse coder also emits each "
+            "modality's amplitude (`amplitude=\"channel\"`: log1p(centred norm / median "
+            "training norm) - log 2 and asinh(mean / that norm)), which its centring and "
+            "unit-norm scaling otherwise drop; both (d) models read it (the SF-RNN with "
+            "`amplitude_inputs`, weighted by `amplitude_gain`; the SVM appended to each code). "
+            "After the tare the electrode tensor's size is the plainest sign of contact "
+            "(its centred norm is about 4× larger in contact here), and the raw-signal (b)/(c) "
+            "models keep it; with codes alone the SF-RNN trailed them on the robustness set.")
+
+
 def render_markdown(result: dict[str, Any]) -> str:
     """The whole report as Markdown."""
     plan, data, timing, latency = result["plan"], result["dataset"], result["timing_s"], result["latency"]
@@ -151,6 +165,12 @@ def render_markdown(result: dict[str, Any]) -> str:
         f"- Stage (b): the newest sample of each IMF / electrode; (c): the EMD feature "
         "tensors; (d): the sparse codes. RNN on (b)/(c) is the `fusion-rnn` component "
         "(one GRU stack per modality + fusion layer; F-RNN when multimodal), on (d) `sf-rnn`.",
+        _amplitude_note(plan),
+        *([f"- Quick-run trims (for run time on 2 shared cores): "
+           f"{plan['coder_settings'].get('fit_epochs', 10)} pass(es) of dictionary learning, "
+           f"liblinear capped at {plan['svm_settings'].get('max_iter', 5000)} iterations, "
+           f"{plan['cottonwood_trials']} cottonwood trials; numbers vary by a few points "
+           "between seeds and are not the full run's."] if plan["quick"] else []),
         f"- Time: features (EMD) {timing['emd_wall']:.0f} s wall for {timing['frames']:.0f} "
         f"frames on {timing['workers']:.0f} workers, dictionaries {timing['dictionary_fit']:.0f} s, "
         f"codes {timing['coding']:.0f} s; models and scoring: the rest.",

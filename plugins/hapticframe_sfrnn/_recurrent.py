@@ -11,6 +11,9 @@ A configured modality whose channel is absent from a batch, flagged invalid in
 which is what ``sparse-coding`` itself emits for an invalid tensor, meaning "no activation".
 Absent channels raise one :class:`UserWarning` per channel and component; every fill is
 counted in :attr:`RecurrentClassifier.fill_report` and returned by :meth:`finalize`.
+With ``amplitude_inputs`` a modality is its code and its ``<modality>_amplitude`` together:
+a frame missing either has both zero-filled (and the network's modality groups, used by
+``modality_dropout``, span both).
 Training with ``modality_dropout > 0`` prepares a network for such gaps.
 
 Streaming and batch
@@ -49,7 +52,7 @@ from numpy.typing import ArrayLike
 
 from hapticframe.kinds import BuildContext, ClassProbabilities, Classifier, RunOutcome, SampleBatch
 
-from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, code_channel
+from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, amplitude_channel
 from ._functional import (
     INPUT_CLIP,
     FillReport,
@@ -94,9 +97,17 @@ class RecurrentClassifier(Classifier):
 
     def _build(self, config: RecurrentConfig) -> None:
         self.config = config
-        self.groups: dict[str, int] = {
-            code_channel(m): config.code_size(m) for m in config.modalities
-        }
+        # Channels in column order (assembly and RMS scaling are per channel) and, per
+        # modality, its columns (the network's groups: one branch or dropout unit each).
+        self.groups: dict[str, int] = {}
+        self.modality_channels: dict[str, tuple[str, ...]] = {}
+        for m in config.modalities:
+            channels = config.input_groups(m)
+            self.groups.update(channels)
+            self.modality_channels[m] = tuple(channels)
+        self.modality_sizes = [
+            sum(self.groups[c] for c in self.modality_channels[m]) for m in config.modalities
+        ]
         self.net = self._make_network(config)
         init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
         self.net.eval()
@@ -137,8 +148,23 @@ class RecurrentClassifier(Classifier):
                     UserWarning,
                     stacklevel=3,
                 )
-        x, _ = assemble_inputs(batch, self.groups, self.fill_report)
+        x = self._assemble(batch, self.fill_report)
         return np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
+
+    def _assemble(self, batch: SampleBatch, report: FillReport | None = None) -> np.ndarray:
+        """Unscaled inputs, one row per frame, whole modalities zero-filled where incomplete."""
+        x, present = assemble_inputs(batch, self.groups, report)
+        if all(len(c) == 1 for c in self.modality_channels.values()):
+            return x
+        # A modality is all its channels: a frame missing one has all zero-filled.
+        names = list(self.groups)
+        bounds = np.cumsum([0, *self.groups.values()])
+        for channels in self.modality_channels.values():
+            idx = [names.index(c) for c in channels]
+            whole = present[:, idx].all(axis=1)
+            for j in idx:
+                x[~whole, bounds[j] : bounds[j + 1]] = 0.0
+        return x
 
     def update(self, batch: SampleBatch) -> ClassProbabilities:
         x = torch.from_numpy(self._scaled(batch).astype(np.float32))
@@ -182,12 +208,17 @@ class RecurrentClassifier(Classifier):
             raise ValueError(f"{len(batches)} batches but {len(labels)} label arrays")
         xs, ys = [], []
         for batch, y in zip(batches, labels, strict=True):
-            x, _ = assemble_inputs(batch, self.groups)
-            xs.append(x)
+            xs.append(self._assemble(batch))
             ys.append(check_labels(y, len(batch), len(CLASSES)))
         if not xs or sum(len(y) for y in ys) == 0:
             raise ValueError("fit needs at least one labelled frame")
         self._scale = rms_scale(np.vstack(xs), list(self.groups.values()))
+        amplitudes = {amplitude_channel(m) for m in self.modalities}
+        gain = np.concatenate([
+            np.full(size, self.config.amplitude_gain if name in amplitudes else 1.0)
+            for name, size in self.groups.items()
+        ])  # fmt: skip
+        self._scale = self._scale / gain
         with torch.no_grad():
             self.net.input_scale.copy_(torch.from_numpy(self._scale))
         scaled = [np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP) for x in xs]
@@ -213,6 +244,7 @@ class RecurrentClassifier(Classifier):
             "config": self.config.model_dump(mode="json", exclude={"model_dir"}),
             "modalities": list(self.modalities),
             "inputs": dict(self.groups),
+            "modality_inputs": {m: list(c) for m, c in self.modality_channels.items()},
             "classes": list(CLASSES),
             "fitted": self.fitted,
             "feature_settings": self.feature_settings,
@@ -276,7 +308,7 @@ class SFRNNClassifier(RecurrentClassifier):
 
     def _make_network(self, config: SFRNNConfig) -> RecurrentNet:
         return SFRNNNet(
-            list(self.groups.values()),
+            self.modality_sizes,
             config.fusion_units,
             config.gru_layers,
             config.gru_units,
@@ -295,7 +327,7 @@ class FusionRNNClassifier(RecurrentClassifier):
 
     def _make_network(self, config: FusionRNNConfig) -> RecurrentNet:
         return FusionRNNNet(
-            list(self.groups.values()),
+            self.modality_sizes,
             config.branch_layers,
             config.branch_units,
             config.fusion_units,

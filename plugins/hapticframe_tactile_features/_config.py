@@ -174,6 +174,16 @@ class SparseCodingConfig(PluginConfig):
         "stopping may end sooner).",
     )
     fit_batch_size: int = Field(256, ge=1, description="MiniBatchDictionaryLearning batch_size.")
+    amplitude: Literal["drop", "channel"] = Field(
+        "drop",
+        description="What happens to the size that the centring and unit-norm scaling remove "
+        "before the lasso: 'drop' (the thesis: codes only) or 'channel' (also emit "
+        "<modality>_amplitude, shape (2,): log1p(norm / ref) - log 2 and asinh(mean / ref), "
+        "norm and mean of the flattened tensor, ref the median training norm learned by "
+        "fit). A deviation from the thesis: after the BioTac tare the size of the electrode "
+        "tensor is the plainest sign of contact (≈ 4× larger in contact on the synthetic "
+        "data), and unit-norm codes cannot carry it.",
+    )
     dictionary_file: str | None = Field(
         None,
         description="A dictionary saved by SparseCodingExtractor.save (.npz beside its "

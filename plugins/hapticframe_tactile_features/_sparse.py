@@ -37,7 +37,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "AMPLITUDE_FEATURES",
     "ENCODE_TOL",
+    "amplitude_features",
+    "amplitude_reference",
     "encode_rows",
     "encode_tensors",
     "learn_dictionary",
@@ -86,6 +89,70 @@ def normalise_rows(x: FloatArray) -> tuple[FloatArray, BoolArray]:
     safe = np.where(flat, 1.0, norm)
     z = np.where(flat[:, np.newaxis], 0.0, centred / safe[:, np.newaxis])
     return z, flat
+
+
+#: What :func:`amplitude_features` returns per row, in column order.
+AMPLITUDE_FEATURES: tuple[str, str] = ("log_norm", "mean")
+
+
+def amplitude_reference(rows: FloatArray) -> float:
+    """Median centred ℓ2 norm of finite, non-flat rows: the scale of :func:`amplitude_features`.
+
+    Returns 1.0 when no row qualifies (nothing to learn a scale from).
+    """
+    x = np.asarray(rows, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"expected (n, m) rows, got shape {x.shape}")
+    x = x[np.isfinite(x).all(axis=1)]
+    if x.shape[0] == 0:
+        return 1.0
+    _, flat = normalise_rows(x)
+    norms = np.linalg.norm(x - x.mean(axis=1, keepdims=True), axis=1)[~flat]
+    return float(np.median(norms)) if norms.size else 1.0
+
+
+def amplitude_features(rows: FloatArray, ok: BoolArray, reference: float) -> FloatArray:
+    """What :func:`normalise_rows` discards, as two bounded-growth numbers per row.
+
+    Columns (:data:`AMPLITUDE_FEATURES`): ``log1p(norm / reference) - log 2``, with ``norm``
+    the row's centred ℓ2 norm, and ``asinh(mean / reference)``. Both are 0 for a row of
+    typical size (``norm == reference``) and zero mean, so a zero-filled (missing) amplitude
+    reads as "typical"; logarithmic growth keeps a hard press from dwarfing the rest. Rows
+    where ``ok`` is False get zeros.
+
+    Parameters
+    ----------
+    rows : (n, m) float64
+        Flattened tensors; rows where ``ok`` is False may hold anything (NaN included).
+    ok : (n,) bool
+    reference : float
+        Positive scale, e.g. :func:`amplitude_reference` of training rows.
+    """
+    if not (np.isfinite(reference) and reference > 0):
+        raise ValueError(f"amplitude reference must be positive and finite, got {reference}")
+    x = np.asarray(rows, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"expected (n, m) rows, got shape {x.shape}")
+    use = np.asarray(ok, dtype=bool)
+    safe = np.where(use[:, np.newaxis], x, 0.0)
+    # Divide by the largest magnitude first so that huge rows neither overflow the mean nor
+    # the squares of the norm; both are rescaled in the log domain.
+    peak = np.abs(safe).max(axis=1, initial=0.0)
+    unit = np.where(peak > 0, peak, 1.0)
+    scaled = safe / unit[:, np.newaxis]
+    mean_scaled = scaled.mean(axis=1)
+    norm_scaled = np.linalg.norm(scaled - mean_scaled[:, np.newaxis], axis=1)
+    log_norm = np.where(
+        norm_scaled > 0,
+        np.logaddexp(0.0, np.log(np.maximum(norm_scaled, 1e-300)) + np.log(unit)
+                     - np.log(reference)),
+        0.0,
+    ) - np.log(2.0)  # log1p(norm / reference) - log 2, computed without overflow
+    with np.errstate(over="ignore"):
+        mean_rel = np.clip(mean_scaled * (unit / reference), -1e300, 1e300)
+    out = np.column_stack([log_norm, np.arcsinh(mean_rel)])
+    out[~use] = 0.0
+    return out
 
 
 def random_dictionary(n_atoms: int, dimension: int, rng: np.random.Generator) -> FloatArray:
@@ -259,13 +326,27 @@ def learn_dictionary(
         batch_size=min(batch_size, z.shape[0]),
         dict_init=init,
         random_state=seed,
+        # Coordinate descent solves each minibatch's lasso for all rows at once; the default
+        # LARS solves row by row and reaches the same objective about 15x slower.
+        fit_algorithm="cd",
         transform_algorithm="lasso_cd",  # not the α-ignoring OMP default
         transform_alpha=alpha,
     )
-    learner.fit(z)
+    from sklearn.exceptions import ConvergenceWarning
+
+    # The lasso solves inside a minibatch step are iterates of an alternating scheme and need
+    # not be exact; the codes the component emits come from the encoder, which converges.
+    # So their convergence warnings are counted in the statistics rather than printed.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ConvergenceWarning)
+        learner.fit(z)
+    for warning in caught:
+        if not issubclass(warning.category, ConvergenceWarning):
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     stats = {
         "samples": int(z.shape[0]),
         "epochs_run": int(learner.n_iter_),
         "steps": int(learner.n_steps_),
+        "inexact_inner_solves": sum(issubclass(w.category, ConvergenceWarning) for w in caught),
     }
     return np.array(learner.components_, dtype=np.float64), stats

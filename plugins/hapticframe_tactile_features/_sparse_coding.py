@@ -16,6 +16,9 @@ from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, Sampl
 
 from ._config import Modality, SparseCodingConfig, feature_channel
 from ._sparse import (
+    AMPLITUDE_FEATURES,
+    amplitude_features,
+    amplitude_reference,
     encode_tensors,
     learn_dictionary,
     normalise_rows,
@@ -27,7 +30,9 @@ __all__ = ["DICTIONARY_FORMAT", "SparseCodingExtractor"]
 
 #: ``format`` field of the JSON metadata written by :meth:`SparseCodingExtractor.save`.
 DICTIONARY_FORMAT = "hapticframe-sparse-dictionaries"
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 2
+#: Versions :meth:`SparseCodingExtractor.load` reads (1: no amplitude references).
+_READABLE_VERSIONS = (1, 2)
 
 
 def _version_of(distribution: str) -> str | None:
@@ -41,6 +46,10 @@ def _code_channel(modality: Modality) -> str:
     return f"{modality}_code"
 
 
+def _amplitude_channel(modality: Modality) -> str:
+    return f"{modality}_amplitude"
+
+
 class SparseCodingExtractor(FeatureExtractor):
     """Sparse codes of the flattened feature tensors (dissertation Figure 2.2d).
 
@@ -49,6 +58,11 @@ class SparseCodingExtractor(FeatureExtractor):
     ℓ2 norm, and encoded by the lasso ``min_u 0.5 ||z - D^T u||^2 + λ ||u||_1`` with
     λ = 1.2 / sqrt(m) over a dictionary D of k atoms (200, 100, 100), giving ``pac_code``,
     ``pdc_code`` and ``electrodes_code``.
+
+    With config ``amplitude="channel"`` (not the thesis) each modality also gets
+    ``<modality>_amplitude`` (2,): the size and offset the normalisation removed
+    (:func:`._sparse.amplitude_features`), relative to the median centred norm of the
+    training tensors (learned by :meth:`fit`, saved with the dictionaries; 1.0 before).
 
     Encoding (config ``encoder``) is our coordinate descent on the Gram matrix
     (:mod:`._lasso_kernel`, compiled with numba) or, without numba,
@@ -82,6 +96,7 @@ class SparseCodingExtractor(FeatureExtractor):
             m: random_dictionary(self.n_atoms(m), self.dimension(m), context.rng)
             for m in self.modalities
         }
+        self.amplitude_references: dict[Modality, float] = {m: 1.0 for m in self.modalities}
         self._seed = int(context.rng.integers(2**31 - 1))
         self.fitted = False
         self.fit_stats: dict[str, Any] = {}
@@ -126,11 +141,19 @@ class SparseCodingExtractor(FeatureExtractor):
         self._penalties = {m: self.penalty(m) for m in self.modalities}
 
     @property
+    def emits_amplitude(self) -> bool:
+        """Whether ``<modality>_amplitude`` channels are emitted (config ``amplitude``)."""
+        return self.config.amplitude == "channel"
+
+    @property
     def output_channels(self) -> Mapping[str, ChannelInfo]:
-        return {
-            _code_channel(m): ChannelInfo((self.n_atoms(m),), "1", self.config.frame_rate_hz)
-            for m in self.modalities
-        }
+        rate = self.config.frame_rate_hz
+        out = {}
+        for m in self.modalities:
+            out[_code_channel(m)] = ChannelInfo((self.n_atoms(m),), "1", rate)
+            if self.emits_amplitude:
+                out[_amplitude_channel(m)] = ChannelInfo((len(AMPLITUDE_FEATURES),), "1", rate)
+        return out
 
     # -- streaming -----------------------------------------------------------------------
 
@@ -170,6 +193,11 @@ class SparseCodingExtractor(FeatureExtractor):
                 backend=self.config.encoder,
             )
             valid[_code_channel(m)] = ok
+            if self.emits_amplitude:
+                codes[_amplitude_channel(m)] = amplitude_features(
+                    rows, ok, self.amplitude_references[m]
+                )
+                valid[_amplitude_channel(m)] = ok
         return SampleBatch(batch.timestamps_s, codes, valid)
 
     # -- learning --------------------------------------------------------------------------
@@ -177,7 +205,8 @@ class SparseCodingExtractor(FeatureExtractor):
     def fit(self, batches: Sequence[SampleBatch]) -> None:
         """Learn one dictionary per modality from feature batches (``emd-features`` output).
 
-        Invalid, non-finite and constant tensors are left out.
+        Invalid, non-finite and constant tensors are left out. The median centred norm of
+        the tensors used becomes the modality's amplitude reference.
 
         Raises
         ------
@@ -188,11 +217,13 @@ class SparseCodingExtractor(FeatureExtractor):
             raise ValueError("fit needs at least one batch of feature tensors")
         stats: dict[str, Any] = {}
         learned: dict[Modality, NDArray[np.float64]] = {}
+        references: dict[Modality, float] = {}
         for m in self.modalities:
             parts = [self._rows(b, m) for b in batches]
             rows = np.concatenate([p[0] for p in parts])
             ok = np.concatenate([p[1] for p in parts])
             z, flat = normalise_rows(rows)
+            references[m] = amplitude_reference(rows[ok & ~flat])
             learned[m], stats[m] = learn_dictionary(
                 z[ok & ~flat],
                 self.n_atoms(m),
@@ -203,6 +234,7 @@ class SparseCodingExtractor(FeatureExtractor):
                 batch_size=self.config.fit_batch_size,
             )
         self.dictionaries = learned
+        self.amplitude_references = references
         self.fitted = True
         self.fit_stats = stats
         self._refresh()
@@ -220,6 +252,11 @@ class SparseCodingExtractor(FeatureExtractor):
             "lambda_scale": self.config.lambda_scale,
             "lambda": {m: self.penalty(m) for m in self.modalities},
             "normalisation": "each flattened tensor centred and scaled to unit l2 norm",
+            "amplitude": {
+                "mode": self.config.amplitude,
+                "features": list(AMPLITUDE_FEATURES),
+                "reference": {m: self.amplitude_references[m] for m in self.modalities},
+            },
             "encoder": {
                 "objective": "0.5 ||z - D^T u||^2 + lambda ||u||_1, z centred and unit-norm",
                 "solver": "coordinate descent on the Gram matrix, tol 1e-8 (numba), or "
@@ -245,7 +282,12 @@ class SparseCodingExtractor(FeatureExtractor):
         """Write ``PATH.npz`` (the dictionaries) and ``PATH.json`` (metadata); return both."""
         base = Path(path)
         arrays, meta = base.with_suffix(".npz"), base.with_suffix(".json")
-        np.savez(arrays, **{f"{m}_dictionary": self.dictionaries[m] for m in self.modalities})
+        payload = {f"{m}_dictionary": self.dictionaries[m] for m in self.modalities}
+        payload.update(
+            {f"{m}_amplitude_reference": np.array(self.amplitude_references[m])
+             for m in self.modalities}
+        )  # fmt: skip
+        np.savez(arrays, **payload)
         meta.write_text(json.dumps(self.metadata(), indent=2, allow_nan=False) + "\n")
         return arrays, meta
 
@@ -262,7 +304,7 @@ class SparseCodingExtractor(FeatureExtractor):
         meta = json.loads(base.with_suffix(".json").read_text())
         if meta.get("format") != DICTIONARY_FORMAT:
             raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
-        if meta.get("format_version") != _FORMAT_VERSION:
+        if meta.get("format_version") not in _READABLE_VERSIONS:
             raise ValueError(f"unsupported dictionary format version {meta.get('format_version')}")
         if not np.isclose(float(meta["lambda_scale"]), self.config.lambda_scale):
             raise ValueError(
@@ -270,6 +312,7 @@ class SparseCodingExtractor(FeatureExtractor):
                 f"says {self.config.lambda_scale}"
             )
         loaded: dict[Modality, NDArray[np.float64]] = {}
+        references: dict[Modality, float] = {}
         with np.load(base.with_suffix(".npz"), allow_pickle=False) as data:
             for m in self.modalities:
                 key = f"{m}_dictionary"
@@ -280,7 +323,14 @@ class SparseCodingExtractor(FeatureExtractor):
                 if d.shape != expected or not np.isfinite(d).all():
                     raise ValueError(f"{key} has shape {d.shape}, expected finite {expected}")
                 loaded[m] = d
+                # Version 1 files predate the amplitude channel: unit reference.
+                ref_key = f"{m}_amplitude_reference"
+                ref = float(data[ref_key]) if ref_key in data else 1.0
+                if not (np.isfinite(ref) and ref > 0):
+                    raise ValueError(f"{ref_key} must be positive and finite, got {ref}")
+                references[m] = ref
         self.dictionaries = loaded
+        self.amplitude_references = references
         self.fitted = bool(meta.get("fitted", False))
         self.fit_stats = dict(meta.get("fit", {}).get("stats", {}))
         self._refresh()

@@ -212,7 +212,11 @@ def test_fit_save_load_round_trip(tmp_path: Path) -> None:
     assert meta["lambda"]["pac"] == pytest.approx(1.2 / np.sqrt(176))
     assert meta["versions"]["numpy"] == np.__version__ and meta["versions"]["scikit-learn"]
     with np.load(arrays, allow_pickle=False) as data:
-        assert sorted(data.files) == ["electrodes_dictionary", "pac_dictionary", "pdc_dictionary"]
+        assert sorted(data.files) == sorted(
+            f"{m}_{what}"
+            for m in ("pac", "pdc", "electrodes")
+            for what in ("dictionary", "amplitude_reference")
+        )
     # A component built from the file (another seed) gives the same codes.
     loaded = _coder(seed=99, dictionary_file=str(tmp_path / "dictionaries"), **config)
     assert loaded.fitted
