@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -48,3 +49,35 @@ def test_the_example_trains_first_and_writes_the_timeline_and_snapshots(tmp_path
     assert frames > 200  # one trial of about 3 s at 100 frames/s
     assert probabilities.shape[1] == 2 and np.all(np.isfinite(probabilities))
     assert np.allclose(probabilities.sum(axis=1), 1.0)
+
+
+def test_saved_artifacts_reproduce_the_run_time_fit(tmp_path):
+    # `hapticframe train` on the example saves what `run.train_from` would fit in the run;
+    # a run that loads those artifacts must then classify every frame identically.
+    text = EXAMPLE.read_text().replace("n_trials: 40", "n_trials: 4").replace("max_epochs: 8", "max_epochs: 1")
+    text = text.replace("../schemas/", str(ROOT / "schemas") + "/")
+    fitted_in_run = tmp_path / "fit-in-run.yaml"
+    fitted_in_run.write_text(text)
+    assert main(["train", str(fitted_in_run), "--out", str(tmp_path / "artifacts")]) == 0
+    assert (tmp_path / "artifacts" / "codes" / "dictionaries.npz").is_file()
+    assert (tmp_path / "artifacts" / "sf-rnn" / "weights.pt").is_file()
+
+    loaded = text.replace("config: {amplitude: channel}",
+                          f"config: {{amplitude: channel, dictionary_file: '{tmp_path / 'artifacts' / 'codes'}'}}")
+    loaded = loaded.replace("config: {max_epochs: 1, amplitude_inputs: true}",
+                            f"config: {{amplitude_inputs: true, model_dir: '{tmp_path / 'artifacts' / 'sf-rnn'}'}}")
+    loaded = loaded.replace("  train_from: {fingertip: training-trials}\n", "  label_channel: contact\n")
+    loaded = re.sub(r"  - id: training-trials\n    type: biotac\n    config: \{[^}]*\}\n", "", loaded)
+    assert "training-trials" not in loaded.split("sensors:")[1]
+    assert "train_from: {" not in loaded and "dictionary_file" in loaded and "model_dir" in loaded
+    from_files = tmp_path / "from-files.yaml"
+    from_files.write_text(loaded)
+
+    runs = {}
+    for name, path in (("fit", fitted_in_run), ("files", from_files)):
+        out = tmp_path / name
+        assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
+        with np.load(out / "trace.npz", allow_pickle=False) as trace:
+            runs[name] = trace["classifier/sf-rnn/probabilities"]
+    assert runs["fit"].shape == runs["files"].shape and len(runs["fit"]) > 200
+    np.testing.assert_allclose(runs["files"], runs["fit"], rtol=0, atol=1e-6)

@@ -186,8 +186,9 @@ class SparseCodingConfig(PluginConfig):
     )
     dictionary_file: str | None = Field(
         None,
-        description="A dictionary saved by SparseCodingExtractor.save (.npz beside its "
-        ".json) to load at build time.",
+        description="Dictionaries saved by SparseCodingExtractor.save to load at build time: "
+        "the .npz/.json pair's path without suffix, or the directory `hapticframe train` "
+        "wrote for this component.",
     )
 
     _check_modalities = field_validator("modalities")(_unique_modalities)

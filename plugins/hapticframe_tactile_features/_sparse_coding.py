@@ -279,8 +279,12 @@ class SparseCodingExtractor(FeatureExtractor):
         }
 
     def save(self, path: str | Path) -> tuple[Path, Path]:
-        """Write ``PATH.npz`` (the dictionaries) and ``PATH.json`` (metadata); return both."""
-        base = Path(path)
+        """Write ``PATH.npz`` (the dictionaries) and ``PATH.json`` (metadata); return both.
+
+        ``PATH`` may be an existing directory (as ``hapticframe train`` passes one): the
+        files are then ``dictionaries.npz`` and ``dictionaries.json`` inside it.
+        """
+        base = _stem(path)
         arrays, meta = base.with_suffix(".npz"), base.with_suffix(".json")
         payload = {f"{m}_dictionary": self.dictionaries[m] for m in self.modalities}
         payload.update(
@@ -292,7 +296,8 @@ class SparseCodingExtractor(FeatureExtractor):
         return arrays, meta
 
     def load(self, path: str | Path) -> None:
-        """Read dictionaries written by :meth:`save` (``PATH.npz`` and ``PATH.json``).
+        """Read dictionaries written by :meth:`save` (``PATH.npz`` and ``PATH.json``, or
+        ``dictionaries.*`` inside ``PATH`` when it is a directory).
 
         Raises
         ------
@@ -300,7 +305,7 @@ class SparseCodingExtractor(FeatureExtractor):
             If the files are not such a pair, or lack a configured modality, or their
             shapes or λ differ from this component's config.
         """
-        base = Path(path)
+        base = _stem(path)
         meta = json.loads(base.with_suffix(".json").read_text())
         if meta.get("format") != DICTIONARY_FORMAT:
             raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
@@ -334,3 +339,9 @@ class SparseCodingExtractor(FeatureExtractor):
         self.fitted = bool(meta.get("fitted", False))
         self.fit_stats = dict(meta.get("fit", {}).get("stats", {}))
         self._refresh()
+
+
+def _stem(path: str | Path) -> Path:
+    """The file stem of a dictionary pair: ``PATH``, or ``PATH/dictionaries`` for a directory."""
+    base = Path(path)
+    return base / "dictionaries" if base.is_dir() else base

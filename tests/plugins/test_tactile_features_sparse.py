@@ -225,6 +225,19 @@ def test_fit_save_load_round_trip(tmp_path: Path) -> None:
         assert np.array_equal(loaded.update(probe).channels[name], codes)
 
 
+def test_a_directory_holds_the_pair_as_hapticframe_train_passes_one(tmp_path: Path) -> None:
+    config = {"pac_atoms": 12, "pdc_atoms": 8, "electrodes_atoms": 8}
+    coder = _coder(seed=3, **config)
+    target = tmp_path / "codes"
+    target.mkdir()
+    arrays, meta = coder.save(target)
+    assert (arrays, meta) == (target / "dictionaries.npz", target / "dictionaries.json")
+    assert arrays.is_file() and meta.is_file()
+    loaded = _coder(seed=98, dictionary_file=str(target), **config)
+    for m in ("pac", "pdc", "electrodes"):
+        assert np.array_equal(loaded.dictionaries[m], coder.dictionaries[m])
+
+
 def test_load_rejects_mismatched_files(tmp_path: Path) -> None:
     _coder(pac_atoms=12, pdc_atoms=8, electrodes_atoms=8).save(tmp_path / "d")
     with pytest.raises(ValueError, match="shape"):
