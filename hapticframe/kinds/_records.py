@@ -201,9 +201,9 @@ class ClassProbabilities:
         _check_rows("probabilities", p, t.size)
         if p.shape[1] != len(self.classes):
             raise ValueError(f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes")
-        if p.shape[0] == 1 and p.size and _clearly_valid_row(p[0].tolist()):
-            pass
-        elif p.size:
+        # One clearly valid row (a closed loop's tick) skips the array checks below.
+        clearly_valid = p.shape[0] == 1 and p.size > 0 and _clearly_valid_row(p[0].tolist())
+        if p.size and not clearly_valid:
             if not np.isfinite(p).all():
                 raise ValueError("probabilities contain NaN or infinity")
             if p.min() < 0 or p.max() > 1:
