@@ -232,10 +232,12 @@ class Session:
         m = result.movement
         force = "" if math.isnan(result.max_force_n) else f"  max force {result.max_force_n:5.1f} N"
         state = result.final_class or "-"
+        # Fixed-width fields first and the free-form label last, so the columns line up.
+        label = f"  {m.label}" if m.label else ""
         self.echo(
-            f"EM {result.index + 1:>3} {m.phase or '':<7} {m.label or '':<16} "
+            f"EM {result.index + 1:>3} {m.phase or '':<7} "
             f"{result.halt_reason or 'completed':<12} state {state:<8} "
-            f"{steps:>5d} steps{force}"
+            f"{steps:>5d} steps{force or '':<18}{label}"
         )
 
     # --- results --------------------------------------------------------------------------
