@@ -237,7 +237,7 @@ class Session:
         self.echo(
             f"EM {result.index + 1:>3} {m.phase or '':<7} "
             f"{result.halt_reason or 'completed':<12} state {state:<8} "
-            f"{steps:>5d} steps{force or '':<18}{label}"
+            f"{steps:>5d} steps{force:<18}{label}"
         )
 
     # --- results --------------------------------------------------------------------------
