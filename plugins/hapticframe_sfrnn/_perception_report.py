@@ -154,7 +154,10 @@ def render_markdown(result: dict[str, Any]) -> str:
         + ", ".join(f"{k} {100 * v:.0f} %" for k, v in data["contact_fraction"].items()) + ".",
         f"- Models: {plan['seeds']} seeds per cell, at most {plan['max_epochs']} epochs "
         f"(patience {plan['patience']}) for the recurrent ones; dictionaries learned from "
-        f"{plan['coder_fit_frames']} training frames.",
+        f"{plan['coder_fit_frames']} training frames. The recurrent models are given the train "
+        "and validation trials together and hold out a validation-sized share of whole trials "
+        "at random for early stopping, so their 'validation' row is partly in-sample; the "
+        "test and robustness rows are not.",
         f"- Metric: {result['accuracy_metric']}. The thesis reports accuracy on real "
         "recordings; its numbers are given for the form, not as a target for synthetic data.",
         "- Decisions: the recurrent models (class-balanced loss) take the likelier state; "

@@ -67,21 +67,13 @@ def test_registration_spec():
 
 
 def test_registration_module_is_import_light():
-    root = Path(__file__).resolve().parents[2]
     code = (
         "import sys, hapticframe_jamming.plugin, hapticframe_jamming;"
         "heavy = [m for m in ('hapticframe_jamming._classifier',"
         " 'hapticframe_jamming._calibration') if m in sys.modules];"
         "print(heavy); sys.exit(1 if heavy else 0)"
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", code],
-        check=False,
-        env={"PYTHONPATH": f"{root / 'plugins'}:{root}"},
-        capture_output=True,
-        text=True,
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    _assert_exits_cleanly(code)
 
 
 def test_config_rejects_bad_values():
@@ -342,7 +334,6 @@ def test_filter_state_holds_a_constant_and_both_paths_agree():
 
 
 def test_classifying_a_stream_does_not_import_scipy_signal():
-    root = Path(__file__).resolve().parents[2]
     code = (
         "import sys, numpy as np;"
         "from hapticframe.kinds import BuildContext, SampleBatch;"
@@ -353,14 +344,7 @@ def test_classifying_a_stream_does_not_import_scipy_signal():
         " {'force_n': np.array([[3.0 + k, 1.0]])})) for k in range(30)];"
         "sys.exit(1 if 'scipy.signal' in sys.modules else 0)"
     )
-    proc = subprocess.run(
-        [sys.executable, "-c", code],
-        check=False,
-        env={"PYTHONPATH": f"{root / 'plugins'}:{root}"},
-        capture_output=True,
-        text=True,
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    _assert_exits_cleanly(code)
 
 
 @pytest.mark.parametrize("order", [1, 2, 4])
@@ -391,3 +375,16 @@ def test_one_sample_filter_steps_equal_the_array_filter(order):
         k += size
     np.testing.assert_array_equal(force, whole[0])
     np.testing.assert_array_equal(rate, whole[1])
+
+
+def _assert_exits_cleanly(code: str) -> None:
+    """Run ``code`` in a fresh interpreter (nothing imported yet) and expect exit status 0."""
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        check=False,
+        env={"PYTHONPATH": f"{root / 'plugins'}:{root}"},
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
