@@ -299,26 +299,48 @@ class Dataflow:
 
     def tick(self) -> bool:
         """Read every sensor once and push the samples through. True if any sample arrived."""
+        return self.commit(*self.read_and_classify())
+
+    def read_and_classify(
+        self,
+    ) -> tuple[dict[str, SampleBatch], dict[str, ClassProbabilities]]:
+        """Read every sensor once and run the extractors and classifiers; record nothing.
+
+        The first half of :meth:`tick`: a closed loop that looks ahead inspects the
+        classifiers' output before it decides to keep the samples (:meth:`commit`) or to
+        rewind the components that made them.
+        """
         outputs: dict[str, SampleBatch] = {}
-        arrived = False
         for sensor_id in self.sensors:
             sensor: Sensor = self.components[sensor_id]  # type: ignore[assignment]
-            batch = sensor.read()
-            outputs[sensor_id] = batch
+            outputs[sensor_id] = sensor.read()
+        for fe_id in self.extractors:
+            extractor: FeatureExtractor = self.components[fe_id]  # type: ignore[assignment]
+            outputs[fe_id] = extractor.update(self._inputs(fe_id, outputs))
+        classified: dict[str, ClassProbabilities] = {}
+        for clf_id in self.classifiers:
+            classifier: Classifier = self.components[clf_id]  # type: ignore[assignment]
+            classified[clf_id] = classifier.update(self._inputs(clf_id, outputs))
+        return outputs, classified
+
+    def commit(
+        self, outputs: Mapping[str, SampleBatch], classified: Mapping[str, ClassProbabilities]
+    ) -> bool:
+        """Record what :meth:`read_and_classify` produced and route it to the sensor models
+        and maps (the second half of :meth:`tick`). True if any sensor sample arrived."""
+        arrived = False
+        for sensor_id in self.sensors:
+            batch = outputs[sensor_id]
             if len(batch):
                 arrived = True
                 self._record_batch("sensor", sensor_id, batch)
-                self._track_force(sensor, batch)
+                self._track_force(self.components[sensor_id], batch)  # type: ignore[arg-type]
                 if sensor_id in self.poses:
                     self.poses[sensor_id].add_batch(batch)
         for fe_id in self.extractors:
-            extractor: FeatureExtractor = self.components[fe_id]  # type: ignore[assignment]
-            out = extractor.update(self._inputs(fe_id, outputs))
-            outputs[fe_id] = out
-            self._record_batch("feature_extractor", fe_id, out)
+            self._record_batch("feature_extractor", fe_id, outputs[fe_id])
         for clf_id in self.classifiers:
-            classifier: Classifier = self.components[clf_id]  # type: ignore[assignment]
-            probs = classifier.update(self._inputs(clf_id, outputs))
+            probs = classified[clf_id]
             if len(probs):
                 self.latest[clf_id] = probs
                 self.recorder.add(f"classifier/{clf_id}/timestamps_s", probs.timestamps_s)
@@ -328,6 +350,21 @@ class Dataflow:
                     self.recorder.set(f"classifier/{clf_id}/classes", np.array(probs.classes))
             self._observe(clf_id, probs)
         return arrived
+
+    def holds_interaction(self, classified: Mapping[str, ClassProbabilities]) -> bool:
+        """True if any row of the primary classifier's output is not its background class
+        (the rows :meth:`interaction_detected` would have seen one tick at a time)."""
+        clf = self.primary_classifier
+        probs = classified.get(clf) if clf is not None else None
+        if probs is None or not len(probs):
+            return False
+        return bool(np.any(np.argmax(probs.probabilities, axis=1) != 0))
+
+    @property
+    def rewindable(self) -> list[str]:
+        """The components a look-ahead batch changes: streamed sensors, extractors and
+        classifiers (sensor models and maps see only committed samples)."""
+        return self.sensors + self.extractors + self.classifiers
 
     def _observe(self, clf_id: str, probs: ClassProbabilities) -> None:
         if not len(probs):

@@ -166,36 +166,17 @@ class Session:
 
     def _closed_loop(self, flow: Dataflow, planner: Planner, robot: Robot) -> None:
         limit = min(self.settings.max_movements, planner.max_movements)
-        # Settings read once: the step loop below runs some 20,000 times per search.
-        every = self.settings.map_update_every_steps
-        halt_on_interaction = self.settings.halt_on_interaction
-        max_steps = self.settings.max_steps_per_movement
+        chain: list[Component] = [robot, *(self.components[i] for i in flow.rewindable)]
+        lookahead = self.settings.lookahead_steps
         for index in range(limit):
             movement = planner.propose()
             if movement is None:
                 return
             flow.start_stream()
             robot.begin(movement)
-            robot_id = robot.id
-            halted_by_loop = ""
-            steps = 0
-            for steps in range(1, max_steps + 1):
-                state = robot.step()
-                if state is None:
-                    break
-                flow.record_robot_state(robot_id, state, index)
-                flow.tick()
-                if every and steps % every == 0:
-                    flow.flush_maps()
-                if halt_on_interaction and not halted_by_loop:
-                    detected = flow.interaction_detected()
-                    if detected is not None:
-                        halted_by_loop = "interaction"
-                        robot.halt("interaction")
-            else:
-                raise RunError(
-                    f"movement {index + 1} did not end within {self.settings.max_steps_per_movement} steps"
-                )
+            if lookahead > 1 and any(c.checkpoint() is None for c in chain):
+                lookahead = 1  # a component that cannot rewind: one step at a time
+            steps, halted_by_loop = self._movement(flow, robot, index, chain, lookahead)
             flow.flush_maps()
             reason = halted_by_loop or robot.halt_reason
             result = MovementResult(
@@ -212,6 +193,69 @@ class Session:
             for component in self.components.values():
                 component.on_movement_end(result)
         self.echo(f"stopped after {limit} movements (the movement limit)")
+
+    def _movement(
+        self, flow: Dataflow, robot: Robot, index: int, chain: list[Component], lookahead: int
+    ) -> tuple[int, str]:
+        """Step the robot through the movement it has begun; returns the steps taken and
+        ``"interaction"`` when the loop halted it.
+
+        With ``lookahead > 1`` the robot runs up to that many steps ahead and the chain
+        classifies them as one batch. A batch in which the primary classifier reports an
+        interaction is rewound (``chain``: the robot, streamed sensors, extractors and
+        classifiers) and replayed one step at a time, so the loop halts at the same step,
+        with the same records, as without look-ahead. Batches end on multiples of
+        ``run.map_update_every_steps`` so that maps are updated at the same steps too.
+        """
+        # Settings read once: the step loop below runs some 20,000 times per search.
+        every = self.settings.map_update_every_steps
+        halt_on_interaction = self.settings.halt_on_interaction
+        max_steps = self.settings.max_steps_per_movement
+        robot_id = robot.id
+        halted_by_loop = ""
+        steps = 0
+        replay_until = 0  # steps below this run one at a time (a rewound batch)
+        while True:
+            if steps >= max_steps:
+                raise RunError(f"movement {index + 1} did not end within {max_steps} steps")
+            batch = min(lookahead, max_steps - steps)
+            if every:
+                batch = min(batch, every - steps % every)
+            if batch > 1 and steps >= replay_until and not halted_by_loop:
+                snapshots = [component.checkpoint() for component in chain]
+                states = []
+                for _ in range(batch):
+                    state = robot.step()
+                    if state is None:
+                        break
+                    states.append(state)
+                if not states:
+                    break
+                outputs, classified = flow.read_and_classify()
+                if halt_on_interaction and flow.holds_interaction(classified):
+                    for component, snapshot in zip(chain, snapshots):
+                        component.rewind(snapshot)
+                    replay_until = steps + len(states)
+                    continue
+                for state in states:
+                    flow.record_robot_state(robot_id, state, index)
+                flow.commit(outputs, classified)
+                steps += len(states)
+            else:
+                state = robot.step()
+                if state is None:
+                    break
+                steps += 1
+                flow.record_robot_state(robot_id, state, index)
+                flow.tick()
+                if halt_on_interaction and not halted_by_loop:
+                    detected = flow.interaction_detected()
+                    if detected is not None:
+                        halted_by_loop = "interaction"
+                        robot.halt("interaction")
+            if every and steps % every == 0:
+                flow.flush_maps()
+        return steps, halted_by_loop
 
     def _open_loop(self, flow: Dataflow) -> None:
         sensors: list[Sensor] = [

@@ -38,6 +38,14 @@ class RunSettings(BaseModel):
         0, ge=0,
         description="Update maps every N steps during a movement; 0 updates once per movement.",
     )
+    lookahead_steps: int = Field(
+        64, ge=1, le=4096,
+        description="Robot steps a closed loop may simulate ahead and classify as one batch "
+        "when the robot, the streamed sensors, the feature extractors and the classifiers "
+        "can all rewind (simulators); a batch that holds an interaction is rewound and "
+        "replayed one step at a time, so results are the same for every value. 1 steps one "
+        "at a time.",
+    )
     outline_level: float = Field(
         0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
     )

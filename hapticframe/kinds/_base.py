@@ -98,6 +98,24 @@ class Component(ABC):
     def on_movement_end(self, result: MovementResult) -> None:
         """Called after each exploratory movement in a closed-loop run. Default: nothing."""
 
+    def checkpoint(self) -> Any | None:
+        """A snapshot of the state that stepping, reading or classifying changes, or None.
+
+        A closed loop may run a simulated robot several steps ahead and classify them as one
+        batch (``run.lookahead_steps``); when a sample in the batch says "interaction", it
+        rewinds the robot, the sensors, the feature extractors and the classifiers to the
+        snapshot taken before the batch and replays those steps one at a time. It does so
+        only when every one of them returns a snapshot here, so the default (None: cannot
+        rewind) keeps a component on the one-step-at-a-time path. A component that returns
+        one must make :meth:`rewind` restore exactly that state, random generators
+        included, so a run's results do not depend on the lookahead.
+        """
+        return None
+
+    def rewind(self, checkpoint: Any) -> None:
+        """Return to the state of a snapshot this component's :meth:`checkpoint` made."""
+        raise NotImplementedError(f"{type(self).__name__} cannot rewind")
+
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         """Write figures into ``outcome.out_dir`` and return metrics for ``metrics.json``.
 

@@ -15,7 +15,7 @@ and batch agreeing, the config's JSON Schema round trip, lazy importing, and num
 extremes (zero, constant, huge, tiny and NaN input give finite output or a clear error).
 """
 
-from . import _spatial, _streams  # noqa: F401  (registers the kind checks)
+from . import _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
 from ._common import (
     CHECKS,
     HEAVY_MODULES,
@@ -25,6 +25,7 @@ from ._common import (
     check_spec_record,
 )
 from ._harness import DEFAULT_SCENE, CheckFailure, KitMap, make_component, synthetic_batch
+from ._rewind import check_rewind
 from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
 from ._spatial import (
     check_deterministic,
@@ -65,6 +66,7 @@ __all__ = [
     "check_map_streaming_matches_batch",
     "check_numerical_extremes",
     "check_planner_contract",
+    "check_rewind",
     "check_robot_contract",
     "check_robot_halt",
     "check_sensor_contract",

@@ -152,7 +152,7 @@ def check_builds(spec: PluginSpec, *, registry: Registry | None = None) -> None:
 
 
 def outputs_equal(a: Any, b: Any) -> bool:
-    """Exact equality of nested outputs (arrays compared with NaN == NaN)."""
+    """Exact equality of nested outputs (NaN == NaN, in arrays and as floats)."""
     import numpy as np
 
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
@@ -162,4 +162,6 @@ def outputs_equal(a: Any, b: Any) -> bool:
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         a_arr, b_arr = np.asarray(a), np.asarray(b)
         return a_arr.shape == b_arr.shape and bool(np.array_equal(a_arr, b_arr, equal_nan=True))
+    if isinstance(a, float) and isinstance(b, float) and a != a and b != b:
+        return True  # NaN == NaN, as for arrays
     return bool(a == b)

@@ -9,8 +9,11 @@ Speed
 The Butterworth sections are designed in numpy (:func:`._functional.butterworth_sos`), so
 building a classifier does not import ``scipy.signal`` (about 0.6 s), and a closed loop's
 one-sample updates run the filter, the rate and the softmax in plain floats
-(:meth:`ForceRateJammingClassifier._update_single`, about 10 µs instead of 0.45 ms); both
-paths give the same numbers to rounding, and batches take the array path.
+(:meth:`ForceRateJammingClassifier._scalar_row`, about 10 µs instead of 0.45 ms). Batches of
+up to :data:`ROW_BY_ROW_MAX` samples (a closed loop that looks ahead classifies a few dozen
+steps at once) run the same plain-float code row by row, so they give bit for bit the numbers
+of one-sample updates; longer batches (whole recordings) take the array path, which agrees to
+rounding.
 
 Invalid samples
 ---------------
@@ -45,6 +48,8 @@ __all__ = ["CLASSES", "ForceRateJammingClassifier", "ForceRateTracker"]
 
 CLASSES = ("free", "jamming", "contact")
 DEFAULT_SAMPLE_RATE_HZ = 100.0
+#: Longest batch that :meth:`ForceRateJammingClassifier.update` classifies row by row.
+ROW_BY_ROW_MAX = 4096
 
 
 class ForceRateTracker:
@@ -73,6 +78,27 @@ class ForceRateTracker:
         self._last_y: float | None = None
         self._last_t: float | None = None  # time of the last filtered sample
         self._last_seen_t = -np.inf  # time of the last sample of any kind
+
+    def snapshot(self) -> tuple[object, ...]:
+        """The whole streaming state (copies), for :meth:`restore`."""
+        return (
+            None if self._zi is None else self._zi.copy(),
+            None if self._registers is None else [list(r) for r in self._registers],
+            self._held,
+            self._last_y,
+            self._last_t,
+            self._last_seen_t,
+        )
+
+    def restore(self, snapshot: tuple[object, ...]) -> None:
+        """Return to the state :meth:`snapshot` returned."""
+        zi, registers, held, last_y, last_t, last_seen_t = snapshot
+        self._zi = None if zi is None else np.array(zi, dtype=np.float64)
+        self._registers = None if registers is None else [list(r) for r in registers]  # type: ignore[union-attr]
+        self._held = held  # type: ignore[assignment]
+        self._last_y = last_y  # type: ignore[assignment]
+        self._last_t = last_t  # type: ignore[assignment]
+        self._last_seen_t = last_seen_t  # type: ignore[assignment]
 
     def process(
         self,
@@ -214,15 +240,25 @@ class ForceRateJammingClassifier(Classifier):
     def reset(self) -> None:
         self._tracker.reset()
 
+    def checkpoint(self) -> tuple[object, ...]:
+        """The filter state (the classifier keeps no other state between updates)."""
+        return self._tracker.snapshot()
+
+    def rewind(self, checkpoint: tuple[object, ...]) -> None:
+        self._tracker.restore(checkpoint)
+
     def on_movement_end(self, result: MovementResult) -> None:
         # Each exploratory movement is a fresh approach: the last one's force says nothing.
         self.reset()
 
     def update(self, batch: SampleBatch) -> ClassProbabilities:
-        if len(batch) == 1:
-            single = self._update_single(batch)
-            if single is not None:
-                return single
+        n = len(batch)
+        channel = batch.channels.get(self.config.force_channel)
+        if 0 < n <= ROW_BY_ROW_MAX and channel is not None and channel.size <= 3 * n:
+            return self._update_rows(batch, channel)
+        return self._update_array(batch)
+
+    def _update_array(self, batch: SampleBatch) -> ClassProbabilities:
         force, rate, initialised = self._track(batch)
         probabilities = np.full((len(batch), len(CLASSES)), 1.0 / len(CLASSES))
         if initialised.any():
@@ -235,20 +271,40 @@ class ForceRateJammingClassifier(Classifier):
             )
         return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
 
-    def _update_single(self, batch: SampleBatch) -> ClassProbabilities | None:
-        """The one-sample update of a closed loop, in plain floats (same numbers as the
-        array path to rounding; None when the sample needs the general path)."""
-        name = self.config.force_channel
-        channel = batch.channels.get(name)
-        if channel is None or channel.size > 3:
+    def _update_rows(self, batch: SampleBatch, channel: NDArray[np.float64]) -> ClassProbabilities:
+        """Each row as a one-sample update: the plain-float path where it applies, else the
+        array path on that row alone."""
+        n = len(batch)
+        times = batch.timestamps_s.tolist()
+        rows = channel.reshape(n, -1).tolist()
+        valid = batch.valid.get(self.config.force_channel)
+        flags = [True] * n if valid is None else [bool(v) for v in valid.tolist()]
+        if n == 1:
+            row = self._scalar_row(times[0], rows[0], flags[0])
+            if row is None:
+                return self._update_array(batch)
+            return ClassProbabilities(batch.timestamps_s, np.array([row]), CLASSES)
+        probabilities = np.empty((n, len(CLASSES)))
+        for i in range(n):
+            row = self._scalar_row(times[i], rows[i], flags[i])
+            if row is None:
+                single = self._update_array(batch.select(slice(i, i + 1)))
+                probabilities[i] = single.probabilities[0]
+            else:
+                probabilities[i] = row
+        return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
+
+    def _scalar_row(
+        self, t: float, components: list[float], valid: bool
+    ) -> tuple[float, float, float] | None:
+        """Probabilities of one sample in plain floats (same numbers as the array path to
+        rounding); None, changing nothing, when the sample needs the array path."""
+        if not valid or len(components) > 3:
             return None
-        valid = batch.valid.get(name)
-        if valid is not None and not bool(valid[0]):
-            return None
-        magnitude = math.sqrt(sum([v * v for v in channel.ravel().tolist()]))
+        magnitude = math.sqrt(sum([v * v for v in components]))
         if not (math.isfinite(magnitude) and magnitude <= F.MAX_FORCE_N):
             return None
-        filtered = self._tracker.process_one(float(batch.timestamps_s[0]), magnitude)
+        filtered = self._tracker.process_one(t, magnitude)
         if filtered is None:
             return None
         sample, rate = filtered
@@ -261,8 +317,7 @@ class ForceRateJammingClassifier(Classifier):
         top = max(0.0, jam, contact)
         w0, w1, w2 = math.exp(-top), math.exp(jam - top), math.exp(contact - top)
         total = w0 + w1 + w2
-        probabilities = np.array([[w0 / total, w1 / total, w2 / total]])
-        return ClassProbabilities(batch.timestamps_s, probabilities, CLASSES)
+        return w0 / total, w1 / total, w2 / total
 
     def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:
         """Learn the four thresholds from labelled recordings, one per exploratory movement.

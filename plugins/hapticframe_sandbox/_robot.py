@@ -248,6 +248,24 @@ class SandboxRobot(Robot):
             self._active = False
             self._halt_reason = str(reason)
 
+    def checkpoint(self) -> tuple[dict[str, Any], int, dict[str, Any]]:
+        """The state a step changes: every attribute, the log length and the generator.
+
+        Attribute values are immutable or, like the ground-truth logs, only appended to
+        within a movement, so a shallow copy suffices. Valid until the movement ends.
+        """
+        return dict(self.__dict__), len(self._log_t), self._rng.bit_generator.state
+
+    def rewind(self, checkpoint: tuple[dict[str, Any], int, dict[str, Any]]) -> None:
+        attributes, logged, generator = checkpoint
+        if attributes["_index"] != self._index or logged > len(self._log_t):
+            raise ValueError(f"robot {self.id!r}: the checkpoint is not from this movement")
+        for log in (self._log_t, self._log_pos, self._log_state, self._log_force,
+                    self._log_index, self._log_depth):
+            del log[logged:]
+        self.__dict__.update(attributes)
+        self._rng.bit_generator.state = generator
+
     def on_movement_end(self, result: MovementResult) -> None:
         self._close_movement()
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 
@@ -70,6 +71,14 @@ class SandboxForceSensor(Sensor):
             return SampleBatch.empty(self._channels)
         noise = self.config.noise_std_n * self._rng.standard_normal(forces.shape)
         return SampleBatch(timestamps, {FORCE_CHANNEL: forces + noise})
+
+    def checkpoint(self) -> tuple[int, dict[str, Any]]:
+        """The read cursor and the noise generator's state."""
+        return self._cursor, self._rng.bit_generator.state
+
+    def rewind(self, checkpoint: tuple[int, dict[str, Any]]) -> None:
+        self._cursor, generator = checkpoint
+        self._rng.bit_generator.state = generator
 
     def reset(self) -> None:
         """Drop unread samples: the next read starts with the robot's next step."""

@@ -169,6 +169,7 @@ class EndlessPlanner(Planner):
 class LineRobotConfig(PluginConfig):
     restart_clock: bool = False
     ignore_halt: bool = False
+    rewind_keeps_progress: bool = False
 
 
 class LineRobot(Robot):
@@ -210,6 +211,15 @@ class LineRobot(Robot):
     def halt(self, reason: str) -> None:
         if not self.config.ignore_halt:
             self._movement = None
+
+    def checkpoint(self):  # type: ignore[no-untyped-def]
+        return self._t, self._s, self._movement, self._state
+
+    def rewind(self, checkpoint) -> None:  # type: ignore[no-untyped-def]
+        t, s, self._movement, self._state = checkpoint
+        self._t = t
+        if not self.config.rewind_keeps_progress:  # the broken variant forgets the distance
+            self._s = s
 
 
 GOOD = [
@@ -259,6 +269,8 @@ BROKEN = [
      "check_robot_contract", "keep increasing"),
     (RobotSpec("ignores-halt", "x", LineRobotConfig, f"{M}:LineRobot", check_config={"ignore_halt": True}),
      "check_robot_halt", "after halt()"),
+    (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
 ]
 
 __all__ = ["BROKEN", "GOOD", "Region"]
