@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.linalg import lapack
 from scipy.special import expit
 
-from ._windowed import DenseRows, WindowedRows
+from ._windowed import DenseRows, WindowedRows, all_finite
 
 __all__ = [
     "GaussianWeights",
@@ -239,7 +239,7 @@ def cholesky_with_jitter(matrix: FloatArray) -> FloatArray:
         When the matrix is not positive definite even after the retries (or not finite).
     """
     a = np.asarray(matrix, dtype=np.float64)
-    if not np.all(np.isfinite(a)):
+    if not all_finite(a):
         raise np.linalg.LinAlgError("matrix to factorise contains NaN or infinity")
     # LAPACK directly: scipy.linalg.cholesky's checks cost as much as the factorisation
     # at D ~ 235. potrf leaves the strict upper triangle untouched, so it is cleared.
@@ -367,9 +367,16 @@ def predictive_moments(
         return mu, np.zeros(0)
     if belief.diagonal:
         return mu, (phi * phi) @ (1.0 / np.diag(belief.precision))
-    whitened = sla.solve_triangular(belief.cholesky, phi.T, lower=True, check_finite=False)
-    var = np.einsum("ij,ij->j", whitened, whitened)
-    return mu, var
+    return mu, _whitened_squared_norms(belief.cholesky, phi)
+
+
+def _whitened_squared_norms(lower: FloatArray, phi: FloatArray) -> FloatArray:
+    """``||L^-1 phi_n||^2`` for every row ``phi_n``: one LAPACK ``trtrs`` for all rows (what
+    ``scipy.linalg.solve_triangular`` calls, without its argument handling)."""
+    whitened, info = lapack.dtrtrs(lower, phi.T, lower=1)
+    if info != 0:  # a zero on the diagonal: cannot happen for a factor potrf produced
+        whitened = sla.solve_triangular(lower, phi.T, lower=True, check_finite=False)
+    return np.einsum("ij,ij->j", whitened, whitened)
 
 
 def xi_from_belief(belief: GaussianWeights, features: FloatArray) -> FloatArray:
@@ -463,7 +470,7 @@ def _xi(belief: GaussianWeights, rows: Any) -> FloatArray:
     elif isinstance(rows, DenseRows) and rows.count <= 4 * belief.dimension:
         # A few rows: one triangular solve (n D^2 / 2 flops) beats a product with the
         # covariance (n D^2) and needs no covariance at all.
-        var = predictive_moments(belief, rows.matrix)[1]
+        var = _whitened_squared_norms(belief.cholesky, rows.matrix)
     else:
         var = rows.quadratic(belief.covariance())
     return np.sqrt(np.maximum(0.0, mu * mu + var))
