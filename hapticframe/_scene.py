@@ -7,6 +7,7 @@ their :class:`~hapticframe.kinds.BuildContext`; evaluation compares maps with it
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Annotated, Literal, Union
 
@@ -55,6 +56,20 @@ class Material(BaseModel):
         return 45.0 - (self.friction_angle_deg + self.dilation_angle_deg) / 4.0
 
 
+@functools.lru_cache(maxsize=64)
+def _placement(
+    center_m: tuple[float, float], orientation_deg: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The centre as an array and the map-to-local rotation of a shape, computed once per
+    placement (a simulator tests points against a shape thousands of times per run)."""
+    a = math.radians(orientation_deg)
+    centre = np.asarray(center_m, dtype=np.float64)
+    to_local = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    centre.setflags(write=False)
+    to_local.setflags(write=False)
+    return centre, to_local
+
+
 class _Shape(BaseModel):
     model_config = _FROZEN
     center_m: tuple[float, float]
@@ -72,10 +87,9 @@ class _Shape(BaseModel):
 
     def contains(self, points_m: NDArray[np.float64]) -> NDArray[np.bool_]:
         """True for points inside the shape."""
-        p = np.atleast_2d(np.asarray(points_m, dtype=np.float64)) - np.asarray(self.center_m)
-        a = math.radians(self.orientation_deg)
-        local = p @ np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-        return self._local_contains(local)
+        centre, to_local = _placement(self.center_m, self.orientation_deg)
+        p = np.atleast_2d(np.asarray(points_m, dtype=np.float64)) - centre
+        return self._local_contains(p @ to_local)
 
     def _local_contains(self, p: NDArray[np.float64]) -> NDArray[np.bool_]:  # pragma: no cover
         raise NotImplementedError

@@ -202,7 +202,9 @@ class SandboxRobot(Robot):
         # An object matters once the fingertip is within its bounding radius plus the
         # failure zone's reach and the plate: (x, y, that distance squared) per object.
         reach = self._rupture + cfg.plate_width_m
-        self._near_limits = [(cx, cy, (radius + reach) ** 2) for cx, cy, radius in self._bounds]
+        self._near_limits = [
+            (cx, cy, (radius + reach) ** 2, radius) for cx, cy, radius in self._bounds
+        ]
         self._eta_deg = (
             cfg.side_crescent_angle_deg
             if cfg.side_crescent_angle_deg is not None
@@ -391,10 +393,16 @@ class SandboxRobot(Robot):
     def _locate_objects(self, xy: tuple[float, float]) -> tuple[float, float, bool]:
         """Nearest object distance in the failure zone, its direction, and plate contact."""
         x, y = xy
-        # Rounding in this test cannot change the answer: an object just outside the
+        dx, dy = self._direction_xy
+        # An object matters when its bounding circle is within reach and not wholly behind
+        # the plate: the sector's rays fan out at most 90 degrees from the heading (the side
+        # angle is capped there) and the plate lies across it, so nothing sampled is behind.
+        # Rounding in these tests cannot change the answer: an object just outside the
         # bound lies a plate half-width beyond anything the sector or plate samples.
-        for cx, cy, limit_squared in self._near_limits:
-            if (x - cx) ** 2 + (y - cy) ** 2 <= limit_squared:
+        for cx, cy, limit_squared, radius in self._near_limits:
+            if (x - cx) ** 2 + (y - cy) ** 2 <= limit_squared and (
+                (cx - x) * dx + (cy - y) * dy >= -radius
+            ):
                 break
         else:
             return math.inf, self._heading, False
