@@ -70,6 +70,16 @@ class RecurrentConfig(PluginConfig):
         "modality's code and amplitude are one input: when either is missing or invalid in "
         "a frame, both are zero-filled (Table A.1).",
     )
+    amplitude_modalities: tuple[Modality, ...] | None = Field(
+        None,
+        description="With amplitude_inputs, the modalities whose amplitude is read (None: "
+        "all configured ones). After the per-trial tare, the pdc and electrode amplitudes "
+        "measure deformation relative to the trial's start; the pac amplitude is the "
+        "vibration power, which the tare cannot zero and which scales with the medium and "
+        "the speed (impact power ~ density x speed^3), so a model fitted in one medium at one "
+        "speed reads a quieter medium or a slower rake as its contact frames' slightly "
+        "lower vibration. The perception bench reads pdc and electrodes only.",
+    )
     amplitude_gain: float = Field(
         30.0,
         gt=0,
@@ -154,10 +164,27 @@ class RecurrentConfig(PluginConfig):
         """Length of the code vector of ``modality``."""
         return int(getattr(self, f"{modality}_code_size"))
 
+    @field_validator("amplitude_modalities")
+    @classmethod
+    def _canonical_amplitude_modalities(
+        cls, value: tuple[Modality, ...] | None
+    ) -> tuple[Modality, ...] | None:
+        if value is None:
+            return None
+        if len(set(value)) != len(value):
+            raise ValueError(f"amplitude_modalities repeat: {list(value)}")
+        return tuple(m for m in MODALITIES if m in value)
+
+    def reads_amplitude(self, modality: str) -> bool:
+        """Whether ``<modality>_amplitude`` is one of the inputs."""
+        return self.amplitude_inputs and (
+            self.amplitude_modalities is None or modality in self.amplitude_modalities
+        )
+
     def input_groups(self, modality: str) -> dict[str, int]:
         """Channels read for ``modality`` and their sizes, in column order."""
         groups = {code_channel(modality): self.code_size(modality)}
-        if self.amplitude_inputs:
+        if self.reads_amplitude(modality):
             groups[amplitude_channel(modality)] = AMPLITUDE_SIZE
         return groups
 

@@ -13,7 +13,8 @@ Absent channels raise one :class:`UserWarning` per channel and component; every 
 counted in :attr:`RecurrentClassifier.fill_report` and returned by :meth:`finalize`.
 With ``amplitude_inputs`` a modality is its code and its ``<modality>_amplitude`` together:
 a frame missing either has both zero-filled (and the network's modality groups, used by
-``modality_dropout``, span both).
+``modality_dropout``, span both); ``amplitude_modalities`` narrows which modalities'
+amplitudes are read (the others are their code alone).
 Training with ``modality_dropout > 0`` prepares a network for such gaps.
 
 Streaming and batch
@@ -192,12 +193,23 @@ class RecurrentClassifier(Classifier):
 
     # -- training ----------------------------------------------------------------------
 
-    def fit(self, batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) -> None:
+    def fit(
+        self,
+        batches: Sequence[SampleBatch],
+        labels: Sequence[ArrayLike],
+        validation_batches: Sequence[SampleBatch] | None = None,
+        validation_labels: Sequence[ArrayLike] | None = None,
+    ) -> None:
         """Train on labelled trials: one batch and one label array (0 free, 1 contact) each.
 
         Training starts from the seeded initial weights every time, so the result depends
         only on the data and ``context.rng``'s seed, not on earlier calls. Channels missing
         from a training batch are zero-filled like at run time.
+
+        ``validation_batches`` / ``validation_labels``, when given, are the early-stopping
+        trials: every training trial is then trained on, the input scale is fitted on the
+        training trials alone, and ``validation_fraction`` is not used. Without them
+        ``validation_fraction`` of the training trials is held out at random.
 
         Raises
         ------
@@ -206,12 +218,24 @@ class RecurrentClassifier(Classifier):
         """
         if len(batches) != len(labels):
             raise ValueError(f"{len(batches)} batches but {len(labels)} label arrays")
+        if (validation_batches is None) != (validation_labels is None):
+            raise ValueError("give validation_batches and validation_labels together")
         xs, ys = [], []
         for batch, y in zip(batches, labels, strict=True):
             xs.append(self._assemble(batch))
             ys.append(check_labels(y, len(batch), len(CLASSES)))
         if not xs or sum(len(y) for y in ys) == 0:
             raise ValueError("fit needs at least one labelled frame")
+        validation = None
+        if validation_batches is not None and validation_labels is not None:
+            if len(validation_batches) != len(validation_labels):
+                raise ValueError(f"{len(validation_batches)} validation batches but "
+                                 f"{len(validation_labels)} label arrays")
+            val_xs, val_ys = [], []
+            for batch, y in zip(validation_batches, validation_labels, strict=True):
+                val_xs.append(self._assemble(batch))
+                val_ys.append(check_labels(y, len(batch), len(CLASSES)))
+            validation = (val_xs, val_ys)
         self._scale = rms_scale(np.vstack(xs), list(self.groups.values()))
         amplitudes = {amplitude_channel(m) for m in self.modalities}
         gain = np.concatenate([
@@ -222,8 +246,12 @@ class RecurrentClassifier(Classifier):
         with torch.no_grad():
             self.net.input_scale.copy_(torch.from_numpy(self._scale))
         scaled = [np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP) for x in xs]
+        if validation is not None:
+            validation = ([np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
+                           for x in validation[0]], validation[1])
         init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
-        self.training_metrics = train_network(self.net, scaled, ys, self.config, self._fit_seed)
+        self.training_metrics = train_network(self.net, scaled, ys, self.config, self._fit_seed,
+                                              validation)
         self.fitted = True
         self.reset()
 

@@ -3,7 +3,8 @@
 Sequence labelling on sliding windows: every frame of a 50-frame window carries its own
 label and contributes to the cross-entropy. Windows step by 10 frames over trials without
 contact and by 5 over trials with contact (the thesis's oversampling of the smaller class);
-validation trials are held out whole and scored on windows stepped by ``window_frames``.
+validation trials (given separately, or else held out whole at random from the training
+trials) are scored on windows stepped by ``window_frames``.
 Adam with ``weight_decay`` (the L2 penalty), early stopping with ``patience`` on the
 validation frames' balanced accuracy (ties broken by the validation loss) or, with
 ``early_stopping="loss"``, on the loss alone, and the best epoch's weights restored at the
@@ -115,8 +116,14 @@ def train_network(
     ys: Sequence[NDArray[np.int64]],
     config: RecurrentConfig,
     seed: int,
+    validation: tuple[Sequence[NDArray[np.float64]], Sequence[NDArray[np.int64]]] | None = None,
 ) -> dict[str, Any]:
     """Fit ``net`` in place on scaled per-trial inputs ``xs`` and frame labels ``ys``.
+
+    ``validation`` (scaled inputs and labels of separate trials) is the early-stopping set
+    when given: every trial of ``xs`` is then trained on and ``config.validation_fraction``
+    is not used. Without it, ``validation_fraction`` of the trials is held out at random
+    (stratified by contact) from ``xs``.
 
     Returns
     -------
@@ -126,7 +133,7 @@ def train_network(
         ``validation_trials``, ``train_time_s``.
     """
     with torch_threads(config.threads):
-        return _train(net, xs, ys, config, seed)
+        return _train(net, xs, ys, config, seed, validation)
 
 
 def _train(
@@ -135,14 +142,23 @@ def _train(
     ys: Sequence[NDArray[np.int64]],
     config: RecurrentConfig,
     seed: int,
+    validation: tuple[Sequence[NDArray[np.float64]], Sequence[NDArray[np.int64]]] | None,
 ) -> dict[str, Any]:
     started = time.perf_counter()
     rng = np.random.default_rng(seed)
     generator = torch.Generator().manual_seed(int(rng.integers(2**62)))
-    has_contact = [bool(y.any()) for y in ys]
-    train_ids, val_ids = split_trials(has_contact, config.validation_fraction, rng)
+    if validation is None:
+        has_contact = [bool(y.any()) for y in ys]
+        train_ids, val_ids = split_trials(has_contact, config.validation_fraction, rng)
+        val_xs, val_ys = xs, ys
+    else:
+        val_xs, val_ys = validation
+        if len(val_xs) != len(val_ys):
+            raise ValueError(f"{len(val_xs)} validation inputs but {len(val_ys)} label arrays")
+        train_ids = np.arange(len(xs), dtype=np.int64)
+        val_ids = np.arange(len(val_xs), dtype=np.int64)
     x_train, y_train = _windows(xs, ys, train_ids, config, oversample=True)
-    x_val, y_val = _windows(xs, ys, val_ids, config, oversample=False)
+    x_val, y_val = _windows(val_xs, val_ys, val_ids, config, oversample=False)
     if x_train.shape[0] == 0:
         raise ValueError("no training windows: the training trials are empty")
     weights = None
@@ -223,5 +239,6 @@ def _train(
         "train_windows": int(x_train.shape[0]),
         "train_trials": int(train_ids.size),
         "validation_trials": int(val_ids.size),
+        "validation_source": "given" if validation is not None else "held_out",
         "train_time_s": time.perf_counter() - started,
     }

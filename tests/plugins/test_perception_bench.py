@@ -78,6 +78,14 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     assert len(tables["table_a_1"]["pac+pdc+electrodes"]) == 7
     assert list(tables["table_a_1"]["electrodes"]) == ["electrodes"]
     assert result["dataset"]["trials"]["robustness"] == 5
+    # Recurrent models train on the training split and stop early on the validation split,
+    # given to them (not a random hold-out drawn from train + validation).
+    diagnostics = result["training"]["sfrnn_all_modalities"]
+    assert len(diagnostics) == TINY.seeds
+    for diag in diagnostics:
+        assert diag["validation_source"] == "given"
+        assert diag["train_trials"] == result["dataset"]["trials"]["train"]
+        assert diag["validation_trials"] == result["dataset"]["trials"]["validation"]
     md = (out / "perception.md").read_text()
     for title in ("Table 2.2", "Table 2.3", "Table 2.4", "Table A.1", "98.7", "p99"):
         assert title in md
@@ -118,3 +126,57 @@ def test_bench_is_registered_and_plans_follow_the_options(tmp_path):
     assert plan_for(BenchOptions(out_dir=tmp_path, trials=4)).seeds == 4
     with pytest.raises(ValueError, match="seeds"):
         plan_for(BenchOptions(out_dir=tmp_path, trials=0))
+
+
+def _coded_trial(index, split, rng, n=60):
+    from hapticframe_sfrnn._perception_data import TrialFeatures
+
+    labels = np.zeros(n, dtype=np.int64)
+    if index % 2 == 0:
+        labels[20:40] = 1
+    tensors = {"pac": rng.standard_normal((n, 8, 22)), "pdc": rng.standard_normal((n, 5, 5)),
+               "electrodes": rng.standard_normal((n, 19, 5))}
+    codes = {m: rng.standard_normal((n, k)) * (rng.random((n, k)) < 0.3)
+             for m, k in (("pac", 6), ("pdc", 4), ("electrodes", 5))}
+    amplitudes = {m: 0.2 * rng.standard_normal((n, 2)) + labels[:, None] for m in codes}
+    return TrialFeatures(index, "cottonwood_beads", index % 2 == 0, split, labels, tensors,
+                         codes, amplitudes)
+
+
+def test_amplitude_modalities_narrow_the_sfrnn_but_not_the_svm():
+    from hapticframe_sfrnn._perception_data import PerceptionData
+    from hapticframe_sfrnn._perception_models import Architecture, score, train_architecture
+
+    rng = np.random.default_rng(3)
+    splits = ["train"] * 6 + ["validation"] * 2 + ["test"] * 2
+    data = PerceptionData([_coded_trial(i, s, rng) for i, s in enumerate(splits)], {}, 10)
+    settings = {"max_epochs": 1, "window_frames": 20, "gru_layers": 1, "gru_units": 4,
+                "fusion_units": 4, "batch_size": 16,
+                "amplitude_modalities": ("pdc", "electrodes")}
+    mods = ("pac", "pdc", "electrodes")
+    sfrnn = train_architecture(data, Architecture("d", "rnn"), mods, 0, settings)
+    assert sfrnn.amplitude_modalities == ("pdc", "electrodes")
+    assert list(sfrnn.component.groups) == ["pac_code", "pdc_code", "pdc_amplitude",
+                                            "electrodes_code", "electrodes_amplitude"]
+    assert sfrnn.training_metrics["train_trials"] == 6
+    assert sfrnn.training_metrics["validation_trials"] == 2
+    _fractions(score(sfrnn, data.by_split("test"))["balanced_accuracy"])
+    svm = train_architecture(data, Architecture("d", "svm"), mods, 0, settings,
+                             {"calibration_folds": 2, "max_iter": 200})
+    assert svm.amplitude_modalities is None
+    assert svm.component.config.inputs == {"pac_d": 8, "pdc_d": 6, "electrodes_d": 7}
+    _fractions(score(svm, data.by_split("test"))["balanced_accuracy"])
+    every = train_architecture(data, Architecture("d", "rnn"), mods, 0,
+                               {**settings, "amplitude_modalities": None})
+    assert "pac_amplitude" in every.component.groups
+    # The stage-(b) network reads no amplitude whatever the setting says.
+    raw = train_architecture(data, Architecture("b", "rnn"), ("electrodes",), 0, settings)
+    assert list(raw.component.groups) == ["electrodes_code"]
+    assert raw.training_metrics["validation_source"] == "given"
+
+
+def test_plans_keep_the_untared_vibration_amplitude_out_of_the_sfrnn(tmp_path):
+    for quick in (True, False):
+        plan = plan_for(BenchOptions(out_dir=tmp_path, quick=quick))
+        assert plan.coder_settings["amplitude"] == "channel"
+        assert tuple(plan.rnn_settings["amplitude_modalities"]) == ("pdc", "electrodes")

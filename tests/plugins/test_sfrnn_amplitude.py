@@ -307,3 +307,45 @@ def test_fusion_rnn_gives_each_modality_one_branch_with_its_amplitude() -> None:
     clf.fit([b for b, _ in data], [y for _, y in data])
     proba = clf.predict_proba(data[0][0]).probabilities
     assert proba.shape == (120, 2) and np.isfinite(proba).all()
+
+
+def test_amplitude_modalities_narrow_what_is_read(
+    trained: tuple[SFRNNClassifier, list[tuple[SampleBatch, np.ndarray]]], tmp_path: Path
+) -> None:
+    _, test = trained
+    rng = np.random.default_rng(8)
+    data = [_trial(rng) for _ in range(6)]
+    config = SFRNNConfig(**CODE_SIZES, **{**TINY, "max_epochs": 1}, amplitude_inputs=True,
+                         amplitude_modalities=("electrodes", "pdc"))  # fmt: skip
+    assert config.amplitude_modalities == ("pdc", "electrodes")  # canonical order
+    assert not config.reads_amplitude("pac") and config.reads_amplitude("pdc")
+    clf = SFRNNClassifier(config, _context(0))
+    assert list(clf.groups) == ["pac_code", "pdc_code", "pdc_amplitude", "electrodes_code",
+                                "electrodes_amplitude"]  # fmt: skip
+    assert clf.modality_sizes == [6, 6, 7] and clf.net.fusion.in_features == 19
+    clf.fit([b for b, _ in data], [y for _, y in data])
+    batch, _ = test[0]
+    expected = clf.predict_proba(batch).probabilities
+    # pac's amplitude is not an input: changed or absent, nothing changes and nothing warns.
+    louder = 50.0 + batch.channels["pac_amplitude"]
+    changed = SampleBatch(batch.timestamps_s, {**batch.channels, "pac_amplitude": louder})
+    dropped = SampleBatch(batch.timestamps_s, {k: v for k, v in batch.channels.items()
+                                                if k != "pac_amplitude"})  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        assert np.array_equal(clf.predict_proba(changed).probabilities, expected)
+        assert np.array_equal(clf.predict_proba(dropped).probabilities, expected)
+    # ... while the electrodes' amplitude still is.
+    moved = SampleBatch(batch.timestamps_s, {**batch.channels, "electrodes_amplitude":
+                                              batch.channels["electrodes_amplitude"] + 3.0})
+    assert not np.array_equal(clf.predict_proba(moved).probabilities, expected)
+    clf.save(tmp_path / "m")
+    loaded = SFRNNClassifier(SFRNNConfig(model_dir=str(tmp_path / "m")), _context(3))
+    assert loaded.config.amplitude_modalities == ("pdc", "electrodes")
+    assert loaded.groups == clf.groups
+    assert np.array_equal(loaded.predict_proba(batch).probabilities, expected)
+    with pytest.raises(ValueError, match="repeat"):
+        SFRNNConfig(amplitude_inputs=True, amplitude_modalities=("pdc", "pdc"))
+    # Without amplitude_inputs the list changes nothing.
+    plain = SFRNNConfig(**CODE_SIZES, amplitude_modalities=("pdc",))
+    assert plain.input_groups("pdc") == {"pdc_code": 4}

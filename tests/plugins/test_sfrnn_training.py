@@ -401,3 +401,32 @@ def test_training_reports_progress(
     err = capsys.readouterr().err
     assert "training" in err or "epoch 1" in err
     assert clf.training_metrics["epochs"] == 2
+
+
+def test_explicit_validation_trials_are_the_early_stopping_set(
+    trials: tuple[Labelled, Labelled],
+) -> None:
+    train, held_out = trials
+    fit_on, val = train[:12], held_out[:4]
+    config = SFRNNConfig(
+        **SIZES, gru_layers=1, gru_units=8, fusion_units=8, max_epochs=2, progress=False
+    )
+    clf = SFRNNClassifier(config, context(3))
+    # Validation inputs 100x larger: the input scale must come from the training trials only.
+    big_val = [SampleBatch(b.timestamps_s, {k: 100.0 * v for k, v in b.channels.items()})
+               for b, _ in val]  # fmt: skip
+    clf.fit([b for b, _ in fit_on], [y for _, y in fit_on], big_val, [y for _, y in val])
+    metrics = clf.training_metrics
+    assert metrics["validation_source"] == "given"
+    assert metrics["train_trials"] == 12 and metrics["validation_trials"] == 4
+    reference = SFRNNClassifier(config, context(3))
+    reference.fit([b for b, _ in fit_on], [y for _, y in fit_on])  # random hold-out instead
+    assert reference.training_metrics["validation_source"] == "held_out"
+    assert reference.training_metrics["train_trials"] < 12
+    np.testing.assert_array_equal(clf.net.input_scale.numpy(), reference.net.input_scale.numpy())
+    # The windows trained on are those of all 12 trials, none of the validation trials'.
+    assert metrics["train_windows"] > reference.training_metrics["train_windows"]
+    with pytest.raises(ValueError, match="together"):
+        clf.fit([b for b, _ in fit_on], [y for _, y in fit_on], big_val)
+    with pytest.raises(ValueError, match="label arrays"):
+        clf.fit([b for b, _ in fit_on], [y for _, y in fit_on], big_val, [val[0][1]])
