@@ -74,6 +74,13 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
                             "cottonwood_beads"}
         for cell in per.values():
             _fractions(cell["mean"])
+    # Table 2.4's own comparison (SF-RNN against the (d)+Linear SVM) per medium, and the
+    # wider one against all five other models.
+    sf, svm_d = tables["table_2_4"]["(d)+RNN (SF-RNN)"], tables["table_2_4"]["(d)+Linear SVM"]
+    assert result["table_2_4_sfrnn_ahead"] == {m: sf[m]["mean"] > svm_d[m]["mean"] for m in sf}
+    for medium, ahead in result["sfrnn_ahead_on_every_medium"].items():
+        assert ahead == all(sf[medium]["mean"] > per[medium]["mean"]
+                            for label, per in tables["table_2_4"].items() if per is not sf)
     # Table A.1: the three-modality SF-RNN tested with all 7 subsets, the unimodal one with 1.
     assert len(tables["table_a_1"]["pac+pdc+electrodes"]) == 7
     assert list(tables["table_a_1"]["electrodes"]) == ["electrodes"]
@@ -89,6 +96,16 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     md = (out / "perception.md").read_text()
     for title in ("Table 2.2", "Table 2.3", "Table 2.4", "Table A.1", "98.7", "p99"):
         assert title in md
+    # Table 2.4 puts the thesis's two (d) models first, then the rest below a marker row.
+    section = md[md.index("## Table 2.4"):md.index("## Table A.1")]
+    rows = [line.split(" | ")[0].lstrip("| ") for line in section.splitlines()
+            if line.startswith("| (")]
+    assert rows[:2] == ["(d)+Linear SVM", "(d)+RNN (SF-RNN)"] and len(rows) == 6
+    assert section.index("*beyond the thesis's table*") > section.index("| (d)+RNN (SF-RNN)")
+    # Table A.1 as the appendix's grid: the three-modality block has one row per subset.
+    block = md[md.index("SF-RNN trained with 3 modalities"):md.index("## SF-RNN training")]
+    grid = [line for line in block.splitlines()[2:] if line.startswith("| ")]
+    assert len(grid) == 7 and grid[-1].startswith("| vibration, fluid pressure, electrode")
     assert (out / "perception.png").stat().st_size > 1000
     assert (out / "sfrnn-model" / "model.json").is_file()
     assert any("SF-RNN test" in line for line in lines)
