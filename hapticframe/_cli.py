@@ -30,13 +30,63 @@ def _one_line_warning(message: Any, category: Any, filename: str, lineno: int, f
     _err(f"warning: {message}")
 
 
+def _plugin_module(text: str) -> str:
+    """A ``--plugin-module`` value: a dotted module name, never a path."""
+    import re
+
+    from ._config._model import MODULE_PATTERN
+
+    if not re.fullmatch(MODULE_PATTERN, text):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a module name (letters, digits, _ and dots; no paths)")
+    return text
+
+
+def _validate(args: argparse.Namespace, file: str) -> Any:
+    """Validate ``file`` with the lab modules named by ``--plugin-module`` (searched first in
+    the current directory)."""
+    from ._config import validate_file
+    from ._errors import PluginImportError, UsageError
+
+    modules = getattr(args, "plugin_module", None) or ()
+    try:
+        return validate_file(file, strict=args.strict, plugin_modules=modules,
+                             plugin_dir=Path.cwd() if modules else None)
+    except PluginImportError as exc:
+        if not modules:
+            raise
+        raise UsageError(f"--plugin-module: {exc}") from exc
+
+
+def _add_plugin_module_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--plugin-module", action="append", type=_plugin_module, metavar="NAME",
+        help="import a lab-local plugin module first (trusted code, searched first in the "
+        "current directory); repeatable. Experiment files never name code to import.",
+    )
+
+
 # --- commands --------------------------------------------------------------------------------
 
 
-def cmd_plugins(args: argparse.Namespace) -> int:
+def _manager(args: argparse.Namespace, strict: bool = False) -> Any:
+    """The plugin manager of a command: the process-wide one, or a fresh one when the
+    command is strict or names ``--plugin-module`` modules (searched first in the current
+    directory)."""
+    from ._errors import PluginImportError, UsageError
     from ._manager import get_plugin_manager, make_plugin_manager
 
-    pm = make_plugin_manager(strict=True) if args.strict else get_plugin_manager()
+    modules = getattr(args, "plugin_module", None) or ()
+    if not modules:
+        return make_plugin_manager(strict=True) if strict else get_plugin_manager()
+    try:
+        return make_plugin_manager(strict=strict, modules=list(modules), module_dir=Path.cwd())
+    except PluginImportError as exc:
+        raise UsageError(f"--plugin-module: {exc}") from exc
+
+
+def cmd_plugins(args: argparse.Namespace) -> int:
+    pm = _manager(args, strict=args.strict)
     registry = pm.registry
     rows = []
     for reg in registry:
@@ -74,13 +124,12 @@ def cmd_plugins(args: argparse.Namespace) -> int:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from ._config import validate_file
     from ._errors import ExperimentError
 
     status = 0
     for file in args.files:
         try:
-            experiment = validate_file(file, strict=args.strict)
+            experiment = _validate(args, file)
         except ExperimentError as exc:
             _err(exc.render())
             status = 2
@@ -116,10 +165,9 @@ def cmd_schema(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     from ._errors import UsageError
     from ._kind import Kind
-    from ._manager import get_registry
     from .testing import run_checks
 
-    registry = get_registry()
+    registry = _manager(args).registry
     selected = []
     for name in args.names:
         found = registry.find(name)
@@ -141,10 +189,9 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from ._config import validate_file
     from ._session import run_experiment
 
-    experiment = validate_file(args.file, strict=args.strict)
+    experiment = _validate(args, args.file)
     echo = (lambda _text: None) if args.quiet else _out
     metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo)
     _out(f"results in {args.out}: " + ", ".join(
@@ -154,10 +201,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from ._config import validate_file
     from ._train import train_experiment
 
-    experiment = validate_file(args.file, strict=args.strict)
+    experiment = _validate(args, args.file)
     record = train_experiment(experiment, args.out, overwrite=args.overwrite, echo=_out)
     _out(f"trained {', '.join(record['trained']) or 'nothing'}; artifacts in {args.out}")
     return 0
@@ -194,11 +240,13 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("plugins", help="list installed plugins (kind, name, distribution, status)")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    _add_plugin_module_option(p)
     p.set_defaults(func=cmd_plugins)
 
     p = sub.add_parser("validate", help="check experiment files without running them")
     p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_plugin_module_option(p)
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("schema", help="print, write or check the JSON Schemas")
@@ -211,6 +259,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="run the conformance kit on installed plugins")
     p.add_argument("names", nargs="+", metavar="NAME")
     p.add_argument("--kind", choices=[k.value for k in _kinds()], help="only plugins of this kind")
+    _add_plugin_module_option(p)
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("run", help="assemble and run an experiment")
@@ -219,6 +268,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace results already in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_plugin_module_option(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
@@ -226,6 +276,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="directory for the artifacts")
     p.add_argument("--overwrite", action="store_true", help="replace a training run already in DIR")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_plugin_module_option(p)
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="run a benchmark suite (see `hapticframe plugins`)")

@@ -174,7 +174,8 @@ def make_plugin_manager(
         Raise :class:`PluginImportError` for the first plugin that fails to load instead
         of listing it as broken.
     modules : sequence of str
-        Extra plugin modules to import and register (an experiment's ``plugin_modules``).
+        Extra plugin modules to import and register (lab-local modules named by the person
+        running a command, ``--plugin-module``; experiment files never name code).
     module_dir : Path, optional
         Directory searched first for ``modules`` (the experiment file's directory).
     """
@@ -218,7 +219,7 @@ def make_plugin_manager(
 
 
 def _register_module(pm: PluginManager, module_name: str, module_dir: Path | None) -> None:
-    """Import a lab-local plugin module (trusted code named in an experiment file)."""
+    """Import a lab-local plugin module (trusted code named on the command line)."""
     added = False
     if module_dir is not None and str(module_dir) not in sys.path:
         sys.path.insert(0, str(module_dir))
@@ -234,7 +235,7 @@ def _register_module(pm: PluginManager, module_name: str, module_dir: Path | Non
             sys.path.remove(str(module_dir))
     if pm.is_registered(module):
         return  # already loaded through its entry point: the same module, nothing to add
-    pm.register_source(module, Source("<plugin_modules>", "", module_name, module_name))
+    pm.register_source(module, Source("<plugin-module>", "", module_name, module_name))
 
 
 @functools.cache

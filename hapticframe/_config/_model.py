@@ -123,12 +123,6 @@ def build_experiment_model(registry: Registry) -> type[BaseModel]:
         name=(str, Field(min_length=1, max_length=200, description="Name of the experiment.")),
         description=(str, Field("", description="Free text.")),
         seed=(int, Field(ge=0, lt=2**63, description="Seeds every component's random generator.")),
-        plugin_modules=(
-            list[Annotated[str, Field(pattern=MODULE_PATTERN)]],
-            Field(default_factory=list,
-                  description="Lab-local plugin modules to import (trusted code), searched "
-                  "first beside the experiment file."),
-        ),
         scene=(Scene | None, Field(None, description="What the simulated world contains.")),
         run=(RunSettings, Field(default_factory=RunSettings)),
         **sections,

@@ -7,14 +7,14 @@ of a file are reported at once.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from .._errors import ExperimentError, Issue, PluginImportError
+from .._errors import ExperimentError, Issue
 from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
@@ -62,37 +62,65 @@ class Experiment:
         return [c for c in self.components if c.kind is kind]
 
 
-def validate_file(path: str | Path, *, strict: bool = False) -> Experiment:
-    """Load and validate an experiment file; raise :class:`ExperimentError` if it is invalid."""
+def validate_file(
+    path: str | Path,
+    *,
+    strict: bool = False,
+    plugin_modules: Sequence[str] = (),
+    plugin_dir: str | Path | None = None,
+) -> Experiment:
+    """Load and validate an experiment file; raise :class:`ExperimentError` if it is invalid.
+
+    ``plugin_modules`` names lab-local plugin modules to import first (trusted code chosen by
+    the caller, like ``hapticframe run --plugin-module``), searched first in ``plugin_dir``.
+    Experiment files themselves never name code to import.
+    """
     loaded = load_file(path)
-    return validate_data(loaded, module_dir=Path(path).resolve().parent, strict=strict)
+    return validate_data(loaded, strict=strict, plugin_modules=plugin_modules,
+                         plugin_dir=plugin_dir)
 
 
 def validate_mapping(
-    data: Mapping[str, Any], *, source: str = "<experiment>", strict: bool = False
+    data: Mapping[str, Any],
+    *,
+    source: str = "<experiment>",
+    strict: bool = False,
+    plugin_modules: Sequence[str] = (),
+    plugin_dir: str | Path | None = None,
 ) -> Experiment:
     """Validate an experiment given as a mapping (built in code rather than read from a file)."""
-    return validate_data(LoadedFile(source, dict(data), {}), strict=strict)
+    return validate_data(LoadedFile(source, dict(data), {}), strict=strict,
+                         plugin_modules=plugin_modules, plugin_dir=plugin_dir)
 
 
-def _plugin_manager(loaded: LoadedFile, module_dir: Path | None, strict: bool) -> PluginManager:
-    data = loaded.data
-    modules = data.get("plugin_modules") if isinstance(data, dict) else None
-    if not modules or not isinstance(modules, list) or not all(isinstance(m, str) for m in modules):
+#: The experiment-file key that once named plugin modules; kept to say what to do instead.
+_IMPORT_KEY = "plugin_modules"
+
+
+def _plugin_manager(
+    strict: bool, plugin_modules: Sequence[str], plugin_dir: str | Path | None
+) -> PluginManager:
+    if not plugin_modules:
         return make_plugin_manager(strict=True) if strict else get_plugin_manager()
-    try:
-        return make_plugin_manager(strict=strict, modules=modules, module_dir=module_dir)
-    except PluginImportError as exc:
-        raise ExperimentError(
-            loaded.path, [Issue("plugin_modules", str(exc), loaded.line_of("plugin_modules"))]
-        ) from None
+    return make_plugin_manager(
+        strict=strict, modules=list(plugin_modules),
+        module_dir=None if plugin_dir is None else Path(plugin_dir).resolve(),
+    )
 
 
 def validate_data(
-    loaded: LoadedFile, *, module_dir: Path | None = None, strict: bool = False,
-    plugin_manager: PluginManager | None = None,
+    loaded: LoadedFile, *, strict: bool = False, plugin_manager: PluginManager | None = None,
+    plugin_modules: Sequence[str] = (), plugin_dir: str | Path | None = None,
 ) -> Experiment:
-    """Validate parsed experiment data (see :func:`validate_file`)."""
+    """Validate parsed experiment data (see :func:`validate_file`).
+
+    Raises
+    ------
+    ExperimentError
+        The data is not a valid experiment (every problem located).
+    PluginImportError
+        A module of ``plugin_modules`` fails to import.
+    """
     file = loaded.path
     data = loaded.data
     if not isinstance(data, dict):
@@ -100,7 +128,14 @@ def validate_data(
             "", "the top level must be a mapping with schema_version, name, seed and component "
             f"lists, not {type(data).__name__}", 1,
         )])
-    pm = plugin_manager or _plugin_manager(loaded, module_dir, strict)
+    if _IMPORT_KEY in data:
+        raise ExperimentError(file, [Issue(
+            _IMPORT_KEY, "experiment files never name code to import: install the plugin "
+            "package (its entry point registers it), or have the person running the "
+            "experiment name lab-local modules with `--plugin-module NAME`",
+            loaded.line_of(_IMPORT_KEY),
+        )])
+    pm = plugin_manager or _plugin_manager(strict, plugin_modules, plugin_dir)
     registry = pm.registry
     issues, flagged = _check_types(loaded, registry)
     model_cls = build_experiment_model(registry)

@@ -11,17 +11,19 @@ import pytest
 
 from hapticframe._cli import main
 
+from tests.support.lab import lab_main, validate_lab
+
 
 def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
     out = lab_dir / "run"
-    assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
+    assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["object_found"] is True and metrics["centroid_error_m"] < 0.01
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "ok" and record["seed"] == 3
     assert record["resolved_config"]["sensors"][0]["config"]["chunk"] == 20
     assert {p["type"] for p in record["plugins"]} == {"lab-sweep", "lab-threshold", "lab-point", "lab-cells"}
-    assert record["plugins"][0]["distribution"] == "<plugin_modules>"
+    assert record["plugins"][0]["distribution"] == "<plugin-module>"
     with np.load(out / "trace.npz", allow_pickle=False) as trace:
         assert trace["sensor/sweep/force_n"].shape == (300, 2)
         assert trace["classifier/contact/probabilities"].shape == (300, 2)
@@ -31,7 +33,7 @@ def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
 def test_runs_are_reproducible(lab_dir):
     first, second = lab_dir / "a", lab_dir / "b"
     for out in (first, second):
-        assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+        assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
     with np.load(first / "trace.npz") as a, np.load(second / "trace.npz") as b:
         assert set(a.files) == set(b.files)
         for key in a.files:
@@ -41,12 +43,12 @@ def test_runs_are_reproducible(lab_dir):
 def test_run_refuses_to_overwrite_a_previous_run(lab_dir, capsys):
     out = lab_dir / "run"
     args = ["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]
-    assert main(args) == 0
+    assert lab_main(args) == 0
     before = (out / "run.json").read_text()
-    assert main(args) == 2
+    assert lab_main(args) == 2
     assert "already holds a run" in capsys.readouterr().err
     assert (out / "run.json").read_text() == before
-    assert main([*args, "--overwrite"]) == 0
+    assert lab_main([*args, "--overwrite"]) == 0
 
 
 def test_failure_while_running_exits_1_and_records_it(lab_dir, capsys):
@@ -56,7 +58,7 @@ def test_failure_while_running_exits_1_and_records_it(lab_dir, capsys):
     broken = lab_dir / "norun.yaml"
     broken.write_text(text)
     out = lab_dir / "run"
-    assert main(["run", str(broken), "--out", str(out)]) == 1
+    assert lab_main(["run", str(broken), "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "needs exactly one classifier" in err and "Traceback" not in err
     assert json.loads((out / "run.json").read_text())["status"] == "failed"
@@ -64,7 +66,7 @@ def test_failure_while_running_exits_1_and_records_it(lab_dir, capsys):
 
 def test_debug_shows_the_traceback(lab_dir, capsys):
     args = ["run", str(lab_dir / "missing.yaml"), "--out", str(lab_dir / "o")]
-    assert main(args) == 2
+    assert lab_main(args) == 2
     assert "no such file" in capsys.readouterr().err
     with pytest.raises(Exception, match="no such file"):
         main(["--debug", *args])
@@ -72,7 +74,7 @@ def test_debug_shows_the_traceback(lab_dir, capsys):
 
 def test_usage_errors_exit_2(capsys):
     with pytest.raises(SystemExit) as info:
-        main(["run"])
+        lab_main(["run"])
     assert info.value.code == 2
     assert main([]) == 2
     assert main(["bench", "no-such-suite"]) == 2
@@ -89,10 +91,9 @@ def test_python_dash_m_and_version():
 
 
 def test_session_hooks_and_run_metadata_reach_lab_plugins(lab_dir):
-    import labplugin  # imported from beside the experiment by plugin_modules
-
     out = lab_dir / "run"
-    assert main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+    assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+    labplugin = sys.modules["labplugin"]  # imported by --plugin-module
     assert labplugin.SESSIONS[-2:] == [("start", "lab-open-loop"), ("finish", "ok")]
     record = json.loads((out / "run.json").read_text())
     assert record["plugin_metadata"] == {"lab_rig": "sandbox-2"}
@@ -101,7 +102,7 @@ def test_session_hooks_and_run_metadata_reach_lab_plugins(lab_dir):
 def test_a_known_plugin_with_missing_requirements_gets_its_install_hint(lab_dir, capsys):
     path = lab_dir / "lab-open-loop.yaml"
     path.write_text(path.read_text().replace("type: lab-sweep", "type: lab-needs-driver"))
-    assert main(["validate", str(path)]) == 2
+    assert lab_main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "needs no_such_vendor_driver" in err and "pip install lab-vendor-driver" in err
     assert f"{path}:11:" in err
@@ -109,14 +110,14 @@ def test_a_known_plugin_with_missing_requirements_gets_its_install_hint(lab_dir,
 
 def test_train_fits_classifiers_on_labelled_recordings_and_saves(lab_dir, capsys):
     out = lab_dir / "trained"
-    assert main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
+    assert lab_main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
     record = json.loads((out / "train.json").read_text())
     assert record["trained"] == ["contact"] and record["recordings"] == 1
     threshold = json.loads((out / "contact" / "threshold.json").read_text())["threshold_n"]
     # Free force is ~5 N and contact ~35-45 N: the learned threshold lies between.
     assert 10 < threshold < 40 and record["reports"]["contact"]["threshold_n"] == threshold
-    assert main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 2
+    assert lab_main(["train", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 2
     path = lab_dir / "lab-open-loop.yaml"
     path.write_text(path.read_text().replace("seed: 3", "seed: 3\nrun: {label_channel: nothing}"))
-    assert main(["train", str(path), "--out", str(lab_dir / "t2")]) == 1
+    assert lab_main(["train", str(path), "--out", str(lab_dir / "t2")]) == 1
     assert "no label channel 'nothing'" in capsys.readouterr().err

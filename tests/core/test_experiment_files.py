@@ -10,6 +10,8 @@ import pytest
 
 from hapticframe import ExperimentError
 from hapticframe._cli import main
+
+from tests.support.lab import lab_main, validate_lab
 from hapticframe._config import load_text, validate_file
 
 GOOD = (Path(__file__).parents[1] / "support" / "lab-open-loop.yaml").read_text()
@@ -57,8 +59,8 @@ def test_malformed_files_exit_2_located_and_write_nothing(case, lab_dir, capsys)
     path.write_bytes(content)
     out = lab_dir / "out"
     started = time.perf_counter()
-    assert main(["validate", str(path)]) == 2
-    assert main(["run", str(path), "--out", str(out)]) == 2
+    assert lab_main(["validate", str(path)]) == 2
+    assert lab_main(["run", str(path), "--out", str(out)]) == 2
     assert time.perf_counter() - started < 60  # "within seconds", with a generous margin for CI
     err = capsys.readouterr().err
     assert fragment in err, err
@@ -75,7 +77,7 @@ def test_a_cycle_is_reported(lab_dir, capsys):
 classifiers:""")
     path = lab_dir / "cyc.yaml"
     path.write_text(text)
-    assert main(["validate", str(path)]) == 2
+    assert lab_main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "inputs form a cycle: fe1 -> fe2 -> fe1" in err
     assert f"{path}:14:" in err
@@ -86,29 +88,29 @@ def test_every_problem_is_reported_at_once(lab_dir):
     path = lab_dir / "two.yaml"
     path.write_text(bad)
     with pytest.raises(ExperimentError) as info:
-        validate_file(path)
+        validate_lab(path)
     paths = {issue.path for issue in info.value.issues}
     assert {"sensors[0].config.samples", "sensors[0].config.chunk"} <= paths
 
 
 def test_json_and_toml_files_validate(lab_dir):
     data = {
-        "schema_version": 1, "name": "j", "seed": 1, "plugin_modules": ["labplugin"],
+        "schema_version": 1, "name": "j", "seed": 1,
         "sensors": [{"id": "s", "type": "lab-sweep"}],
     }
     (lab_dir / "e.json").write_text(json.dumps(data, indent=1))
-    assert validate_file(lab_dir / "e.json").components[0].id == "s"
+    assert validate_lab(lab_dir / "e.json").components[0].id == "s"
     (lab_dir / "e.toml").write_text(
-        'schema_version = 1\nname = "t"\nseed = 1\nplugin_modules = ["labplugin"]\n'
+        'schema_version = 1\nname = "t"\nseed = 1\n'
         '[[sensors]]\nid = "s"\ntype = "lab-sweep"\nconfig = {samples = 5}\n'
     )
-    assert validate_file(lab_dir / "e.toml").components[0].config.samples == 5
+    assert validate_lab(lab_dir / "e.toml").components[0].config.samples == 5
 
 
 def test_json_errors_carry_lines(lab_dir):
     (lab_dir / "e.json").write_text('{\n "schema_version": 1,\n "name": "j",\n "seed": "x"\n}\n')
     with pytest.raises(ExperimentError) as info:
-        validate_file(lab_dir / "e.json")
+        validate_lab(lab_dir / "e.json")
     assert info.value.issues[0].line == 4
 
 
@@ -118,9 +120,24 @@ def test_yaml_loader_keeps_plain_data_only():
     assert loaded.line_of("b[1]") == 2
 
 
-def test_missing_plugin_module_is_located(lab_dir, capsys):
+def test_a_file_that_names_code_to_import_is_rejected_before_importing_it(lab_dir, capsys):
+    (lab_dir / "payload.py").write_text("import pathlib\npathlib.Path('ran').write_text('x')\n")
     path = lab_dir / "m.yaml"
-    path.write_text(GOOD.replace("plugin_modules: [labplugin]", "plugin_modules: [no_such_lab_module]"))
+    path.write_text(GOOD.replace("# (its plugins come", "plugin_modules: [payload]\n# (its plugins come"))
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "plugin_modules" in err and "no_such_lab_module" in err
+    assert "plugin_modules" in err and "never name code to import" in err and ":5" in err
+    assert not (lab_dir / "ran").exists()  # the module beside the file was never imported
+
+
+def test_plugin_module_option_errors_exit_2(lab_dir, capsys):
+    path = str(lab_dir / "lab-open-loop.yaml")
+    assert main(["validate", "--plugin-module", "no_such_lab_module", path]) == 2
+    assert "--plugin-module" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:  # a path is not a module name
+        main(["validate", "--plugin-module", "../labplugin", path])
+    assert info.value.code == 2
+    # Without the option the lab's plugin types are unknown: a located error, exit 2.
+    assert main(["validate", path]) == 2
+    assert "lab-sweep" in capsys.readouterr().err
+    assert lab_main(["validate", path]) == 0

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from hapticframe._cli import main
+
+from tests.support.lab import lab_main, validate_lab
 from hapticframe._config import validate_file
 from hapticframe._errors import ExperimentError
 
@@ -16,7 +18,6 @@ EXPERIMENT = """\
 schema_version: 1
 name: lab-train-from
 seed: 3
-plugin_modules: [labplugin]
 scene:
   objects:
     - {shape: circle, center_m: [0.40, 0.25], radius_m: 0.03}
@@ -49,7 +50,7 @@ def _write(lab_dir: Path, text: str) -> Path:
 
 def test_components_are_fitted_on_the_training_sensor_before_the_run(lab_dir):
     out = lab_dir / "run"
-    assert main(["run", str(_write(lab_dir, EXPERIMENT)), "--out", str(out), "--quiet"]) == 0
+    assert lab_main(["run", str(_write(lab_dir, EXPERIMENT)), "--out", str(out), "--quiet"]) == 0
     training = json.loads((out / "run.json").read_text())["details"]["training"]
     assert training["recordings"] == 1 and training["trained"] == ["contact"]
     # Fitted on the 90 N rehearsal sweep, the threshold sits between its free and contact
@@ -67,7 +68,7 @@ def test_components_are_fitted_on_the_training_sensor_before_the_run(lab_dir):
 
 def test_train_uses_the_training_sensor_in_place_of_the_streamed_one(lab_dir):
     out = lab_dir / "trained"
-    assert main(["train", str(_write(lab_dir, EXPERIMENT)), "--out", str(out)]) == 0
+    assert lab_main(["train", str(_write(lab_dir, EXPERIMENT)), "--out", str(out)]) == 0
     record = json.loads((out / "train.json").read_text())
     assert record["recordings"] == 1
     assert 30.0 < record["reports"]["contact"]["threshold_n"] < 60.0
@@ -85,7 +86,7 @@ def test_train_uses_the_training_sensor_in_place_of_the_streamed_one(lab_dir):
 def test_bad_train_from_is_located(lab_dir, train_from, message):
     text = EXPERIMENT.replace("train_from: {sweep: rehearsal}", f"train_from: {train_from}")
     with pytest.raises(ExperimentError) as caught:
-        validate_file(_write(lab_dir, text))
+        validate_lab(_write(lab_dir, text))
     assert message in str(caught.value)
     assert "run.train_from" in str(caught.value)
 
@@ -93,5 +94,5 @@ def test_bad_train_from_is_located(lab_dir, train_from, message):
 def test_a_training_sensor_may_not_feed_the_run(lab_dir):
     text = EXPERIMENT.replace("inputs: [sweep]", "inputs: [rehearsal]")
     with pytest.raises(ExperimentError) as caught:
-        validate_file(_write(lab_dir, text))
+        validate_lab(_write(lab_dir, text))
     assert "training sensor 'rehearsal' is an input of 'contact'" in str(caught.value)

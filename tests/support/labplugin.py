@@ -1,4 +1,4 @@
-"""A lab-local plugin module used by the core's tests (loaded through ``plugin_modules``).
+"""A lab-local plugin module used by the core's tests (loaded with ``--plugin-module labplugin``).
 
 It is small but real: a finite sensor that replays a fingertip sweep over a buried disc, a
 threshold classifier, a point sensor model and a cell-averaging map, so an open-loop
