@@ -15,6 +15,7 @@ import pytest
 
 from hapticframe import RunSettings, run_experiment, validate_mapping
 from hapticframe.kinds import BuildContext, SampleBatch
+from hapticframe_bench._template import search_experiment
 from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_sandbox import SandboxRobot
 
@@ -23,25 +24,10 @@ CIRCLE = [{"shape": "circle", "center_m": [0.22, 0.31], "radius_m": 0.04}]
 
 
 def _experiment(planner: str, lookahead: int, every: int = 0) -> dict:
-    return {
-        "schema_version": 1,
-        "name": f"lookahead-{lookahead}",
-        "seed": 3,
-        "scene": {"objects": CIRCLE},
-        "robots": [{"id": "arm", "type": "sandbox"}],
-        "sensors": [{"id": "wrist", "type": "sandbox-force", "inputs": ["arm"]}],
-        "classifiers": [{"id": "jamming", "type": "force-rate-jamming", "inputs": ["wrist"]}],
-        "sensor_models": [
-            {"id": "failure-zone", "type": "failure-zone-kernel", "inputs": ["jamming", "arm"]}
-        ],
-        "maps": [
-            {"id": "grid", "type": "occupancy-grid", "inputs": ["failure-zone"]},
-            {"id": "bhm", "type": "bayesian-hilbert-map", "inputs": ["failure-zone"]},
-        ],
-        "planners": [{"id": "planner", "type": planner, "inputs": ["bhm"]}],
-        "run": {"figures": False, "lookahead_steps": lookahead, "map_update_every_steps": every,
-                "max_movements": 8},
-    }
+    data = search_experiment(CIRCLE, planner, 3, f"lookahead-{lookahead}")
+    data["run"].update(figures=False, lookahead_steps=lookahead, map_update_every_steps=every,
+                       max_movements=8)
+    return data
 
 
 def _run(tmp_path: Path, name: str, data: dict) -> tuple[dict, dict, list[str]]:
