@@ -43,19 +43,11 @@ def _plugin_module(text: str) -> str:
 
 
 def _validate(args: argparse.Namespace, file: str) -> Any:
-    """Validate ``file`` with the lab modules named by ``--plugin-module`` (searched first in
-    the current directory)."""
-    from ._config import validate_file
-    from ._errors import PluginImportError, UsageError
+    """Validate ``file`` against the command's plugins (see :func:`_manager`)."""
+    from ._config import load_file, validate_data
 
-    modules = getattr(args, "plugin_module", None) or ()
-    try:
-        return validate_file(file, strict=args.strict, plugin_modules=modules,
-                             plugin_dir=Path.cwd() if modules else None)
-    except PluginImportError as exc:
-        if not modules:
-            raise
-        raise UsageError(f"--plugin-module: {exc}") from exc
+    loaded = load_file(file)
+    return validate_data(loaded, strict=args.strict, plugin_manager=_manager(args, args.strict))
 
 
 def _add_plugin_module_option(p: argparse.ArgumentParser) -> None:
