@@ -1,4 +1,9 @@
-"""Score a map against the scene: centroid error and outline distances (Table 3.2)."""
+"""Score a run against the truth it knows.
+
+- A map against the scene: centroid error and outline distances (Table 3.2).
+- A classifier against a sensor's label channel: balanced accuracy over frames and the
+  timing of the first and last labelled interaction (Figure 2.5).
+"""
 
 from __future__ import annotations
 
@@ -13,7 +18,7 @@ from ._scene import Scene
 from .geometry import blob_centroid, directed_hausdorff_both, main_outline, sample_grid
 from .kinds import Map, MovementResult, Region
 
-__all__ = ["evaluate_map", "save_outline_figure"]
+__all__ = ["evaluate_labels", "evaluate_map", "save_label_figure", "save_outline_figure"]
 
 
 def evaluate_map(
@@ -114,3 +119,107 @@ def _rectangle(region: Region) -> Any:
     from matplotlib.patches import Rectangle
 
     return Rectangle((region.x_min_m, region.y_min_m), *region.size_m, fill=False, color="0.3")
+
+
+def _events(flags: NDArray[np.bool_], times: NDArray[np.float64]) -> tuple[float | None, float | None]:
+    """Times of the first and last True, or None."""
+    hits = np.flatnonzero(flags)
+    if hits.size == 0:
+        return None, None
+    return float(times[hits[0]]), float(times[hits[-1]])
+
+
+def evaluate_labels(
+    times_s: ArrayLike,
+    probabilities: ArrayLike,
+    label_times_s: ArrayLike,
+    labels: ArrayLike,
+    name: str = "contact",
+) -> dict[str, Any]:
+    """Compare a classifier's decisions with per-sample labels.
+
+    A decision is "interaction" when the most probable class is not the background class
+    (column 0), as the run loop reads it; a label is "interaction" when it is not 0. Each
+    classifier output takes the label of the latest labelled sample at or before its time
+    (outputs before the first label, and NaN labels, are left out).
+
+    Returns
+    -------
+    dict
+        ``{name}_balanced_accuracy`` (mean recall over the label classes present, None
+        without any scored frame), ``{name}_frames`` (frames scored), and
+        ``first_{name}_error_s`` / ``last_{name}_error_s``: the decided minus the labelled time
+        of the first and last interaction frame (None when either has none), plus the four
+        event times themselves under ``_events`` for the figure (popped by the caller).
+    """
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    p = np.asarray(probabilities, dtype=np.float64)
+    if p.ndim != 2 or p.shape[0] != t.size:
+        raise ValueError(f"probabilities must have shape ({t.size}, classes), got {p.shape}")
+    lt = np.asarray(label_times_s, dtype=np.float64).reshape(-1)
+    lv = np.asarray(labels, dtype=np.float64).reshape(lt.size)
+    index = np.searchsorted(lt, t, side="right") - 1
+    keep = index >= 0
+    keep[keep] = np.isfinite(lv[index[keep]])
+    t, p, truth_values = t[keep], p[keep], lv[index[keep]]
+    decided = np.argmax(p, axis=1) != 0 if t.size else np.zeros(0, dtype=bool)
+    truth = np.rint(truth_values) != 0
+    recalls = [float(np.mean(decided[truth == c] == c)) for c in (False, True) if np.any(truth == c)]
+    true_first, true_last = _events(truth, t)
+    est_first, est_last = _events(decided, t)
+
+    def error(est: float | None, true: float | None) -> float | None:
+        return None if est is None or true is None else est - true
+
+    return {
+        f"{name}_balanced_accuracy": float(np.mean(recalls)) if recalls else None,
+        f"{name}_frames": int(t.size),
+        f"first_{name}_error_s": error(est_first, true_first),
+        f"last_{name}_error_s": error(est_last, true_last),
+        "_events": {"true": (true_first, true_last), "decided": (est_first, est_last)},
+    }
+
+
+def save_label_figure(
+    path: Path,
+    times_s: ArrayLike,
+    probabilities: ArrayLike,
+    classes: Sequence[str],
+    label_times_s: ArrayLike,
+    labels: ArrayLike,
+    events: dict[str, tuple[float | None, float | None]],
+    name: str = "contact",
+) -> None:
+    """The classifier's interaction probability over the labelled truth, with the true first
+    and last interaction as orange dotted lines (the form of dissertation Figure 2.5d)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    p = np.asarray(probabilities, dtype=np.float64).reshape(t.size, -1)
+    lt = np.asarray(label_times_s, dtype=np.float64).reshape(-1)
+    lv = np.asarray(labels, dtype=np.float64).reshape(lt.size)
+    origin = float(min(t[0] if t.size else np.inf, lt[0] if lt.size else np.inf))
+    origin = 0.0 if not np.isfinite(origin) else origin
+    figure = Figure(figsize=(7.5, 3.2), dpi=120)
+    FigureCanvasAgg(figure)
+    axes = figure.subplots()
+    truth = np.where(np.isfinite(lv), np.rint(lv) != 0, False).astype(float)
+    axes.fill_between(lt - origin, 0.0, truth, step="post", color="tab:green", alpha=0.2,
+                      linewidth=0, label=f"labelled {name}")
+    background = classes[0] if classes else "background"
+    axes.plot(t - origin, 1.0 - p[:, 0], color="tab:blue", linewidth=1.1,
+              label=f"P(not {background})")
+    axes.step(t - origin, (np.argmax(p, axis=1) != 0).astype(float), where="post",
+              color="tab:red", linewidth=0.9, label="decision")
+    for when, text in zip(events["true"], (f"first {name}", f"last {name}")):
+        if when is not None:
+            axes.axvline(when - origin, color="tab:orange", linestyle=":", linewidth=1.3)
+            axes.annotate(text, (when - origin, 1.06), ha="center", fontsize=8,
+                          color="tab:orange", annotation_clip=False)
+    axes.set_ylim(-0.05, 1.12)
+    axes.set_xlabel("time (s)")
+    axes.set_ylabel("probability / state")
+    axes.legend(loc="center left", fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path)

@@ -23,7 +23,7 @@ import numpy as np
 from ._config import Experiment, RunSettings
 from ._dataflow import Dataflow, TraceRecorder
 from ._errors import ExperimentError, HapticframeError, Issue, RunError, UsageError
-from ._evaluate import evaluate_map, save_outline_figure
+from ._evaluate import evaluate_labels, evaluate_map, save_label_figure, save_outline_figure
 from ._kind import Kind
 from ._version import __version__
 from .kinds import (
@@ -309,6 +309,7 @@ class Session:
                     self.out_dir / "outline.png", the_map.region, scene, self.movements, outline,
                     out["estimated_centroid_m"], self.settings.outline_level,
                 )
+        out.update(self._label_metrics())
         outcome = RunOutcome(
             self.out_dir, scene, tuple(self.movements), self.components, wall_time_s,
             figures=self.settings.figures,
@@ -320,6 +321,44 @@ class Session:
                 out[key] = value
         out["wall_time_s"] = time.perf_counter() - self.started
         return out
+
+    def _primary_classifier(self) -> str | None:
+        """The classifier whose decisions drive the run (as :class:`Dataflow` picks it): the
+        one feeding the first sensor model, else the first classifier."""
+        for entry in self.experiment.of_kind(Kind.SENSOR_MODEL):
+            for name in entry.inputs:
+                if self.components[name].kind is Kind.CLASSIFIER:
+                    return name
+        classifiers = self.experiment.of_kind(Kind.CLASSIFIER)
+        return classifiers[0].id if classifiers else None
+
+    def _label_metrics(self) -> dict[str, Any]:
+        """Score the primary classifier against the first streamed sensor that has a
+        ``run.label_channel`` channel (a synthetic or labelled recording); writes
+        ``labels.png``. Nothing when there is no such sensor or no classifier output."""
+        name = self.settings.label_channel
+        clf = self._primary_classifier()
+        sources = [
+            e.id for e in self.experiment.of_kind(Kind.SENSOR)
+            if e.id not in self.training_sensors
+            and name in self.components[e.id].channels  # type: ignore[attr-defined]
+        ]
+        if clf is None or not sources:
+            return {}
+        arrays = self.recorder.arrays()
+        times = arrays.get(f"classifier/{clf}/timestamps_s")
+        probabilities = arrays.get(f"classifier/{clf}/probabilities")
+        labels = arrays.get(f"sensor/{sources[0]}/{name}")
+        if times is None or probabilities is None or labels is None or not len(times):
+            return {}
+        label_times = arrays[f"sensor/{sources[0]}/timestamps_s"]
+        result = evaluate_labels(times, probabilities, label_times, labels, name)
+        events = result.pop("_events")
+        if self.settings.figures and result[f"{name}_frames"]:
+            classes = tuple(self.components[clf].classes)  # type: ignore[attr-defined]
+            save_label_figure(self.out_dir / "labels.png", times, probabilities, classes,
+                              label_times, labels, events, name)
+        return {**result, f"{name}_labels_from": sources[0]}
 
     def _evaluation_map(self) -> str | None:
         if self.settings.evaluation_map is not None:

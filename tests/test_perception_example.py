@@ -36,7 +36,11 @@ def test_the_example_trains_first_and_writes_the_timeline_and_snapshots(tmp_path
     assert record["details"]["training"]["trained"] == ["emd", "codes", "sf-rnn"]
     metrics = json.loads((out / "metrics.json").read_text())
     assert 0.0 <= metrics["contact_fraction"] <= 1.0
+    # The core scores the SF-RNN against the streamed trial's contact labels (Figure 2.5).
+    assert metrics["contact_labels_from"] == "fingertip" and metrics["contact_frames"] > 200
+    assert 0.0 <= metrics["contact_balanced_accuracy"] <= 1.0
     names = {p.name for p in out.glob("*.png")}
+    assert "labels.png" in names
     assert {"timeline.png", "belief_first_contact.png", "belief_mid_contact.png",
             "belief_last_contact.png"} <= names or (
         # a barely trained network may never decide "contact": then there is no contact to show
