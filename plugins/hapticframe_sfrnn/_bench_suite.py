@@ -88,11 +88,12 @@ class SuitePlan:
                     if k == "modality_sets" else v) for k, v in self.__dict__.items()}
 
 
-#: The quick run: 45 cottonwood trials, 3 per medium, 2 seeds, short training, one pass
+#: The quick run: 45 cottonwood trials, 10 robustness trials per medium (3 left per-medium
+#: scores to one or two trials with contact), 2 seeds, short training, one pass
 #: of dictionary learning and liblinear capped at 200 iterations (the (c) SVM on pac+pdc,
-#: 201 features, does not converge within 1000 either). About 4 minutes on 2 shared cores.
+#: 201 features, does not converge within 1000 either). About 2.5 minutes on 2 shared cores.
 QUICK_PLAN = SuitePlan(
-    cottonwood_trials=45, robustness_per_medium=3, seeds=2, max_epochs=6, patience=3,
+    cottonwood_trials=45, robustness_per_medium=10, seeds=2, max_epochs=6, patience=3,
     latency_frames=2000, coder_fit_frames=2000, quick=True,
     rnn_settings={"batch_size": 128, "learning_rate": 3e-3, "free_stride_frames": 20,
                   "contact_stride_frames": 10, "weight_decay": 1e-3, "modality_dropout": 0.2,
