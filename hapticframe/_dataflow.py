@@ -78,6 +78,11 @@ class TraceRecorder:
         for key in list(self._rows):
             self._flush_rows(key)
         out = {k: np.concatenate(v) if v else np.empty(0) for k, v in self._parts.items()}
+        # Keep the joined arrays: reading the trace again (the run's evaluation, then the
+        # saved file) does not concatenate every part a second time.
+        for key, array in out.items():
+            if len(self._parts[key]) > 1:
+                self._parts[key] = [array]
         out.update(self._fixed)
         return out
 

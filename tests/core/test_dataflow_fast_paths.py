@@ -143,6 +143,17 @@ def test_trace_rows_equal_one_array_per_row(tmp_path) -> None:
     for key in ("t", "position", "index", "unit"):
         assert ours[key].dtype == reference[key].dtype
         np.testing.assert_array_equal(ours[key], reference[key])
+    # Reading again gives the same arrays, and rows added after a read join them in order.
+    again = rows.arrays()
+    assert all(np.array_equal(again[k], ours[k]) for k in ours)
+    rows.add_row("t", 9.0)
+    rows.add("t", np.array([10.0]))
+    grown = rows.arrays()["t"]
+    assert grown.dtype == ours["t"].dtype
+    np.testing.assert_array_equal(grown, np.concatenate([ours["t"], [9.0, 10.0]]))
+    rows, ours["t"] = TraceRecorder(), grown
+    for key, value in ours.items():
+        rows.set(key, value) if key == "unit" else rows.add(key, value)
     # Saved at another compression level, the file still loads as the same arrays.
     rows.save(str(tmp_path / "trace"))
     with np.load(tmp_path / "trace.npz") as loaded:
