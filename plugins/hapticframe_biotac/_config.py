@@ -65,7 +65,14 @@ class BioTacSensorConfig(PluginConfig):
         description="Synthetic and replay: subtract from every channel its mean over the first "
         "tare_frames frames of each trial (recording), causally (frame k < tare_frames uses the "
         "frames so far), as BioTac users zero the sensor before a trial; 0 (default) delivers raw "
-        "12-bit counts. The perception benchmark uses 10 (100 ms).",
+        "12-bit counts. The perception benchmark uses 10 (100 ms) with tare_source 'air'.",
+    )
+    tare_source: Literal["trial_start", "air"] = Field(
+        "trial_start",
+        description="What the tare averages: 'trial_start', the first tare_frames frames of each "
+        "trial or recording (for a recording that starts in open air, that is the usual zeroing); "
+        "'air' (synthetic source only), tare_frames frames of the fingertip at rest in open air "
+        "just before each trial, as users zero a BioTac before lowering it into the media.",
     )
 
     # -- spi ---------------------------------------------------------------------------------
@@ -109,6 +116,13 @@ class BioTacSensorConfig(PluginConfig):
                 raise ValueError(f"replay path {self.path!r} must end in .npz or .csv")
         if self.source == "spi" and self.tare_frames:
             raise ValueError("tare_frames applies to the synthetic and replay sources only")
+        if self.tare_source == "air" and self.source != "synthetic":
+            raise ValueError(
+                "tare_source 'air' needs the synthetic source; a recording that starts in open "
+                "air is zeroed in air by tare_source 'trial_start'"
+            )
+        if self.tare_source == "air" and not self.tare_frames:
+            raise ValueError("tare_source 'air' needs tare_frames of at least 1 (frames averaged in air)")
         if self.source == "synthetic" and self.variant != "biotac":
             raise ValueError("the synthetic generator models the 19-electrode BioTac only; use variant 'biotac'")
         return self

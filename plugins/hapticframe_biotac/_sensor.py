@@ -18,7 +18,7 @@ from ._replay import load_recording
 from ._tare import tare_reference
 from ._wire import DecoderStats, WordStreamDecoder
 
-__all__ = ["BioTacSensor", "tare_frames"]
+__all__ = ["BioTacSensor", "tare_frames", "tare_in_air"]
 
 
 def tare_frames(frames: BioTacFrames, n_frames: int) -> BioTacFrames:
@@ -38,6 +38,34 @@ def tare_frames(frames: BioTacFrames, n_frames: int) -> BioTacFrames:
         frames.layout, frames.timestamps_s, tared["pac"], tared["pdc"], tared["tac"],
         tared["tdc"], tared["electrodes"], word_valid=frames.word_valid,
         frame_index=frames.frame_index, position_m=frames.position_m, contact=frames.contact,
+    )
+
+
+def tare_in_air(frames: BioTacFrames, air: Mapping[str, Any]) -> BioTacFrames:
+    """One recording with each signal channel minus its mean over frames taken in open air.
+
+    ``air`` maps ``pac``, ``pdc``, ``tac``, ``tdc`` and ``electrodes`` to the frames of a
+    reading at rest before the recording (rows as in ``frames``), such as
+    :func:`hapticframe_biotac._synthetic.open_air_frames` returns. pac is referred to the
+    mean of all its samples (its AC-coupled centre).
+
+    Raises
+    ------
+    ValueError
+        If a channel of the reading is empty or not finite.
+    """
+    references: dict[str, Any] = {}
+    for name in ("pac", "pdc", "tac", "tdc", "electrodes"):
+        values = np.asarray(air[name], dtype=np.float64)
+        if values.size == 0 or not np.all(np.isfinite(values)):
+            raise ValueError(f"the open-air reading of {name} is empty or not finite")
+        references[name] = values.mean() if name == "pac" else values.mean(axis=0)
+    return BioTacFrames(
+        frames.layout, frames.timestamps_s, frames.pac - references["pac"],
+        frames.pdc - references["pdc"], frames.tac - references["tac"],
+        frames.tdc - references["tdc"], frames.electrodes - references["electrodes"],
+        word_valid=frames.word_valid, frame_index=frames.frame_index,
+        position_m=frames.position_m, contact=frames.contact,
     )
 
 
@@ -84,6 +112,7 @@ class _SyntheticSource(_FrameSource):
         # Imported here: the generator is numpy-heavy and owned by the dataset module.
         synthetic = importlib.import_module("hapticframe_biotac._synthetic")
         self._generate = synthetic.generate_trial
+        self._open_air_frames = synthetic.open_air_frames
         if config.dataset == "training":
             self._specs = list(synthetic.training_specs(rng))
         elif config.dataset == "robustness":
@@ -107,6 +136,7 @@ class _SyntheticSource(_FrameSource):
         self._last_time: float | None = None
         self._next_index = 0
         self.tare_frames = config.tare_frames
+        self.tare_source = config.tare_source
 
     def _append_trial(self) -> None:
         spec = self._specs[self._trial_number % len(self._specs)]
@@ -121,7 +151,11 @@ class _SyntheticSource(_FrameSource):
             frame_index=self._next_index + np.arange(n),
             position_m=trial.position_m, contact=np.asarray(trial.contact, dtype=np.float64),
         )
-        frames = tare_frames(frames, self.tare_frames)
+        if self.tare_source == "air":
+            air = self._open_air_frames(trial, self.tare_frames, self.rng)
+            frames = tare_in_air(frames, air)
+        else:
+            frames = tare_frames(frames, self.tare_frames)
         self.trials_left -= 1
         if n:
             self._last_time = float(t[-1])

@@ -45,6 +45,7 @@ __all__ = [
     "generate_open_air_trial",
     "generate_trial",
     "granular_noise_ratios",
+    "open_air_frames",
     "linear_svm_separability",
     "robustness_specs",
     "training_specs",
@@ -95,6 +96,8 @@ _FORCE_CHAIN_MEAN_LOAD = 0.25
 _PAC_TRANSIENT = 60.0
 _PDC_TRANSIENT = 25.0
 _THERMAL_DROP = 40.0
+# Time to lower the fingertip from its open-air tare pose into the media (assumption).
+_LOWERING_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -128,7 +131,9 @@ class Trial:
     """One synthetic trial: a 100 Hz frame per row, counts as 12-bit values in float64.
 
     ``extras`` (not part of equality) holds ground truth beyond the shared layout: the digit
-    (``"a"`` or ``"b"``), the fingertip depth per frame and the first/last contact frames.
+    (``"a"`` or ``"b"``), the fingertip depth per frame, the first/last contact frames and
+    ``air_rest``, the noise-free counts at rest in open air before the trial (see
+    :func:`open_air_frames`).
     """
 
     spec: TrialSpec
@@ -270,8 +275,9 @@ def _synthesize(spec: TrialSpec, rng: np.random.Generator, granular: bool) -> Tr
         pac_burst *= _PAC_TRANSIENT * firmness * (1.0 if granular else 0.3) * speed_rel**0.5
 
     # --- pdc ---------------------------------------------------------------------------------
+    pdc_drift = rng.normal(0.0, 1.0)
     pdc = (
-        pdc0 + rng.normal(0.0, 1.0) * t
+        pdc0 + pdc_drift * t
         + gain * (g * _PDC_DRAG * drag + _PDC_CONTACT * tip_load)
         + gain * g * _PDC_TRANSIENT * firmness * release
         + rng.normal(0.0, _AIR_SIGMA["pdc"], n)
@@ -305,7 +311,8 @@ def _synthesize(spec: TrialSpec, rng: np.random.Generator, granular: bool) -> Tr
     ).T
 
     # --- temperature: the warm fingertip loses heat to the media and to the plastic object --
-    since_entry = t + rng.uniform(2.0, 10.0)
+    entered_s = rng.uniform(2.0, 10.0)  # how long before frame 0 the finger entered the media
+    since_entry = t + entered_s
     heat_loss = (0.3 + 0.7 * g * medium.thermal_effusivity_rel) * _THERMAL_DROP
     heat_loss *= rng.lognormal(0.0, 0.2)
     cooling = heat_loss * (1.0 - np.exp(-since_entry / 10.0))
@@ -333,7 +340,18 @@ def _synthesize(spec: TrialSpec, rng: np.random.Generator, granular: bool) -> Tr
         electrodes=counts(electrodes),
         position_m=np.column_stack([x, y]),
         contact=contact,
-        extras={"digit": digit, "depth_m": depth, "first_contact": first, "last_contact": last},
+        extras={
+            "digit": digit, "depth_m": depth, "first_contact": first, "last_contact": last,
+            # The noise-free counts at rest in open air just before the finger was lowered
+            # into the media (the drifts run back to then; no load, no cooling yet).
+            "air_rest": {
+                "pac": float(pac0),
+                "pdc": float(pdc0 - pdc_drift * (entered_s + _LOWERING_S)),
+                "tac": float(tac0),
+                "tdc": float(tdc0),
+                "electrodes": electrodes_base - drift * (entered_s + _LOWERING_S),
+            },
+        },
     )
 
 
@@ -406,6 +424,36 @@ def generate_open_air_trial(spec: TrialSpec, rng: np.random.Generator) -> Trial:
     The medium only names the condition; no drag, particle noise, jamming or force chains act.
     """
     return _synthesize(spec, rng, granular=False)
+
+
+def open_air_frames(trial: Trial, n_frames: int, rng: np.random.Generator) -> dict[str, FloatArray]:
+    """``n_frames`` frames of the trial's fingertip at rest in open air, before the trial.
+
+    BioTac users zero the sensor in air before lowering it into the media; these are the
+    frames such a tare averages: the trial's resting counts just before the finger entered
+    the media (``trial.extras["air_rest"]``) plus the sensor's noise at rest, as 12-bit
+    counts. Returns ``pac`` (n, 22), ``pdc``, ``tac``, ``tdc`` (n,) and ``electrodes``
+    (n, 19). Draws from ``rng`` only, so the trial itself is unchanged.
+
+    Raises
+    ------
+    ValueError
+        If ``n_frames`` < 1 or the trial carries no open-air resting counts.
+    """
+    if int(n_frames) < 1:
+        raise ValueError(f"n_frames must be at least 1, got {n_frames!r}")
+    rest = trial.extras.get("air_rest")
+    if not isinstance(rest, dict):
+        raise ValueError("the trial carries no open-air resting counts (extras['air_rest'])")
+    n = int(n_frames)
+    shapes = {"pac": (n, PAC_PER_FRAME), "pdc": (n,), "tac": (n,), "tdc": (n,),
+              "electrodes": (n, N_ELECTRODES)}
+    out = {}
+    for name, shape in shapes.items():
+        level = np.broadcast_to(np.asarray(rest[name], dtype=np.float64), shape[1:])
+        values = level + rng.normal(0.0, _AIR_SIGMA[name], shape)
+        out[name] = np.clip(np.round(values), 0.0, COUNT_MAX)
+    return out
 
 
 def training_specs(rng: np.random.Generator) -> list[TrialSpec]:

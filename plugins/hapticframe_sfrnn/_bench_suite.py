@@ -3,18 +3,26 @@
 Protocol (Jia 2022, §2.6-2.7): cottonwood-bead trials at 4 cm/s (one in three with
 contact) split 60/20/20 by whole trials for training, validation (early stopping) and test;
 the robustness set (§2.6.3) rakes all five media at 2 cm/s with the fingertip at 0° or 20°
-and the object at 0 or +3.5 cm. Every trial is tared over its first 10 frames (100 ms), as
-BioTac users zero the sensor before a trial (``hapticframe_biotac._tare``), and turned into
-EMD tensors and sparse codes once (:mod:`._perception_data`); the six architectures of
+and the object at 0 or +3.5 cm. Every trial is tared on 10 frames (100 ms) of the fingertip
+at rest in open air before it, as BioTac users zero the sensor before lowering it into the
+media (``hapticframe_biotac._synthetic.open_air_frames``), and turned into EMD tensors and
+sparse codes once (:mod:`._perception_data`); the six architectures of
 :mod:`._perception_models` are then trained per modality set and seed.
 
 Outputs in ``options.out_dir``: ``perception.json`` (everything, see :func:`run_suite`),
 ``perception.md`` (the tables in the thesis's layout beside its numbers) and
 ``perception.png`` (test and robustness accuracy bars).
+
+A full run takes hours, so each finished job (one modality set and seed, six models) is
+kept in ``out_dir/jobs/`` as JSON, stamped with a fingerprint of the plan, the seed, the
+library versions, the code and the trials (:func:`job_fingerprint`). Run the same command
+again after an interruption and it keeps every job whose fingerprint matches and trains
+only the rest; a job left from other settings, code or data is ignored and replaced.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import platform
@@ -188,8 +196,19 @@ def _run_job(
             if mods == ALL:
                 out["diagnostics"] = _diagnostics(model, cell)
                 if save_dir is not None and s == 0:
-                    model.component.save(save_dir)
+                    out["model_sha256"] = _model_digest(model.component.save(save_dir))
     return out
+
+
+def _model_digest(directory: str | Path) -> str | None:
+    """sha256 over a saved model's two files, or None when either is missing."""
+    digest = hashlib.sha256()
+    for name in ("model.json", "weights.pt"):
+        path = Path(directory) / name
+        if not path.is_file():
+            return None
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
 
 
 def _progress_line(r: dict[str, Any], done: int, total: int) -> str:
@@ -198,26 +217,112 @@ def _progress_line(r: dict[str, Any], done: int, total: int) -> str:
             f"validation {sf['validation']:.3f} test {sf['test']:.3f}")
 
 
-def _map_jobs(jobs: list[Any], workers: int, data: Any,
-              echo: Callable[[str], None]) -> list[dict[str, Any]]:
-    _JOB_DATA["data"] = data
-    results: list[dict[str, Any]] = []
+def _job_file(job_dir: Path, job: tuple[Any, ...]) -> Path:
+    return job_dir / f"seed{job[0]}-{_key(job[1])}.json"
+
+
+def _load_finished(job_dir: Path | None, job: tuple[Any, ...],
+                   fingerprint: str) -> dict[str, Any] | None:
+    """A job's result kept by an earlier run with the same fingerprint, else None."""
+    if job_dir is None:
+        return None
+    path = _job_file(job_dir, job)
     try:
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:
-                results.append(_run_job(job))
-                echo(_progress_line(results[-1], len(results), len(jobs)))
-            return results
-        # fork: the workers share the cached features with this process (copy on write).
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
-            futures = [pool.submit(_run_job, job) for job in jobs]
-            for future in as_completed(futures):
-                results.append(future.result())
-                echo(_progress_line(results[-1], len(results), len(jobs)))
-        order = {(j[0], j[1]): i for i, j in enumerate(jobs)}
-        return sorted(results, key=lambda r: order[(r["seed_index"], tuple(r["modalities"]))])
+        kept = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(kept, dict) or kept.get("fingerprint") != fingerprint:
+        return None
+    result = kept.get("result")
+    if not isinstance(result, dict):
+        return None
+    save_dir = job[5]
+    if "model_sha256" in result and (save_dir is None
+                                     or _model_digest(save_dir) != result["model_sha256"]):
+        return None  # the job that saves the model reruns unless its saved model is intact
+    result["modalities"] = tuple(result["modalities"])
+    return result
+
+
+def _keep(job_dir: Path | None, job: tuple[Any, ...], fingerprint: str,
+          result: dict[str, Any]) -> None:
+    if job_dir is None:
+        return
+    job_dir.mkdir(parents=True, exist_ok=True)
+    path = _job_file(job_dir, job)
+    partial = path.with_suffix(".part")
+    partial.write_text(json.dumps({"fingerprint": fingerprint, "result": result},
+                                  allow_nan=False) + "\n", encoding="utf-8")
+    partial.replace(path)  # atomic: an interrupted write never leaves a half file behind
+
+
+def _map_jobs(jobs: list[Any], workers: int, data: Any, echo: Callable[[str], None],
+              job_dir: Path | None = None, fingerprint: str = "") -> list[dict[str, Any]]:
+    """Run the jobs (kept results from ``job_dir`` are reused) in the jobs' order."""
+    results: dict[int, dict[str, Any]] = {}
+    for i, job in enumerate(jobs):
+        kept = _load_finished(job_dir, job, fingerprint)
+        if kept is not None:
+            results[i] = kept
+    if results:
+        echo(f"resuming: {len(results)} of {len(jobs)} jobs kept from {job_dir}")
+    todo = [i for i in range(len(jobs)) if i not in results]
+
+    def finished(i: int, result: dict[str, Any]) -> None:
+        _keep(job_dir, jobs[i], fingerprint, result)
+        results[i] = result
+        echo(_progress_line(result, len(results), len(jobs)))
+
+    _JOB_DATA["data"] = data
+    try:
+        if workers <= 1 or len(todo) <= 1:
+            for i in todo:
+                finished(i, _run_job(jobs[i]))
+        else:
+            # fork: the workers share the cached features with this process (copy on write).
+            with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
+                futures = {pool.submit(_run_job, jobs[i]): i for i in todo}
+                for future in as_completed(futures):
+                    finished(futures[future], future.result())
     finally:
         _JOB_DATA.clear()
+    return [results[i] for i in range(len(jobs))]
+
+
+#: Packages whose code decides a job's result; an edit to any of them retires kept jobs.
+_FINGERPRINT_PACKAGES = ("hapticframe", "hapticframe_biotac", "hapticframe_tactile_features",
+                         "hapticframe_sfrnn")
+
+
+def job_fingerprint(plan: SuitePlan, seed: int, data: Any) -> str:
+    """A digest of what a job's result depends on.
+
+    The plan, the seed, the library versions, the source files of the packages that make
+    the data and the models, and each trial's split, medium and labels. The features
+    themselves are left out: they follow from those, and a float digest could change with
+    the BLAS threads of the coder's pass.
+    """
+    import importlib
+    from importlib.metadata import PackageNotFoundError, version
+
+    digest = hashlib.sha256()
+    versions = {}
+    for name in ("numpy", "scipy", "scikit-learn", "torch"):
+        try:
+            versions[name] = version(name)
+        except PackageNotFoundError:
+            versions[name] = None
+    digest.update(json.dumps({"plan": plan.as_dict(), "seed": int(seed), "versions": versions},
+                             sort_keys=True, default=str).encode())
+    for package in _FINGERPRINT_PACKAGES:
+        root = Path(importlib.import_module(package).__file__ or "").parent
+        for source in sorted(root.rglob("*.py")):
+            digest.update(source.relative_to(root).as_posix().encode())
+            digest.update(source.read_bytes())
+    for trial in data.trials:
+        digest.update(f"{trial.index}:{trial.split}:{trial.medium}:{len(trial)}".encode())
+        digest.update(np.ascontiguousarray(trial.labels, dtype=np.int64).tobytes())
+    return digest.hexdigest()
 
 
 def run_suite(
@@ -226,6 +331,7 @@ def run_suite(
     workers: int | None,
     echo: Callable[[str], None],
     model_dir: str | None = None,
+    job_dir: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run every table of a plan and return the results (json-ready) and the fitted coder.
 
@@ -238,6 +344,7 @@ def run_suite(
     thesis's Table 2.4 comparison) and ``sfrnn_ahead_on_every_medium`` (above all five
     other all-modality models), ``training`` (train/validation diagnostics of the SF-RNN), ``dataset``,
     ``plan`` and ``timing_s``. ``model_dir`` receives the seed-0 all-modality SF-RNN.
+    ``job_dir`` keeps each finished job and lets a repeated run resume (module docstring).
     """
     started = time.perf_counter()
     n_workers = int(workers or min(os.cpu_count() or 1, 8))
@@ -253,7 +360,9 @@ def run_suite(
     jobs = [(s, mods, seed, rnn_settings, plan.svm_settings, model_dir)
             for s in range(plan.seeds) for mods in plan.modality_sets]
     echo(f"training {len(jobs) * len(ARCHITECTURES)} models on {n_workers} workers")
-    results = _map_jobs(jobs, n_workers, data, echo)
+    fingerprint = job_fingerprint(plan, seed, data) if job_dir is not None else ""
+    results = _map_jobs(jobs, n_workers, data, echo,
+                        Path(job_dir) if job_dir is not None else None, fingerprint)
     cells: dict[str, dict[str, dict[str, list[float]]]] = {}
     robustness: dict[str, dict[str, list[float]]] = {}
     a1: dict[str, dict[str, list[float]]] = {}
@@ -320,6 +429,7 @@ def run_suite(
                                       for k, per in train_time.items()}},
         "dataset": {
             "tare_frames": data.tare_frames,
+            "tare_source": data.tare_source,
             "trials": {k: len(data.by_split(k))
                        for k in ("train", "validation", "test", "robustness")},
             "frames": {k: int(sum(len(t) for t in data.by_split(k)))
@@ -383,7 +493,7 @@ def measure_streaming_latency(
 ) -> dict[str, Any]:
     """Per-frame time of emd-features → sparse-coding → SF-RNN on robustness trials, one thread.
 
-    Fresh robustness trials, tared as in training, are streamed one frame at a time through
+    Fresh robustness trials, tared in open air as in training, are streamed one frame at a time through
     a new ``emd-features``, the run's fitted ``sparse-coding`` and the run's seed-0
     all-modality SF-RNN (loaded from ``model_dir``); each stage is timed.
     """
@@ -392,8 +502,8 @@ def measure_streaming_latency(
 
     from hapticframe.kinds import BuildContext, SampleBatch
     from hapticframe_biotac._frame import BioTacFrames, layout_for
-    from hapticframe_biotac._sensor import tare_frames
-    from hapticframe_biotac._synthetic import generate_trial, robustness_specs
+    from hapticframe_biotac._sensor import tare_in_air
+    from hapticframe_biotac._synthetic import generate_trial, open_air_frames, robustness_specs
     from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig
 
     from ._config import SFRNNConfig
@@ -409,7 +519,8 @@ def measure_streaming_latency(
         trial = generate_trial(specs[i], rng)
         recorded = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
                                 trial.tac, trial.tdc, trial.electrodes)
-        batches.append(tare_frames(recorded, 10).to_sample_batch())
+        air = open_air_frames(trial, 10, rng)
+        batches.append(tare_in_air(recorded, air).to_sample_batch())
         total += len(batches[-1])
         if total >= frames:
             break
@@ -462,7 +573,8 @@ def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict
     out.mkdir(parents=True, exist_ok=True)
     model_dir = out / "sfrnn-model"
     options.echo(f"perception bench ({'quick' if plan.quick else 'full'}): {plan.as_dict()}")
-    result, coder = run_suite(plan, options.seed, options.workers, options.echo, str(model_dir))
+    result, coder = run_suite(plan, options.seed, options.workers, options.echo, str(model_dir),
+                              job_dir=out / "jobs")
     options.echo(f"latency: streaming {plan.latency_frames} frames through the chain, one thread")
     result["latency"] = measure_streaming_latency(coder, model_dir, plan.latency_frames,
                                                   options.seed, plan.emd_settings)

@@ -73,9 +73,9 @@ class RecurrentConfig(PluginConfig):
     amplitude_modalities: tuple[Modality, ...] | None = Field(
         None,
         description="With amplitude_inputs, the modalities whose amplitude is read (None: "
-        "all configured ones). After the per-trial tare, the pdc and electrode amplitudes "
-        "measure deformation relative to the trial's start; the pac amplitude is the "
-        "vibration power, which the tare cannot zero and which scales with the medium and "
+        "all configured ones). After the tare, the pdc and electrode amplitudes "
+        "measure deformation relative to the fingertip at rest; the pac amplitude is the "
+        "vibration power, which a tare cannot zero and which scales with the medium and "
         "the speed (impact power ~ density x speed^3), so a model fitted in one medium at one "
         "speed reads a quieter medium or a slower rake as its contact frames' slightly "
         "lower vibration. The perception bench reads pdc and electrodes only.",

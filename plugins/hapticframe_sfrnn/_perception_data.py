@@ -90,6 +90,7 @@ class PerceptionData:
     trials: list[TrialFeatures]
     timing_s: dict[str, float]
     tare_frames: int
+    tare_source: str = "air"
     coder: Any = None
 
     def by_split(self, split: str) -> list[TrialFeatures]:
@@ -132,19 +133,24 @@ def _extract(job: tuple[Any, ...]) -> tuple[int, dict[str, FloatArray], NDArray[
 
     from hapticframe.kinds import BuildContext
     from hapticframe_biotac._frame import BioTacFrames, layout_for
-    from hapticframe_biotac._sensor import tare_frames
-    from hapticframe_biotac._synthetic import generate_trial
+    from hapticframe_biotac._sensor import tare_frames, tare_in_air
+    from hapticframe_biotac._synthetic import generate_trial, open_air_frames
     from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig
 
-    position, spec, seed, set_number, index, n_tare, emd_settings = job
+    position, spec, seed, set_number, index, n_tare, tare_source, emd_settings = job
     with threadpool_limits(limits=1):
-        trial = generate_trial(spec, _trial_seed(seed, set_number, index))
+        rng = _trial_seed(seed, set_number, index)
+        trial = generate_trial(spec, rng)
         frames = BioTacFrames(
             layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc, trial.tac,
             trial.tdc, trial.electrodes, position_m=trial.position_m,
             contact=trial.contact.astype(np.float64),
         )
-        batch = tare_frames(frames, n_tare).to_sample_batch()
+        if tare_source == "air" and n_tare > 0:
+            frames = tare_in_air(frames, open_air_frames(trial, n_tare, rng))
+        else:
+            frames = tare_frames(frames, n_tare)
+        batch = frames.to_sample_batch()
         extractor = EMDFeatureExtractor(
             EMDFeaturesConfig(**emd_settings), BuildContext("emd", np.random.default_rng(0))
         )
@@ -170,6 +176,7 @@ def build_perception_data(
     seed: int,
     workers: int | None = None,
     tare_frames: int = 10,
+    tare_source: str = "air",
     emd_settings: dict[str, Any] | None = None,
     coder_fit_frames: int = 20_000,
     coder_settings: dict[str, Any] | None = None,
@@ -189,7 +196,12 @@ def build_perception_data(
     workers : int, optional
         Processes for the EMD pass (default: the CPUs, at most 8).
     tare_frames : int
-        Tare of each trial (see ``hapticframe_biotac._tare``); 0 feeds raw counts.
+        Frames averaged by each trial's tare; 0 feeds raw counts.
+    tare_source : {"air", "trial_start"}
+        ``"air"`` (default): zero each trial on ``tare_frames`` frames of the fingertip at
+        rest in open air before it (``hapticframe_biotac._synthetic.open_air_frames``), as
+        users zero a BioTac before lowering it into the media; ``"trial_start"``: on the
+        trial's own first frames (``hapticframe_biotac._tare``).
     emd_settings, coder_settings : dict, optional
         Overrides of ``EMDFeaturesConfig`` / ``SparseCodingConfig``.
     coder_fit_frames : int
@@ -213,9 +225,12 @@ def build_perception_data(
         with_object = [s for s in robust_all if s.medium == medium and s.has_object]
         without = [s for s in robust_all if s.medium == medium and not s.has_object]
         robust += with_object[:k_contact] + without[:k_free]
+    if tare_source not in ("air", "trial_start"):
+        raise ValueError(f"tare_source must be 'air' or 'trial_start', not {tare_source!r}")
     settings = dict(emd_settings or {})
-    jobs = [(i, s, seed, 1, i, tare_frames, settings) for i, s in enumerate(cotton)]
-    jobs += [(len(cotton) + i, s, seed, 2, i, tare_frames, settings) for i, s in enumerate(robust)]
+    jobs = [(i, s, seed, 1, i, tare_frames, tare_source, settings) for i, s in enumerate(cotton)]
+    jobs += [(len(cotton) + i, s, seed, 2, i, tare_frames, tare_source, settings)
+             for i, s in enumerate(robust)]
     n_workers = int(workers or min(os.cpu_count() or 1, 8))
     say(f"features: {len(cotton)} cottonwood + {len(robust)} robustness trials, "
         f"{n_workers} workers")
@@ -264,6 +279,7 @@ def build_perception_data(
         timing_s={"emd_wall": emd_s, "dictionary_fit": fit_s, "coding": code_s,
                   "frames": float(frames_total), "workers": float(n_workers)},
         tare_frames=tare_frames,
+        tare_source=tare_source,
         coder=coder,
     )
 

@@ -182,8 +182,11 @@ def render_markdown(result: dict[str, Any]) -> str:
         f"- Data: synthetic trials of `hapticframe_biotac` ({data['trials']['train']} train / "
         f"{data['trials']['validation']} validation / {data['trials']['test']} test cottonwood "
         f"trials at 4 cm/s; {data['trials']['robustness']} robustness trials, "
-        f"{plan['robustness_per_medium']} per medium at 2 cm/s), tared over the first "
-        f"{data['tare_frames']} frames; contact frames: "
+        f"{plan['robustness_per_medium']} per medium at 2 cm/s), "
+        + (f"tared on {data['tare_frames']} frames at rest in open air before each trial"
+           if data.get("tare_source", "trial_start") == "air"
+           else f"tared over each trial's first {data['tare_frames']} frames")
+        + "; contact frames: "
         + ", ".join(f"{k} {100 * v:.0f} %" for k, v in data["contact_fraction"].items()) + ".",
         f"- Models: {plan['seeds']} seeds per cell, at most {plan['max_epochs']} epochs "
         f"(patience {plan['patience']}) for the recurrent ones; dictionaries learned from "

@@ -11,8 +11,8 @@ from hapticframe.testing import make_component
 
 from hapticframe_biotac import BioTacSensorConfig
 from hapticframe_biotac._frame import BioTacFrames, layout_for
-from hapticframe_biotac._sensor import tare_frames
-from hapticframe_biotac._synthetic import TrialSpec, generate_trial
+from hapticframe_biotac._sensor import tare_frames, tare_in_air
+from hapticframe_biotac._synthetic import TrialSpec, generate_trial, open_air_frames
 from hapticframe_biotac._tare import TareState, tare_reference
 from hapticframe_biotac.plugin import SPECS
 
@@ -89,3 +89,95 @@ def test_sensor_option_tares_each_trial_and_is_refused_for_spi(registry):
         np.testing.assert_array_equal(b.channels["contact"], a.channels["contact"])
     with pytest.raises(ValidationError, match="tare_frames"):
         BioTacSensorConfig(source="spi", tare_frames=3)
+
+
+# --- tare in open air before the trial ---------------------------------------------------
+
+
+def test_open_air_frames_are_the_resting_counts_and_leave_the_trial_unchanged():
+    spec = TrialSpec("bbs", 0.02, 20.0, 0.035, True)
+    trial = generate_trial(spec, np.random.default_rng(8))
+    again = generate_trial(spec, np.random.default_rng(8))
+    air = open_air_frames(trial, 400, np.random.default_rng(9))
+    assert air["pac"].shape == (400, 22) and air["electrodes"].shape == (400, 19)
+    for name in ("pdc", "tac", "tdc"):
+        assert air[name].shape == (400,)
+    rest = trial.extras["air_rest"]
+    # Sensor noise at rest is 1-2 counts, so 400 frames average to within half a count.
+    for name in ("pac", "pdc", "tac", "tdc", "electrodes"):
+        np.testing.assert_allclose(air[name].mean(axis=0), rest[name], atol=0.5)
+        assert np.all(air[name] == np.round(air[name]))  # 12-bit counts
+    # The open-air frames come from their own generator; the trial is not touched.
+    for name in ("pac", "pdc", "tac", "tdc", "electrodes", "position_m", "contact"):
+        np.testing.assert_array_equal(getattr(trial, name), getattr(again, name))
+    with pytest.raises(ValueError, match="n_frames"):
+        open_air_frames(trial, 0, np.random.default_rng(0))
+    stripped = generate_trial(spec, np.random.default_rng(8))
+    stripped.extras.pop("air_rest")
+    with pytest.raises(ValueError, match="air_rest"):
+        open_air_frames(stripped, 3, np.random.default_rng(0))
+
+
+def test_air_tare_keeps_the_load_of_the_media_that_a_trial_start_tare_removes():
+    # Zeroed in air, a rake through the media reads the drag of the media on pdc and the pad;
+    # denser BBs press harder than cottonwood. Zeroed on its own first frames, a trial starts
+    # at zero whatever the medium.
+    def free_pdc(medium: str, source: str) -> float:
+        levels = []
+        for seed in range(6):
+            trial = generate_trial(TrialSpec(medium, 0.04, 0.0, 0.0, False),
+                                   np.random.default_rng(seed))
+            frames = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac,
+                                  trial.pdc, trial.tac, trial.tdc, trial.electrodes)
+            if source == "air":
+                tared = tare_in_air(frames, open_air_frames(trial, 10, np.random.default_rng(seed)))
+            else:
+                tared = tare_frames(frames, 10)
+            levels.append(np.median(tared.pdc))
+        return float(np.median(levels))
+
+    cotton, bbs = free_pdc("cottonwood_beads", "air"), free_pdc("bbs", "air")
+    assert 20.0 < cotton < bbs
+    assert abs(free_pdc("bbs", "trial_start")) < 0.5 * cotton
+
+
+def test_tare_in_air_subtracts_the_reading_and_refuses_a_broken_one():
+    trial = generate_trial(TrialSpec("cottonwood_beads", 0.04, 0.0, 0.0, True),
+                           np.random.default_rng(3))
+    frames = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
+                          trial.tac, trial.tdc, trial.electrodes)
+    air = open_air_frames(trial, 10, np.random.default_rng(4))
+    tared = tare_in_air(frames, air)
+    np.testing.assert_allclose(tared.electrodes, trial.electrodes - air["electrodes"].mean(axis=0))
+    np.testing.assert_allclose(tared.pac, trial.pac - air["pac"].mean())
+    np.testing.assert_allclose(tared.tdc, trial.tdc - air["tdc"].mean())
+    broken = {**air, "pdc": np.array([np.nan, 1.0])}
+    with pytest.raises(ValueError, match="pdc"):
+        tare_in_air(frames, broken)
+    with pytest.raises(ValueError, match="electrodes"):
+        tare_in_air(frames, {**air, "electrodes": np.empty((0, 19))})
+
+
+def test_sensor_tares_in_air_only_for_the_synthetic_source(registry):
+    spec = SPECS[0]
+    base = {"source": "synthetic", "n_trials": 2, "frames_per_read": 1000, "medium": "pine_beads"}
+    raw = list(make_component(spec, registry=registry, seed=6, config=base).iter_recordings())
+    air = list(make_component(spec, registry=registry, seed=6, config={
+        **base, "tare_frames": 10, "tare_source": "air"}).iter_recordings())
+    again = list(make_component(spec, registry=registry, seed=6, config={
+        **base, "tare_frames": 10, "tare_source": "air"}).iter_recordings())
+    assert len(air) == 2
+    for name in ("pdc", "electrodes", "pac"):
+        # The first trial is the raw one minus one constant reading (the open-air frames are
+        # drawn after it), so the offset is the same in every frame.
+        offset = raw[0].channels[name] - air[0].channels[name]
+        spread = np.ptp(offset) if name == "pac" else np.ptp(offset, axis=0).max()
+        assert spread < 1e-9 and np.abs(offset).max() > 1.0
+        for a, b in zip(air, again, strict=True):
+            np.testing.assert_array_equal(a.channels[name], b.channels[name])
+    # Air-zeroed resting electrodes (2,300-3,400 raw) are small; the drag of the media remains.
+    assert np.abs(np.median(air[0].channels["electrodes"], axis=0)).max() < 200
+    with pytest.raises(ValidationError, match="synthetic source"):
+        BioTacSensorConfig(source="replay", path="x.csv", tare_frames=5, tare_source="air")
+    with pytest.raises(ValidationError, match="tare_frames of at least 1"):
+        BioTacSensorConfig(source="synthetic", tare_source="air")

@@ -111,6 +111,45 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     assert any("SF-RNN test" in line for line in lines)
 
 
+def test_a_repeated_run_resumes_from_its_kept_jobs_and_retrains_stale_ones(tiny_run):
+    out, _, _ = tiny_run
+    first = json.loads((out / "perception.json").read_text())
+    assert first["dataset"]["tare_source"] == "air"
+    jobs = sorted((out / "jobs").glob("*.json"))
+    assert [p.name for p in jobs] == ["seed0-electrodes.json", "seed0-pac+pdc+electrodes.json",
+                                      "seed1-electrodes.json", "seed1-pac+pdc+electrodes.json"]
+    # A job kept from other settings (its fingerprint differs) is trained again.
+    stale = json.loads(jobs[2].read_text())
+    stale["fingerprint"] = "0" * 64
+    jobs[2].write_text(json.dumps(stale))
+    lines: list[str] = []
+    run_perception(BenchOptions(out_dir=out, seed=1, quick=True, workers=1, echo=lines.append),
+                   plan=TINY)
+    assert any(line.startswith("resuming: 3 of 4 jobs") for line in lines), lines
+    assert sum(line.startswith("[") and "seed 1 electrodes" in line for line in lines) == 1
+    again = json.loads((out / "perception.json").read_text())
+    # Training is seeded, so the retrained job and the kept ones give the same tables.
+    assert again["tables"] == first["tables"]
+    assert json.loads(jobs[2].read_text())["fingerprint"] != "0" * 64
+    # The job that saved the model reruns when the model is gone (the latency needs it).
+    (out / "sfrnn-model" / "weights.pt").unlink()
+    lines.clear()
+    run_perception(BenchOptions(out_dir=out, seed=1, quick=True, workers=1, echo=lines.append),
+                   plan=TINY)
+    assert any(line.startswith("resuming: 3 of 4 jobs") for line in lines), lines
+    assert (out / "sfrnn-model" / "weights.pt").is_file()
+    # Accuracies as before; only the step times, measured anew, may differ.
+    assert _scores(json.loads((out / "perception.json").read_text())) == _scores(first)
+
+
+def _scores(result):
+    def strip(node):
+        if isinstance(node, dict):
+            return {k: strip(v) for k, v in node.items() if k != "step_ms"}
+        return node
+    return strip(result["tables"])
+
+
 def test_split_is_by_whole_trials_stratified_and_stage_inputs_have_thesis_sizes(tiny_run):
     flags = [True] * 10 + [False] * 20
     splits = split_cottonwood(flags, np.random.default_rng(0))
