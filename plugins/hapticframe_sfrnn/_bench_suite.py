@@ -15,14 +15,13 @@ Outputs in ``options.out_dir``: ``perception.json`` (everything, see :func:`run_
 
 A full run takes hours, so each finished job (one modality set and seed, six models) is
 kept in ``out_dir/jobs/`` as JSON, stamped with a fingerprint of the plan, the seed, the
-library versions, the code and the trials (:func:`job_fingerprint`). Run the same command
+library versions, the code and the trials (:func:`._bench_jobs.job_fingerprint`). Run the same command
 again after an interruption and it keeps every job whose fingerprint matches and trains
 only the rest; a job left from other settings, code or data is ignored and replaced.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import platform
@@ -38,6 +37,7 @@ import numpy as np
 
 from hapticframe import BenchOptions
 
+from ._bench_jobs import job_fingerprint, keep_job, kept_job, model_digest
 from ._perception_data import build_perception_data
 from ._perception_models import Architecture, TrainedModel, score, step_time_ms, train_architecture
 from ._perception_report import render_markdown, save_figure
@@ -196,19 +196,8 @@ def _run_job(
             if mods == ALL:
                 out["diagnostics"] = _diagnostics(model, cell)
                 if save_dir is not None and s == 0:
-                    out["model_sha256"] = _model_digest(model.component.save(save_dir))
+                    out["model_sha256"] = model_digest(model.component.save(save_dir))
     return out
-
-
-def _model_digest(directory: str | Path) -> str | None:
-    """sha256 over a saved model's two files, or None when either is missing."""
-    digest = hashlib.sha256()
-    for name in ("model.json", "weights.pt"):
-        path = Path(directory) / name
-        if not path.is_file():
-            return None
-        digest.update(path.read_bytes())
-    return digest.hexdigest()
 
 
 def _progress_line(r: dict[str, Any], done: int, total: int) -> str:
@@ -217,51 +206,12 @@ def _progress_line(r: dict[str, Any], done: int, total: int) -> str:
             f"validation {sf['validation']:.3f} test {sf['test']:.3f}")
 
 
-def _job_file(job_dir: Path, job: tuple[Any, ...]) -> Path:
-    return job_dir / f"seed{job[0]}-{_key(job[1])}.json"
-
-
-def _load_finished(job_dir: Path | None, job: tuple[Any, ...],
-                   fingerprint: str) -> dict[str, Any] | None:
-    """A job's result kept by an earlier run with the same fingerprint, else None."""
-    if job_dir is None:
-        return None
-    path = _job_file(job_dir, job)
-    try:
-        kept = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(kept, dict) or kept.get("fingerprint") != fingerprint:
-        return None
-    result = kept.get("result")
-    if not isinstance(result, dict):
-        return None
-    save_dir = job[5]
-    if "model_sha256" in result and (save_dir is None
-                                     or _model_digest(save_dir) != result["model_sha256"]):
-        return None  # the job that saves the model reruns unless its saved model is intact
-    result["modalities"] = tuple(result["modalities"])
-    return result
-
-
-def _keep(job_dir: Path | None, job: tuple[Any, ...], fingerprint: str,
-          result: dict[str, Any]) -> None:
-    if job_dir is None:
-        return
-    job_dir.mkdir(parents=True, exist_ok=True)
-    path = _job_file(job_dir, job)
-    partial = path.with_suffix(".part")
-    partial.write_text(json.dumps({"fingerprint": fingerprint, "result": result},
-                                  allow_nan=False) + "\n", encoding="utf-8")
-    partial.replace(path)  # atomic: an interrupted write never leaves a half file behind
-
-
 def _map_jobs(jobs: list[Any], workers: int, data: Any, echo: Callable[[str], None],
               job_dir: Path | None = None, fingerprint: str = "") -> list[dict[str, Any]]:
     """Run the jobs (kept results from ``job_dir`` are reused) in the jobs' order."""
     results: dict[int, dict[str, Any]] = {}
     for i, job in enumerate(jobs):
-        kept = _load_finished(job_dir, job, fingerprint)
+        kept = kept_job(job_dir, job, fingerprint)
         if kept is not None:
             results[i] = kept
     if results:
@@ -269,7 +219,7 @@ def _map_jobs(jobs: list[Any], workers: int, data: Any, echo: Callable[[str], No
     todo = [i for i in range(len(jobs)) if i not in results]
 
     def finished(i: int, result: dict[str, Any]) -> None:
-        _keep(job_dir, jobs[i], fingerprint, result)
+        keep_job(job_dir, jobs[i], fingerprint, result)
         results[i] = result
         echo(_progress_line(result, len(results), len(jobs)))
 
@@ -287,42 +237,6 @@ def _map_jobs(jobs: list[Any], workers: int, data: Any, echo: Callable[[str], No
     finally:
         _JOB_DATA.clear()
     return [results[i] for i in range(len(jobs))]
-
-
-#: Packages whose code decides a job's result; an edit to any of them retires kept jobs.
-_FINGERPRINT_PACKAGES = ("hapticframe", "hapticframe_biotac", "hapticframe_tactile_features",
-                         "hapticframe_sfrnn")
-
-
-def job_fingerprint(plan: SuitePlan, seed: int, data: Any) -> str:
-    """A digest of what a job's result depends on.
-
-    The plan, the seed, the library versions, the source files of the packages that make
-    the data and the models, and each trial's split, medium and labels. The features
-    themselves are left out: they follow from those, and a float digest could change with
-    the BLAS threads of the coder's pass.
-    """
-    import importlib
-    from importlib.metadata import PackageNotFoundError, version
-
-    digest = hashlib.sha256()
-    versions = {}
-    for name in ("numpy", "scipy", "scikit-learn", "torch"):
-        try:
-            versions[name] = version(name)
-        except PackageNotFoundError:
-            versions[name] = None
-    digest.update(json.dumps({"plan": plan.as_dict(), "seed": int(seed), "versions": versions},
-                             sort_keys=True, default=str).encode())
-    for package in _FINGERPRINT_PACKAGES:
-        root = Path(importlib.import_module(package).__file__ or "").parent
-        for source in sorted(root.rglob("*.py")):
-            digest.update(source.relative_to(root).as_posix().encode())
-            digest.update(source.read_bytes())
-    for trial in data.trials:
-        digest.update(f"{trial.index}:{trial.split}:{trial.medium}:{len(trial)}".encode())
-        digest.update(np.ascontiguousarray(trial.labels, dtype=np.int64).tobytes())
-    return digest.hexdigest()
 
 
 def run_suite(

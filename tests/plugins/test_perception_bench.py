@@ -236,3 +236,23 @@ def test_plans_keep_the_untared_vibration_amplitude_out_of_the_sfrnn(tmp_path):
         plan = plan_for(BenchOptions(out_dir=tmp_path, quick=quick))
         assert plan.coder_settings["amplitude"] == "channel"
         assert tuple(plan.rnn_settings["amplitude_modalities"]) == ("pdc", "electrodes")
+
+
+def test_job_fingerprint_follows_plan_seed_and_trials():
+    from types import SimpleNamespace
+
+    from hapticframe_sfrnn._bench_jobs import job_fingerprint
+    from hapticframe_sfrnn._perception_data import TrialFeatures
+
+    def data(labels):
+        trial = TrialFeatures(0, "bbs", True, "train", np.asarray(labels, dtype=np.int64), {})
+        return SimpleNamespace(trials=[trial])
+
+    base = job_fingerprint(TINY, 1, data([0, 1, 1]))
+    assert base == job_fingerprint(TINY, 1, data([0, 1, 1]))
+    assert len(base) == 64
+    changed_plan = SuitePlan(**{**TINY.__dict__, "max_epochs": 2})
+    for other in (job_fingerprint(TINY, 2, data([0, 1, 1])),
+                  job_fingerprint(changed_plan, 1, data([0, 1, 1])),
+                  job_fingerprint(TINY, 1, data([0, 0, 1]))):
+        assert other != base
