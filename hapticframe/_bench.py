@@ -30,6 +30,10 @@ class BenchOptions:
         Run a reduced version (minutes, not hours).
     workers : int or None
         Processes a suite may use for independent trials (None: one per CPU).
+    device : str
+        Where a suite that trains models may train them, as a torch device name (``"cpu"``,
+        ``"cuda"``, ``"cuda:1"``); suites that train nothing ignore it, and each suite
+        checks the name itself.
     echo : callable
         Prints a progress line.
     """
@@ -39,6 +43,7 @@ class BenchOptions:
     seed: int = 0
     quick: bool = False
     workers: int | None = None
+    device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
 
 

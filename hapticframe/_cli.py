@@ -210,7 +210,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     options = BenchOptions(
         out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
-        workers=args.workers, echo=_out,
+        workers=args.workers, device=args.device, echo=_out,
     )
     run_bench(args.name, options)
     return 0
@@ -279,6 +279,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="a reduced run")
     p.add_argument("--workers", type=_positive_int, default=None,
                    help="processes for independent trials (default: one per CPU)")
+    p.add_argument("--device", default="cpu",
+                   help="where a suite that trains models trains them: cpu (default) or a "
+                   "torch accelerator such as cuda")
     p.set_defaults(func=cmd_bench)
     return parser
 
