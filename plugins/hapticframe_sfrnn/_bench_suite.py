@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe import BenchOptions
+from hapticframe import BenchOptions, UsageError
 
 from ._bench_jobs import job_fingerprint, keep_job, kept_job, model_digest
 from ._perception_data import build_perception_data
@@ -141,7 +141,35 @@ def plan_for(options: BenchOptions) -> SuitePlan:
     plan = QUICK_PLAN if options.quick else FULL_PLAN
     if options.trials is not None:
         plan = SuitePlan(**{**plan.__dict__, "seeds": int(options.trials)})
+    device = str(getattr(options, "device", "cpu") or "cpu")
+    if device != "cpu":
+        _check_device(device)
+        # In the plan, so the report says where the networks trained and kept jobs trained
+        # elsewhere are not reused.
+        plan = SuitePlan(**{**plan.__dict__,
+                            "rnn_settings": {**plan.rnn_settings, "train_device": device}})
     return plan
+
+
+def _check_device(device: str) -> None:
+    """Raise UsageError unless torch can train on ``device`` here."""
+    import torch
+
+    from ._config import SFRNNConfig
+
+    try:
+        SFRNNConfig(train_device=device)
+    except ValueError:
+        raise UsageError(f"--device {device!r}: the perception bench trains on cpu, cuda or "
+                         "cuda:N") from None
+    # device_count() asks NVML first and leaves CUDA uninitialised here (is_available()
+    # would initialise it, and the forked workers could then not use the GPU).
+    count = torch.cuda.device_count() if torch.backends.cuda.is_built() else 0
+    if count == 0:
+        raise UsageError(f"--device {device!r}: torch sees no CUDA device on this machine")
+    index = torch.device(device).index
+    if index is not None and index >= count:
+        raise UsageError(f"--device {device!r}: torch sees {count} CUDA device(s)")
 
 
 def _mean_std(values: Sequence[float]) -> dict[str, float]:
@@ -498,8 +526,14 @@ def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict
     result["machine"] = {"platform": platform.platform(), "cpus": os.cpu_count(),
                          "python": platform.python_version(),
                          "load_average_1min": os.getloadavg()[0]}
+    device = plan.rnn_settings.get("train_device", "cpu")
+    if device != "cpu":
+        import torch  # the workers are done: initialising CUDA here is safe
+
+        result["machine"]["train_device"] = torch.cuda.get_device_name(torch.device(device))
     result["command"] = ("hapticframe bench perception" + (" --quick" if plan.quick else "")
-                         + f" --seed {options.seed}")
+                         + f" --seed {options.seed}"
+                         + (f" --device {device}" if device != "cpu" else ""))
     (out / "perception.json").write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
                                          encoding="utf-8")
     save_figure(result, out / "perception.png")

@@ -145,6 +145,13 @@ class RecurrentConfig(PluginConfig):
         description="torch intra-op threads while training (restored afterwards): these small "
         "GRUs train fastest on one, and several threads on shared cores slow them ~10×.",
     )
+    train_device: str = Field(
+        "cpu",
+        pattern=r"^(cpu|cuda(:[0-9]+)?)$",
+        description="torch device that training runs on: cpu, or cuda / cuda:N for a GPU. "
+        "The dropout masks and window order come from the same CPU generator either way; "
+        "the trained network is moved back to the CPU, where it streams and is saved.",
+    )
     model_dir: str | None = Field(
         None,
         description="Directory written by save() (weights.pt + model.json) to load at build "

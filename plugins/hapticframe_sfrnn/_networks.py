@@ -29,8 +29,10 @@ def generator_dropout(x: Tensor, rate: float, generator: torch.Generator | None)
     """Inverted dropout whose mask comes from ``generator`` (identity when rate is 0)."""
     if rate <= 0.0 or generator is None:
         return x
+    # Drawn where the generator lives (the CPU) and moved: the masks, hence the training,
+    # do not depend on the device the network trains on.
     keep = torch.rand(x.shape, generator=generator, dtype=x.dtype) >= rate
-    return x * keep / (1.0 - rate)
+    return x * keep.to(x.device) / (1.0 - rate)
 
 
 def init_parameters(module: nn.Module, generator: torch.Generator) -> None:
@@ -63,7 +65,8 @@ class GRUStack(nn.Module):
         self.units = int(units)
 
     def initial_state(self, batch: int) -> State:
-        return tuple(torch.zeros(1, batch, self.units) for _ in self.layers)
+        device = self.layers[0].weight_hh_l0.device
+        return tuple(torch.zeros(1, batch, self.units, device=device) for _ in self.layers)
 
     def forward(
         self, x: Tensor, state: State, generator: torch.Generator | None = None

@@ -177,7 +177,9 @@ def render_markdown(result: dict[str, Any]) -> str:
         "",
         f"`{result['command']}` — {'quick (reduced)' if plan['quick'] else 'full'} run, "
         f"{timing['total_wall']:.0f} s wall on {result['machine']['cpus']} CPUs "
-        f"(load average {result['machine']['load_average_1min']:.1f} at the end).",
+        f"(load average {result['machine']['load_average_1min']:.1f} at the end)"
+        + (f"; the recurrent networks trained on {result['machine']['train_device']}, "
+           "everything else ran on the CPUs." if "train_device" in result["machine"] else "."),
         "",
         f"- Data: synthetic trials of `hapticframe_biotac` ({data['trials']['train']} train / "
         f"{data['trials']['validation']} validation / {data['trials']['test']} test cottonwood "

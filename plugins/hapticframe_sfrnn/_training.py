@@ -132,8 +132,16 @@ def train_network(
         validation split), ``validation_balanced_accuracy``, ``train_windows``,
         ``validation_trials``, ``train_time_s``.
     """
+    device = torch.device(config.train_device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"train_device is {config.train_device!r}, but torch sees no CUDA "
+                         "device here; train on 'cpu'")
     with torch_threads(config.threads):
-        return _train(net, xs, ys, config, seed, validation)
+        net.to(device)
+        try:
+            return _train(net, xs, ys, config, seed, validation, device)
+        finally:
+            net.to("cpu")  # a trained network streams and is saved on the CPU
 
 
 def _train(
@@ -143,6 +151,7 @@ def _train(
     config: RecurrentConfig,
     seed: int,
     validation: tuple[Sequence[NDArray[np.float64]], Sequence[NDArray[np.int64]]] | None,
+    device: torch.device,
 ) -> dict[str, Any]:
     started = time.perf_counter()
     rng = np.random.default_rng(seed)
@@ -165,6 +174,12 @@ def _train(
     if config.balance_classes:
         counts = torch.bincount(y_train[y_train != _IGNORE], minlength=2).to(torch.float32)
         weights = torch.where(counts > 0, counts.sum() / (2.0 * counts.clamp(min=1)), 0.0)
+    if weights is not None:
+        weights = weights.to(device)
+    keep_val = (y_val != _IGNORE).numpy()
+    labels_val = y_val.numpy()[keep_val]
+    # Windows are cut and masked on the CPU (one generator) and moved batch by batch.
+    x_val, y_val = x_val.to(device), y_val.to(device)
     optimiser = torch.optim.Adam(
         net.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay
     )
@@ -172,7 +187,6 @@ def _train(
     best_state = copy.deepcopy(net.state_dict())
     best_loss, best_epoch, stale, epoch = np.inf, 0, 0, 0
     best_score = -np.inf
-    keep_val = (y_val != _IGNORE).numpy()
     train_loss = val_loss = float("nan")
     for epoch in range(1, config.max_epochs + 1):
         net.train()
@@ -181,7 +195,7 @@ def _train(
         for start in range(0, len(order), config.batch_size):
             idx = order[start : start + config.batch_size]
             xb = _modality_mask(x_train[idx], net.group_sizes, config.modality_dropout, generator)
-            loss = _loss(net, xb, y_train[idx], weights, generator)
+            loss = _loss(net, xb.to(device), y_train[idx].to(device), weights, generator)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
@@ -199,8 +213,8 @@ def _train(
             monitored = val_loss
             score = -np.inf
             if config.early_stopping == "balanced_accuracy" and keep_val.any():
-                predicted = logits.argmax(dim=-1).numpy()[keep_val]
-                score = balanced_accuracy(y_val.numpy()[keep_val], predicted)
+                predicted = logits.argmax(dim=-1).cpu().numpy()[keep_val]
+                score = balanced_accuracy(labels_val, predicted)
         else:
             monitored, score = train_loss, -np.inf
         better = (score > best_score + 1e-4
@@ -227,9 +241,8 @@ def _train(
     if x_val.shape[0]:
         with torch.no_grad():
             logits, _ = net(x_val, net.initial_state(x_val.shape[0]))
-        keep = (y_val != _IGNORE).numpy()
-        predicted = logits.argmax(dim=-1).numpy()[keep]
-        val_accuracy = balanced_accuracy(y_val.numpy()[keep], predicted)
+        predicted = logits.argmax(dim=-1).cpu().numpy()[keep_val]
+        val_accuracy = balanced_accuracy(labels_val, predicted)
     return {
         "epochs": epoch,
         "best_epoch": best_epoch,
@@ -240,5 +253,6 @@ def _train(
         "train_trials": int(train_ids.size),
         "validation_trials": int(val_ids.size),
         "validation_source": "given" if validation is not None else "held_out",
+        "train_device": str(device),
         "train_time_s": time.perf_counter() - started,
     }

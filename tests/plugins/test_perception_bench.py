@@ -182,6 +182,30 @@ def test_bench_is_registered_and_plans_follow_the_options(tmp_path):
     assert plan_for(BenchOptions(out_dir=tmp_path, trials=4)).seeds == 4
     with pytest.raises(ValueError, match="seeds"):
         plan_for(BenchOptions(out_dir=tmp_path, trials=0))
+    assert "train_device" not in full.rnn_settings  # cpu: the plan (and kept jobs) unchanged
+
+
+def test_bench_device_is_checked_before_any_work(tmp_path, monkeypatch, capsys):
+    import torch
+
+    from hapticframe._cli import main
+
+    out = tmp_path / "never"
+    assert main(["bench", "perception", "--quick", "--device", "gpu", "--out", str(out)]) == 2
+    assert "--device 'gpu'" in capsys.readouterr().err
+    if not torch.cuda.is_available():
+        assert main(["bench", "perception", "--quick", "--device", "cuda", "--out", str(out)]) == 2
+        assert "no CUDA device" in capsys.readouterr().err
+    assert not (out / "jobs").exists()
+    # Where torch sees a GPU, the device goes into the plan, so the report names it and a
+    # job kept from a CPU run is not taken for a GPU one.
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    monkeypatch.setattr(torch.backends.cuda, "is_built", lambda: True)
+    plan = plan_for(BenchOptions(out_dir=tmp_path, quick=True, device="cuda"))
+    assert plan.rnn_settings["train_device"] == "cuda"
+    assert plan.as_dict() != plan_for(BenchOptions(out_dir=tmp_path, quick=True)).as_dict()
+    with pytest.raises(hapticframe.UsageError, match="1 CUDA device"):
+        plan_for(BenchOptions(out_dir=tmp_path, quick=True, device="cuda:1"))
 
 
 def _coded_trial(index, split, rng, n=60):

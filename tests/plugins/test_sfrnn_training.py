@@ -430,3 +430,48 @@ def test_explicit_validation_trials_are_the_early_stopping_set(
         clf.fit([b for b, _ in fit_on], [y for _, y in fit_on], big_val)
     with pytest.raises(ValueError, match="label arrays"):
         clf.fit([b for b, _ in fit_on], [y for _, y in fit_on], big_val, [val[0][1]])
+
+
+def test_train_device_names_are_checked() -> None:
+    assert SFRNNConfig(**SIZES, train_device="cuda:1").train_device == "cuda:1"
+    for bad in ("gpu", "cuda:", "CUDA", "cuda:x", ""):
+        with pytest.raises(ValueError, match="train_device"):
+            SFRNNConfig(**SIZES, train_device=bad)
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a CUDA device")
+def test_training_on_cuda_without_one_is_a_clear_error(trials: tuple[Labelled, Labelled]) -> None:
+    train, _ = trials
+    config = SFRNNConfig(**SIZES, gru_layers=1, gru_units=4, max_epochs=1, progress=False,
+                         train_device="cuda")
+    clf = SFRNNClassifier(config, context())
+    with pytest.raises(ValueError, match="no CUDA device"):
+        clf.fit([b for b, _ in train[:4]], [y for _, y in train[:4]])
+    assert not clf.fitted
+    assert next(clf.net.parameters()).device.type == "cpu"
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+@pytest.mark.parametrize("network", ["sf", "fusion"])
+def test_training_on_cuda_follows_the_cpu_run(
+    network: str, trials: tuple[Labelled, Labelled]
+) -> None:
+    """Same masks and window order on either device; the weights differ by rounding only."""
+    train, test = trials
+    cls, config_cls = ((SFRNNClassifier, SFRNNConfig) if network == "sf"
+                       else (FusionRNNClassifier, FusionRNNConfig))
+    fitted = {}
+    for device in ("cpu", "cuda"):
+        config = config_cls(**SIZES, max_epochs=1, progress=False, train_device=device,
+                            modality_dropout=0.3)
+        clf = cls(config, context(3))
+        clf.fit([b for b, _ in train[:8]], [y for _, y in train[:8]])
+        assert clf.training_metrics["train_device"].startswith(device)
+        assert next(clf.net.parameters()).device.type == "cpu"  # streams on the CPU
+        fitted[device] = clf
+    for (name, a), b in zip(fitted["cpu"].net.state_dict().items(),
+                            fitted["cuda"].net.state_dict().values(), strict=True):
+        assert torch.allclose(a, b, atol=1e-3), name
+    p_cpu = fitted["cpu"].predict_proba(test[0][0]).probabilities
+    p_gpu = fitted["cuda"].predict_proba(test[0][0]).probabilities
+    assert np.abs(p_cpu - p_gpu).max() < 1e-2
