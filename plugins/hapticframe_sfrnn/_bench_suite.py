@@ -196,7 +196,20 @@ _JOB_DATA: dict[str, Any] = {}
 def _run_job(
     job: tuple[int, tuple[str, ...], int, dict[str, Any], dict[str, Any], str | None],
 ) -> dict[str, Any]:
-    """Train and score the six architectures on one modality set with one seed (a worker)."""
+    """Train and score the six architectures on one modality set with one seed (a worker).
+
+    One thread for torch and for the BLAS/OpenMP pools: the jobs already run one per core,
+    and workers that each opened a BLAS pool as wide as the machine would oversubscribe it.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _run_job_single_thread(job)
+
+
+def _run_job_single_thread(
+    job: tuple[int, tuple[str, ...], int, dict[str, Any], dict[str, Any], str | None],
+) -> dict[str, Any]:
     import torch
 
     s, mods, seed, rnn_settings, svm_settings, save_dir = job
