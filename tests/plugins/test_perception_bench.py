@@ -280,3 +280,19 @@ def test_job_fingerprint_follows_plan_seed_and_trials():
                   job_fingerprint(changed_plan, 1, data([0, 1, 1])),
                   job_fingerprint(TINY, 1, data([0, 0, 1]))):
         assert other != base
+
+
+def test_a_job_worker_runs_its_blas_pools_on_one_thread(monkeypatch):
+    from threadpoolctl import threadpool_info
+
+    import hapticframe_sfrnn._bench_suite as suite
+
+    seen = {}
+
+    def record(job):
+        seen["threads"] = [pool["num_threads"] for pool in threadpool_info()]
+        return {"job": job}
+
+    monkeypatch.setattr(suite, "_run_job_single_thread", record)
+    assert suite._run_job(("job",)) == {"job": ("job",)}
+    assert seen["threads"] and all(n == 1 for n in seen["threads"])
