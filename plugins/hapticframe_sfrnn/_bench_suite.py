@@ -141,7 +141,7 @@ def plan_for(options: BenchOptions) -> SuitePlan:
     plan = QUICK_PLAN if options.quick else FULL_PLAN
     if options.trials is not None:
         plan = SuitePlan(**{**plan.__dict__, "seeds": int(options.trials)})
-    device = str(getattr(options, "device", "cpu") or "cpu")
+    device = options.device or "cpu"
     if device != "cpu":
         _check_device(device)
         # In the plan, so the report says where the networks trained and kept jobs trained

@@ -130,7 +130,12 @@ def train_network(
     dict
         ``epochs``, ``best_epoch``, ``train_loss``, ``validation_loss`` (None without a
         validation split), ``validation_balanced_accuracy``, ``train_windows``,
-        ``validation_trials``, ``train_time_s``.
+        ``validation_trials``, ``train_device``, ``train_time_s``.
+
+    Raises
+    ------
+    ValueError
+        When ``config.train_device`` names CUDA and torch sees no CUDA device.
     """
     device = torch.device(config.train_device)
     if device.type == "cuda" and not torch.cuda.is_available():
