@@ -12,7 +12,8 @@ plugins, the resolved config and each component's training report.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,7 @@ import numpy as np
 
 from ._config import Experiment
 from ._dataflow import merge_batches
-from ._errors import RunError, UsageError
+from ._errors import HapticframeError, RunError, UsageError
 from ._kind import Kind
 from ._session import _write_json, build_components
 from ._version import __version__
@@ -94,16 +95,30 @@ def fit_components(
         inputs = [merge_batches([rec[i] for i in names], entry.id) for rec in recordings]
         if isinstance(component, FeatureExtractor):
             echo(f"fitting {entry.id} ({entry.type})")
-            component.fit(inputs)
+            with _located(entry.id, entry.type):
+                component.fit(inputs)
             for rec, batch in zip(recordings, inputs):
                 rec[entry.id] = component.transform(batch)
         elif isinstance(component, Classifier):
             echo(f"fitting {entry.id} ({entry.type})")
             labels = [labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
                                 label_channel) for rec, batch in zip(recordings, inputs)]
-            component.fit(inputs, labels)
+            with _located(entry.id, entry.type):
+                component.fit(inputs, labels)
         trained.append(entry.id)
     return trained
+
+
+@contextmanager
+def _located(component_id: str, type_name: str) -> Iterator[None]:
+    """Name the component whose ``fit`` failed (a plugin's error says what, not where)."""
+    try:
+        yield
+    except HapticframeError:
+        raise
+    except Exception as exc:
+        raise RunError(f"fitting {component_id} ({type_name}) failed: "
+                       f"{type(exc).__name__}: {exc}") from exc
 
 
 def train_experiment(

@@ -96,3 +96,22 @@ def test_a_training_sensor_may_not_feed_the_run(lab_dir):
     with pytest.raises(ExperimentError) as caught:
         validate_lab(_write(lab_dir, text))
     assert "training sensor 'rehearsal' is an input of 'contact'" in str(caught.value)
+
+
+def test_a_failing_fit_names_its_component(lab_dir, monkeypatch, capsys):
+    import importlib
+
+    monkeypatch.syspath_prepend(str(lab_dir))
+    labplugin = importlib.import_module("labplugin")  # the module the run will use
+
+    def refuse(self, batches, labels):  # type: ignore[no-untyped-def]
+        raise ValueError("no contact frames to learn from")
+
+    monkeypatch.setattr(labplugin.ThresholdClassifier, "fit", refuse)
+    path = _write(lab_dir, EXPERIMENT)
+    assert lab_main(["run", str(path), "--out", str(lab_dir / "run"), "--quiet"]) == 1
+    assert lab_main(["train", str(path), "--out", str(lab_dir / "trained")]) == 1
+    err = capsys.readouterr().err
+    located = "fitting contact (lab-threshold) failed: ValueError: no contact frames to learn from"
+    assert err.count(located) == 2
+    assert "Traceback" not in err
