@@ -82,3 +82,20 @@ def test_the_examples_own_test_file_runs_under_pytest(installed_example, tmp_pat
                           capture_output=True, text=True, env=installed_example, cwd=tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "passed" in proc.stdout
+
+
+def test_the_example_benchmark_runs_and_refuses_bad_options(installed_example, tmp_path):
+    out = tmp_path / "bench"
+    proc = _hapticframe(installed_example, "bench", "lab-load-cell", "--trials", "20",
+                        "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((out / "lab-load-cell.json").read_text())
+    assert sorted(report, key=int) == ["1", "5", "20"]
+    for size, row in report.items():
+        assert row["reads"] == 20 and row["median_read_us"] > 0
+        assert row["median_per_sample_us"] == pytest.approx(row["median_read_us"] / int(size))
+    assert "samples per read" in proc.stdout
+    proc = _hapticframe(installed_example, "bench", "lab-load-cell", "--trials", "3",
+                        "--out", str(out))
+    assert proc.returncode == 2
+    assert "at least 10 reads" in proc.stderr and "Traceback" not in proc.stderr
