@@ -469,12 +469,21 @@ def test_training_on_cuda_follows_the_cpu_run(
         assert clf.training_metrics["train_device"].startswith(device)
         assert next(clf.net.parameters()).device.type == "cpu"  # streams on the CPU
         fitted[device] = clf
-    # Adam moves every weight by about the learning rate per step whatever the gradient's
-    # size, so a rounding difference in a near-zero gradient can cost up to lr x steps.
-    steps = -(-fitted["cpu"].training_metrics["train_windows"] // 32)
-    for (name, a), b in zip(fitted["cpu"].net.state_dict().items(),
-                            fitted["cuda"].net.state_dict().values(), strict=True):
-        assert torch.allclose(a, b, atol=2e-3 * steps), name
+    # Rounding (cuDNN against the CPU kernels) moves the weights a tiny fraction of what the
+    # epoch moved them; other dropout masks or window order move them about half as far
+    # again (0.57 of the movement, measured on the CPU with the next fit seed).
+    from hapticframe_sfrnn._networks import init_parameters
+
+    start = cls(config_cls(**SIZES), context(3))
+    init_parameters(start.net, torch.Generator().manual_seed(start._init_seed))
+
+    def flat(clf: object) -> torch.Tensor:
+        state = clf.net.state_dict()  # type: ignore[attr-defined]
+        return torch.cat([v.flatten() for k, v in state.items() if k != "input_scale"])
+
+    moved = (flat(fitted["cpu"]) - flat(start)).norm()
+    assert moved > 0
+    assert (flat(fitted["cpu"]) - flat(fitted["cuda"])).norm() < 0.1 * moved
     p_cpu = fitted["cpu"].predict_proba(test[0][0]).probabilities
     p_gpu = fitted["cuda"].predict_proba(test[0][0]).probabilities
     assert np.abs(p_cpu - p_gpu).max() < 0.05
