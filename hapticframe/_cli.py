@@ -185,7 +185,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     experiment = _validate(args, args.file)
     echo = (lambda _text: None) if args.quiet else _out
-    metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo)
+    metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
+                             progress=not args.quiet)
     _out(f"results in {args.out}: " + ", ".join(
         f"{k}={_short(v)}" for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
     ))

@@ -60,8 +60,10 @@ def component_rng(seed: int, component_id: str) -> np.random.Generator:
     )
 
 
-def build_components(experiment: Experiment) -> dict[str, Component]:
+def build_components(experiment: Experiment, *, progress: bool = True) -> dict[str, Component]:
     """Import and construct every component, inputs first.
+
+    ``progress`` is handed to each component (:attr:`BuildContext.progress`).
 
     Raises
     ------
@@ -79,6 +81,7 @@ def build_components(experiment: Experiment) -> dict[str, Component]:
             rng=component_rng(experiment.seed, entry.id),
             inputs={name: built[name] for name in entry.inputs},
             scene=scene,
+            progress=progress,
         )
         try:
             component = factory(entry.config, context)
@@ -457,8 +460,12 @@ def run_experiment(
     *,
     overwrite: bool = False,
     echo: Callable[[str], None] = print,
+    progress: bool = True,
 ) -> RunSummary:
     """Build and run ``experiment``, writing results into ``out_dir``.
+
+    ``echo`` receives the progress lines; ``progress=False`` also asks the components to
+    draw no progress bars of their own (``--quiet``).
 
     Returns
     -------
@@ -475,7 +482,7 @@ def run_experiment(
     out = Path(out_dir)
     _prepare_out_dir(out, overwrite)
     session = Session(experiment, out, echo)
-    session.components = build_components(experiment)  # before anything is written
+    session.components = build_components(experiment, progress=progress)  # before any write
     out.mkdir(parents=True, exist_ok=True)
     session.metadata["started_utc"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
     status, error = "failed", None

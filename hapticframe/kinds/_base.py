@@ -34,12 +34,16 @@ class BuildContext:
         The built components named in ``inputs``, in the order given.
     scene : Scene or None
         The simulated world, when the experiment describes one.
+    progress : bool
+        Whether the user wants progress output (False under ``hapticframe run --quiet``).
+        A component that draws a progress bar while it fits draws none when False.
     """
 
     id: str
     rng: np.random.Generator
     inputs: Mapping[str, Component] = field(default_factory=dict)
     scene: Scene | None = None
+    progress: bool = True
 
     def input_of_kind(self, kind: Kind) -> list[Component]:
         """The inputs of one kind, in the order given."""

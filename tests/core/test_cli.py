@@ -121,3 +121,21 @@ def test_train_fits_classifiers_on_labelled_recordings_and_saves(lab_dir, capsys
     path.write_text(path.read_text().replace("seed: 3", "seed: 3\nrun: {label_channel: nothing}"))
     assert lab_main(["train", str(path), "--out", str(lab_dir / "t2")]) == 1
     assert "no label channel 'nothing'" in capsys.readouterr().err
+
+
+def test_quiet_asks_every_component_to_draw_no_progress_bar(lab_dir, monkeypatch):
+    import hapticframe._session as session
+
+    seen: list[set[bool]] = []
+    build = session.build_components
+
+    def spy(experiment, **kwargs):
+        built = build(experiment, **kwargs)
+        seen.append({component.context.progress for component in built.values()})
+        return built
+
+    monkeypatch.setattr(session, "build_components", spy)
+    for flags, expected in (([], True), (["--quiet"], False)):
+        out = lab_dir / f"run-{len(seen)}"
+        assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), *flags]) == 0
+        assert seen[-1] == {expected}
