@@ -137,7 +137,8 @@ class RecurrentConfig(PluginConfig):
         "prepare the network for missing modalities (0 = off, as the thesis).",
     )
     progress: bool = Field(
-        True, description="Show a progress bar while training (tqdm, else one line per epoch)."
+        True, description="Show a progress bar while training (tqdm, else one line per epoch); "
+        "`hapticframe run --quiet` turns it off.",
     )
     threads: int = Field(
         1,

@@ -250,7 +250,10 @@ class RecurrentClassifier(Classifier):
             validation = ([np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
                            for x in validation[0]], validation[1])
         init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
-        self.training_metrics = train_network(self.net, scaled, ys, self.config, self._fit_seed,
+        # ``--quiet`` (context.progress False) overrides the component's own progress setting.
+        config = (self.config if self.context.progress
+                  else self.config.model_copy(update={"progress": False}))
+        self.training_metrics = train_network(self.net, scaled, ys, config, self._fit_seed,
                                               validation)
         self.fitted = True
         self.reset()

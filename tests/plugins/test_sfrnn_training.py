@@ -487,3 +487,20 @@ def test_training_on_cuda_follows_the_cpu_run(
     p_cpu = fitted["cpu"].predict_proba(test[0][0]).probabilities
     p_gpu = fitted["cuda"].predict_proba(test[0][0]).probabilities
     assert np.abs(p_cpu - p_gpu).max() < 0.05
+
+
+def test_a_quiet_run_silences_the_training_progress(
+    trials: tuple[Labelled, Labelled], capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The component's own setting asks for progress; the run's (``--quiet``) overrides it.
+    train, _ = trials
+    config = SFRNNConfig(**SIZES, gru_layers=1, gru_units=4, fusion_units=4, max_epochs=2,
+                         progress=True)
+    for progress in (True, False):
+        clf = SFRNNClassifier(config, BuildContext("clf", np.random.default_rng(0),
+                                                   progress=progress))
+        capsys.readouterr()
+        clf.fit([b for b, _ in train[:6]], [y for _, y in train[:6]])
+        drawn = capsys.readouterr().err
+        assert clf.fitted and clf.config.progress
+        assert bool(drawn.strip()) is progress, drawn
