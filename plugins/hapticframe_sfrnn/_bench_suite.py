@@ -39,7 +39,16 @@ from hapticframe import BenchOptions, UsageError
 
 from ._bench_jobs import job_fingerprint, keep_job, kept_job, model_digest
 from ._perception_data import build_perception_data
-from ._perception_models import Architecture, TrainedModel, score, step_time_ms, train_architecture
+from ._functional import balanced_accuracy
+from ._perception_models import (
+    Architecture,
+    TrainedModel,
+    predict_frames,
+    robustness_breakdown,
+    score,
+    step_time_ms,
+    train_architecture,
+)
 from ._perception_report import render_markdown, save_figure
 
 __all__ = [
@@ -217,7 +226,8 @@ def _run_job_single_thread(
     data = _JOB_DATA["data"]
     splits = {k: data.by_split(k) for k in ("train", "validation", "test", "robustness")}
     out: dict[str, Any] = {"seed_index": s, "modalities": mods, "cells": {}, "robustness": {},
-                           "a1": {}, "step_ms": {}, "train_time_s": {}, "diagnostics": None}
+                           "robustness_conditions": {}, "a1": {}, "step_ms": {},
+                           "train_time_s": {}, "diagnostics": None}
     for arch in ARCHITECTURES:
         model = train_architecture(data, arch, mods, seed * 1000 + s, rnn_settings, svm_settings)
         cell = {k: score(model, splits[k])["balanced_accuracy"]
@@ -227,9 +237,10 @@ def _run_job_single_thread(
         if s == 0:
             out["step_ms"][arch.label] = step_time_ms(model, splits["test"][0])
         if mods == ALL:
-            per: dict[str, list[float]] = {m: [] for m in MEDIA}
-            _robustness(model, splits["robustness"], per)
-            out["robustness"][arch.label] = {m: v[0] for m, v in per.items() if v}
+            robust = splits["robustness"]
+            predicted = [predict_frames(model, t) for t in robust]
+            out["robustness"][arch.label] = _per_medium(robust, predicted)
+            out["robustness_conditions"][arch.label] = robustness_breakdown(robust, predicted)
         if arch == Architecture("d", "rnn"):
             a1: dict[str, dict[str, list[float]]] = {}
             _table_a1(model, splits["test"], a1, cell["test"])
@@ -292,9 +303,11 @@ def run_suite(
 
     Keys: ``tables`` (``table_2_2``, ``table_2_3``: per modality set and architecture the
     train, validation and test balanced accuracy as mean/std over seeds and the step time;
-    ``table_2_4``: per architecture and medium; ``table_a_1``: per training set and tested
-    subset), ``sfrnn_test_accuracy`` (all three modalities, cottonwood test split, mean
-    over seeds), ``sfrnn_robustness_mean`` and ``best_baseline_robustness`` (mean over
+    ``table_2_4``: per architecture and medium; ``table_2_4_conditions``: per architecture
+    the robustness set grouped by orientation, object offset and medium × orientation
+    (:func:`._perception_models.robustness_breakdown`, each figure as mean/std over seeds);
+    ``table_a_1``: per training set and tested subset), ``sfrnn_test_accuracy`` (all three
+    modalities, cottonwood test split, mean over seeds), ``sfrnn_robustness_mean`` and ``best_baseline_robustness`` (mean over
     media), ``table_2_4_sfrnn_ahead`` (per medium: SF-RNN above the (d)+Linear SVM, the
     thesis's Table 2.4 comparison) and ``sfrnn_ahead_on_every_medium`` (above all five
     other all-modality models), ``training`` (train/validation diagnostics of the SF-RNN), ``dataset``,
@@ -320,6 +333,7 @@ def run_suite(
                         Path(job_dir) if job_dir is not None else None, fingerprint)
     cells: dict[str, dict[str, dict[str, list[float]]]] = {}
     robustness: dict[str, dict[str, list[float]]] = {}
+    conditions: dict[str, list[dict[str, Any]]] = {}
     a1: dict[str, dict[str, list[float]]] = {}
     step_ms: dict[str, dict[str, float]] = {}
     train_time: dict[str, dict[str, list[float]]] = {}
@@ -336,6 +350,8 @@ def run_suite(
         for label, per in r["robustness"].items():
             for medium, value in per.items():
                 robustness.setdefault(label, {}).setdefault(medium, []).append(value)
+        for label, breakdown in r.get("robustness_conditions", {}).items():
+            conditions.setdefault(label, []).append(breakdown)
         for trained, per in r["a1"].items():
             for tested, value in per.items():
                 a1.setdefault(trained, {}).setdefault(tested, []).append(value)
@@ -349,6 +365,7 @@ def run_suite(
         "table_2_4": {label: {m: _mean_std(v) for m, v in per.items()}
                       for label, per in robustness.items()},
         "table_a_1": {k: {t: _mean_std(v) for t, v in per.items()} for k, per in a1.items()},
+        "table_2_4_conditions": {label: _merge_seeds(v) for label, v in conditions.items()},
     }
     sfrnn_label = Architecture("d", "rnn").label
     mean_over_media = {
@@ -400,6 +417,19 @@ def run_suite(
     }, data.coder
 
 
+def _merge_seeds(per_seed: list[dict[str, Any]]) -> dict[str, Any]:
+    """Mean/std over seeds of each figure of nested breakdowns of one shape (None: no value)."""
+    out: dict[str, Any] = {}
+    for key, value in per_seed[0].items():
+        children = [d[key] for d in per_seed if key in d]
+        if isinstance(value, dict):
+            out[key] = _merge_seeds(children)
+        else:
+            present = [v for v in children if v is not None]
+            out[key] = _mean_std(present) if present else None
+    return out
+
+
 def _summarise(
     per_arch: dict[str, dict[str, list[float]]], steps: dict[str, float]
 ) -> dict[str, Any]:
@@ -410,11 +440,15 @@ def _summarise(
     }
 
 
-def _robustness(model: TrainedModel, trials: Sequence[Any], out: dict[str, list[float]]) -> None:
+def _per_medium(trials: Sequence[Any], predicted: Sequence[np.ndarray]) -> dict[str, float]:
+    """Balanced accuracy over each medium's frames (a cell of Table 2.4)."""
+    out = {}
     for medium in MEDIA:
-        chosen = [t for t in trials if t.medium == medium]
+        chosen = [i for i, t in enumerate(trials) if t.medium == medium]
         if chosen:
-            out[medium].append(score(model, chosen)["balanced_accuracy"])
+            out[medium] = balanced_accuracy(np.concatenate([trials[i].labels for i in chosen]),
+                                            np.concatenate([predicted[i] for i in chosen]))
+    return out
 
 
 def _table_a1(model: TrainedModel, test: Sequence[Any], out: dict[str, dict[str, list[float]]],

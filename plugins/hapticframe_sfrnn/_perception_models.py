@@ -32,12 +32,20 @@ import numpy as np
 from hapticframe.kinds import BuildContext, SampleBatch
 
 from ._config import FusionRNNConfig, LinearSVMConfig, SFRNNConfig
-from ._functional import balanced_accuracy
+from ._functional import balanced_accuracy, contact_figures
 from ._perception_data import PerceptionData, TrialFeatures, stage_amplitudes, stage_inputs
 
 ALL_MODALITIES = ("pac", "pdc", "electrodes")
 
-__all__ = ["Architecture", "TrainedModel", "score", "step_time_ms", "train_architecture"]
+__all__ = [
+    "Architecture",
+    "TrainedModel",
+    "predict_frames",
+    "robustness_breakdown",
+    "score",
+    "step_time_ms",
+    "train_architecture",
+]
 
 
 @dataclass(frozen=True)
@@ -179,7 +187,15 @@ def train_architecture(
     return TrainedModel(arch, mods, component, elapsed, metrics, threshold, amp_mods)
 
 
-def _predict(model: TrainedModel, trial: TrialFeatures, present: Sequence[str]) -> np.ndarray:
+def predict_frames(
+    model: TrainedModel, trial: TrialFeatures, present: Sequence[str] | None = None
+) -> np.ndarray:
+    """The predicted state of each frame of ``trial`` (0 free, 1 contact).
+
+    ``present`` names the modalities handed to the model (default: all it was trained
+    on); the others are absent and zero-filled by the component (Table A.1).
+    """
+    present = model.modalities if present is None else present
     batch = _batch(trial, model.architecture, [m for m in model.modalities if m in present],
                    model.amplitude_modalities)
     with warnings.catch_warnings():
@@ -207,10 +223,49 @@ def score(
     truth, predicted = [], []
     for trial in trials:
         truth.append(trial.labels)
-        predicted.append(_predict(model, trial, use))
+        predicted.append(predict_frames(model, trial, use))
     y, p = np.concatenate(truth), np.concatenate(predicted)
     return {"balanced_accuracy": balanced_accuracy(y, p), "accuracy": float(np.mean(y == p)),
             "frames": float(y.size)}
+
+
+def robustness_breakdown(
+    trials: Sequence[TrialFeatures], predicted: Sequence[np.ndarray]
+) -> dict[str, dict[str, Any]]:
+    """:func:`._functional.contact_figures` of scored trials grouped by their conditions.
+
+    Keys: ``orientation_deg`` and ``object_offset_m`` (each condition's value as a string,
+    over every medium), and ``medium_orientation_deg`` (per medium, then per orientation):
+    Table 2.4 read by the conditions the thesis varied (§2.6.3), so that a loss can be
+    traced to the fingertip's pose or the object's place rather than to the medium.
+    """
+    if len(trials) != len(predicted):
+        raise ValueError(f"{len(trials)} trials but {len(predicted)} predictions")
+
+    def figures(chosen: list[int]) -> dict[str, Any]:
+        return contact_figures([trials[i].labels for i in chosen], [predicted[i] for i in chosen])
+
+    def groups(key: Any, among: Sequence[int]) -> dict[str, list[int]]:
+        out: dict[str, list[int]] = {}
+        for i in among:
+            out.setdefault(f"{key(trials[i]):g}", []).append(i)
+        return dict(sorted(out.items(), key=lambda kv: float(kv[0])))
+
+    every = range(len(trials))
+    media: dict[str, list[int]] = {}
+    for i in every:
+        media.setdefault(trials[i].medium, []).append(i)
+    return {
+        "orientation_deg": {k: figures(v) for k, v in
+                            groups(lambda t: t.orientation_deg, every).items()},
+        "object_offset_m": {k: figures(v) for k, v in
+                            groups(lambda t: t.object_offset_m, every).items()},
+        "medium_orientation_deg": {
+            medium: {k: figures(v) for k, v in
+                     groups(lambda t: t.orientation_deg, chosen).items()}
+            for medium, chosen in media.items()
+        },
+    }
 
 
 def step_time_ms(model: TrainedModel, trial: TrialFeatures, frames: int = 200) -> float:

@@ -114,6 +114,55 @@ def _robustness(table: dict[str, Any]) -> list[str]:
     return lines + [""]
 
 
+def _figure(cell: dict[str, Any] | None, key: str, scale: float = 100.0, digits: int = 1) -> str:
+    value = None if cell is None else cell.get(key)
+    return "–" if value is None else f"{scale * value['mean']:.{digits}f}"
+
+
+def _conditions(table: dict[str, Any]) -> list[str]:
+    """Table 2.4 read by the conditions the thesis varied: fingertip pose and object place."""
+    if not table:
+        return []
+    labels = [c for c in _COLUMNS if c in table]
+    some = table[labels[0]]
+    poses = list(some["orientation_deg"])
+    offsets = list(some["object_offset_m"])
+    heads = ([f"{float(k):g}°" for k in poses]
+             + [f"object at {100 * float(k):+.1f} cm" for k in offsets])
+    lines = ["## Table 2.4 by condition (beyond the thesis)", "",
+             "Every robustness trial grouped by the condition the thesis varied (§2.6.3): the "
+             "fingertip's orientation (training saw only 0°) and where the object lies along "
+             "the path. Each cell: balanced accuracy over the group's frames, then in "
+             "brackets the share of contact frames read as contact (%), mean over seeds.", "",
+             "| model | " + " | ".join(heads) + " |", "|---|" + "---|" * len(heads)]
+    for label in labels:
+        groups = ([table[label]["orientation_deg"].get(k) for k in poses]
+                  + [table[label]["object_offset_m"].get(k) for k in offsets])
+        lines.append(f"| {label} | " + " | ".join(
+            f"{_figure(g, 'balanced_accuracy')} ({_figure(g, 'contact_recall')})"
+            for g in groups) + " |")
+    pair = [c for c in _COLUMNS if c in THESIS["robustness"] and c in table]
+    lines += ["", "Per medium and orientation, for Table 2.4's two models: share of contact "
+              "frames read as contact (%), then the median delay from first contact to the "
+              "first frame read as contact (frames of 10 ms, over the trials whose contact "
+              "was read), and the trials whose contact was never read; means over seeds.", "",
+              "| medium | " + " | ".join(f"{label} {float(k):g}°" for label in pair
+                                         for k in poses) + " |",
+              "|---|" + "---|" * (len(pair) * len(poses))]
+    for medium, name in _MEDIA.items():
+        cells = []
+        for label in pair:
+            per_pose = table[label]["medium_orientation_deg"].get(medium, {})
+            for k in poses:
+                g = per_pose.get(k)
+                cells.append("–" if g is None else
+                             f"{_figure(g, 'contact_recall')} "
+                             f"({_figure(g, 'onset_delay_frames', 1.0, 0)} frames, "
+                             f"{_figure(g, 'missed_contacts', 1.0)} missed)")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def _a1_cell(table: dict[str, Any], trained: str, tested: str) -> str:
     cell = table.get(trained, {}).get(tested)
     thesis = THESIS["a1"].get(trained, {}).get(tested, "–")
@@ -240,6 +289,7 @@ def render_markdown(result: dict[str, Any]) -> str:
     lines += _ablation(tables["table_2_2"], "Table 2.2: unimodal models (cottonwood)")
     lines += _ablation(tables["table_2_3"], "Table 2.3: multimodal models (cottonwood)")
     lines += _robustness(tables["table_2_4"])
+    lines += _conditions(tables.get("table_2_4_conditions", {}))
     lines += _table_a1(tables["table_a_1"])
     diag = result["training"]["sfrnn_all_modalities"]
     lines += ["## SF-RNN training diagnostics (all modalities)", "",

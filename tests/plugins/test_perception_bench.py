@@ -56,7 +56,8 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     assert result["latency"]["frames"] == TINY.latency_frames
     assert set(result["latency"]["stages_ms_median"]) == {"emd", "coding", "sfrnn"}
     tables = result["tables"]
-    assert set(tables) == {"table_2_2", "table_2_3", "table_2_4", "table_a_1"}
+    assert set(tables) == {"table_2_2", "table_2_3", "table_2_4", "table_2_4_conditions",
+                           "table_a_1"}
     labels = {a.label for a in ARCHITECTURES}
     assert set(tables["table_2_2"]) == {"electrodes"}
     assert set(tables["table_2_3"]) == {"pac+pdc+electrodes"}
@@ -81,6 +82,24 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     for medium, ahead in result["sfrnn_ahead_on_every_medium"].items():
         assert ahead == all(sf[medium]["mean"] > per[medium]["mean"]
                             for label, per in tables["table_2_4"].items() if per is not sf)
+    # Table 2.4 by condition groups the same predictions: every trial falls in one pose and
+    # one object place, and with one trial per medium the medium's only pose group scores
+    # exactly what its Table 2.4 cell does.
+    conditions = tables["table_2_4_conditions"]
+    assert set(conditions) == labels
+    for label, breakdown in conditions.items():
+        for grouping in ("orientation_deg", "object_offset_m"):
+            assert sum(g["trials"]["mean"] for g in breakdown[grouping].values()) == 5
+        assert set(breakdown["orientation_deg"]) <= {"0", "20"}
+        assert set(breakdown["object_offset_m"]) <= {"0", "0.035"}
+        assert set(breakdown["medium_orientation_deg"]) == set(tables["table_2_4"][label])
+        for medium, per_pose in breakdown["medium_orientation_deg"].items():
+            (group,) = per_pose.values()
+            assert group["balanced_accuracy"]["mean"] == pytest.approx(
+                tables["table_2_4"][label][medium]["mean"])
+            assert group["balanced_accuracy"]["n"] == TINY.seeds
+            _fractions(group["contact_recall"]["mean"])
+            assert 0 <= group["missed_contacts"]["mean"] <= group["contact_trials"]["mean"] == 1
     # Table A.1: the three-modality SF-RNN tested with all 7 subsets, the unimodal one with 1.
     assert len(tables["table_a_1"]["pac+pdc+electrodes"]) == 7
     assert list(tables["table_a_1"]["electrodes"]) == ["electrodes"]
@@ -97,11 +116,14 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     for title in ("Table 2.2", "Table 2.3", "Table 2.4", "Table A.1", "98.7", "p99"):
         assert title in md
     # Table 2.4 puts the thesis's two (d) models first, then the rest below a marker row.
-    section = md[md.index("## Table 2.4"):md.index("## Table A.1")]
+    section = md[md.index("## Table 2.4"):md.index("## Table 2.4 by condition")]
     rows = [line.split(" | ")[0].lstrip("| ") for line in section.splitlines()
             if line.startswith("| (")]
     assert rows[:2] == ["(d)+Linear SVM", "(d)+RNN (SF-RNN)"] and len(rows) == 6
     assert section.index("*beyond the thesis's table*") > section.index("| (d)+RNN (SF-RNN)")
+    by_condition = md[md.index("## Table 2.4 by condition"):md.index("## Table A.1")]
+    assert sum(line.startswith("| (") for line in by_condition.splitlines()) == 6
+    assert sum(line.startswith("| Poppyseeds") for line in by_condition.splitlines()) == 1
     # Table A.1 as the appendix's grid: the three-modality block has one row per subset.
     block = md[md.index("SF-RNN trained with 3 modalities"):md.index("## SF-RNN training")]
     grid = [line for line in block.splitlines()[2:] if line.startswith("| ")]

@@ -9,6 +9,7 @@ from hapticframe_sfrnn._functional import (
     assemble_inputs,
     balanced_accuracy,
     check_labels,
+    contact_figures,
     rms_scale,
     sigmoid_pair,
     softmax_rows,
@@ -151,3 +152,33 @@ def test_balanced_accuracy_averages_recalls() -> None:
     assert balanced_accuracy([0, 0], [0, 1]) == 0.5
     with pytest.raises(ValueError):
         balanced_accuracy([], [])
+
+
+def test_contact_figures_reads_misses_false_alarms_and_late_onsets() -> None:
+    # Trial 1: contact on frames 3-6, read from frame 5 (2 frames late) to 7 (one false
+    # alarm after it). Trial 2: contact on frames 1-2, never read. Trial 3: free, one false
+    # alarm. Trial 4: read one frame before contact and through it (onset 0).
+    truth = [[0, 0, 0, 1, 1, 1, 1, 0], [0, 1, 1, 0], [0, 0, 0], [0, 1, 1]]
+    predicted = [[0, 0, 0, 0, 0, 1, 1, 1], [0, 0, 0, 0], [0, 1, 0], [1, 1, 1]]
+    f = contact_figures(truth, predicted)
+    assert f["contact_recall"] == pytest.approx(4 / 8)  # frames 5, 6 and both of trial 4
+    assert f["free_specificity"] == pytest.approx(7 / 10)  # trial 4 read frame 0 too early
+    assert f["balanced_accuracy"] == pytest.approx(0.5 * (0.5 + 0.7))
+    assert f["onset_delay_frames"] == 1.0  # median of 2 and 0
+    assert f["missed_contacts"] == 1 and f["contact_trials"] == 3
+    assert f["trials"] == 4 and f["frames"] == 18
+
+
+def test_contact_figures_at_the_extremes() -> None:
+    # Only free frames: no contact recall and no onset, not a NaN.
+    free = contact_figures([np.zeros(5)], [np.zeros(5)])
+    assert free["contact_recall"] is None and free["onset_delay_frames"] is None
+    assert free["free_specificity"] == 1.0 and free["missed_contacts"] == 0
+    # A single contact frame, read at once.
+    single = contact_figures([[1]], [[1]])
+    assert single["onset_delay_frames"] == 0.0 and single["free_specificity"] is None
+    for bad in (([], []), ([[0, 1]], [[0]]), ([[0]], [])):
+        with pytest.raises(ValueError):
+            contact_figures(*bad)
+    with pytest.raises(ValueError):
+        contact_figures([np.zeros(0)], [np.zeros(0)])  # no frames to score
