@@ -66,8 +66,8 @@ class TrialFeatures:
 
     ``tensors`` holds the EMD tensors by modality, ``codes`` the sparse codes (filled by
     :func:`build_perception_data`), ``amplitudes`` the coder's amplitude channels (empty
-    when the coder drops them), ``labels`` 0 (free) or 1 (contact) per row. The trial's
-    conditions (speed, fingertip orientation, object offset) come from its ``TrialSpec``.
+    when the coder drops them), ``labels`` 0 (free) or 1 (contact) per row. The fingertip's
+    orientation and the object's offset along the path come from the trial's ``TrialSpec``.
     """
 
     index: int
@@ -79,7 +79,6 @@ class TrialFeatures:
     codes: dict[str, FloatArray] = field(default_factory=dict)
     amplitudes: dict[str, FloatArray] = field(default_factory=dict)
     raw_frames: int = 0
-    speed_m_per_s: float = 0.04
     orientation_deg: float = 0.0
     object_offset_m: float = 0.0
 
@@ -246,8 +245,7 @@ def build_perception_data(
         TrialFeatures(
             index=pos, medium=specs[pos].medium, has_object=bool(specs[pos].has_object),
             split=splits[pos] if pos < len(cotton) else "robustness", labels=labels,
-            tensors=tensors, raw_frames=n_raw, speed_m_per_s=specs[pos].speed_m_per_s,
-            orientation_deg=specs[pos].orientation_deg,
+            tensors=tensors, raw_frames=n_raw, orientation_deg=specs[pos].orientation_deg,
             object_offset_m=specs[pos].object_offset_m,
         )
         for pos, tensors, labels, n_raw in results
