@@ -318,3 +318,31 @@ def test_a_job_worker_runs_its_blas_pools_on_one_thread(monkeypatch):
     monkeypatch.setattr(suite, "_run_job_single_thread", record)
     assert suite._run_job(("job",)) == {"job": ("job",)}
     assert seen["threads"] and all(n == 1 for n in seen["threads"])
+
+
+def test_robustness_breakdown_groups_each_trial_by_its_conditions():
+    from hapticframe_sfrnn._perception_data import TrialFeatures
+    from hapticframe_sfrnn._perception_models import robustness_breakdown
+
+    def trial(i, medium, pose, offset, labels):
+        return TrialFeatures(index=i, medium=medium, has_object=True, split="robustness",
+                             labels=np.asarray(labels), tensors={}, orientation_deg=pose,
+                             object_offset_m=offset)
+
+    trials = [trial(0, "bbs", 0.0, 0.0, [0, 1, 1, 0]), trial(1, "bbs", 20.0, 0.035, [0, 1, 1, 0]),
+              trial(2, "poppy_seed", 20.0, 0.0, [0, 0, 1, 1])]
+    # Read at once at 0°; missed at 20° in BBs; read one frame late in poppy seed.
+    predicted = [np.array([0, 1, 1, 0]), np.zeros(4, int), np.array([0, 0, 0, 1])]
+    out = robustness_breakdown(trials, predicted)
+    assert list(out["orientation_deg"]) == ["0", "20"]
+    assert list(out["object_offset_m"]) == ["0", "0.035"]
+    upright, tilted = out["orientation_deg"]["0"], out["orientation_deg"]["20"]
+    assert upright["contact_recall"] == 1.0 and upright["onset_delay_frames"] == 0.0
+    assert tilted["trials"] == 2 and tilted["missed_contacts"] == 1
+    assert tilted["contact_recall"] == 0.25 and tilted["onset_delay_frames"] == 1.0
+    assert out["object_offset_m"]["0"]["trials"] == 2
+    assert set(out["medium_orientation_deg"]) == {"bbs", "poppy_seed"}
+    assert list(out["medium_orientation_deg"]["poppy_seed"]) == ["20"]
+    assert out["medium_orientation_deg"]["bbs"]["20"]["missed_contacts"] == 1
+    with pytest.raises(ValueError):
+        robustness_breakdown(trials, predicted[:2])
