@@ -307,11 +307,11 @@ def run_suite(
     the robustness set grouped by orientation, object offset and medium × orientation
     (:func:`._perception_models.robustness_breakdown`, each figure as mean/std over seeds);
     ``table_a_1``: per training set and tested subset), ``sfrnn_test_accuracy`` (all three
-    modalities, cottonwood test split, mean over seeds), ``sfrnn_robustness_mean`` and ``best_baseline_robustness`` (mean over
-    media), ``table_2_4_sfrnn_ahead`` (per medium: SF-RNN above the (d)+Linear SVM, the
-    thesis's Table 2.4 comparison) and ``sfrnn_ahead_on_every_medium`` (above all five
-    other all-modality models), ``training`` (train/validation diagnostics of the SF-RNN), ``dataset``,
-    ``plan`` and ``timing_s``. ``model_dir`` receives the seed-0 all-modality SF-RNN.
+    modalities, cottonwood test split, mean over seeds), ``sfrnn_robustness_mean`` and
+    ``best_baseline_robustness`` (mean over media), ``table_2_4_sfrnn_ahead`` (per medium:
+    SF-RNN above the (d)+Linear SVM, the thesis's Table 2.4 comparison) and
+    ``sfrnn_ahead_on_every_medium`` (above all five other all-modality models), ``training``
+    (train/validation diagnostics of the SF-RNN), ``dataset``, ``plan`` and ``timing_s``. ``model_dir`` receives the seed-0 all-modality SF-RNN.
     ``job_dir`` keeps each finished job and lets a repeated run resume (module docstring).
     """
     started = time.perf_counter()

@@ -260,13 +260,14 @@ def contact_figures(
                          f"and {len(predicted)}")
     ys = [np.asarray(t, dtype=np.int64).ravel() for t in truth]
     ps = [np.asarray(p, dtype=np.int64).ravel() for p in predicted]
-    delays, missed = [], 0
+    delays, missed, with_contact = [], 0, 0
     for i, (y, p) in enumerate(zip(ys, ps, strict=True)):
         if y.shape != p.shape:
             raise ValueError(f"trial {i}: {y.size} labels but {p.size} predictions")
         contact = np.flatnonzero(y == 1)
         if contact.size == 0:
             continue
+        with_contact += 1
         read = np.flatnonzero(p[contact[0]:contact[-1] + 1] == 1)
         if read.size:
             delays.append(int(read[0]))
@@ -280,7 +281,7 @@ def contact_figures(
         "free_specificity": float(np.mean(p[free] == 0)) if free.any() else None,
         "onset_delay_frames": float(np.median(delays)) if delays else None,
         "missed_contacts": missed,
-        "contact_trials": sum(bool(np.any(t == 1)) for t in ys),
+        "contact_trials": with_contact,
         "trials": len(ys),
         "frames": int(y.size),
     }
