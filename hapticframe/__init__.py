@@ -8,7 +8,12 @@ components and runs them. Everything scientific lives in plugins.
 from __future__ import annotations
 
 import importlib
+import logging
 from typing import TYPE_CHECKING, Any
+
+# The library logs through `logging` and configures no output: the application (the
+# `hapticframe` command, a notebook, a lab's script) decides what is shown.
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # Public names resolve on first use (PEP 562), so that `hapticframe --help` and the light
 # commands pay only for what they touch.
@@ -40,10 +45,12 @@ _LAZY = {
     "RobotSpec": "._specs",
     "RunError": "._errors",
     "RunSettings": "._config",
-    "RunSummary": "._session",
+    "RunInterrupted": "._errors",
+    "RunSummary": "._results",
     "Scene": "._scene",
     "SensorModelSpec": "._specs",
     "SensorSpec": "._specs",
+    "SessionView": "._session",
     "Source": "._registry",
     "UsageError": "._errors",
     "__version__": "._version",
@@ -51,7 +58,7 @@ _LAZY = {
     "get_registry": "._manager",
     "hookimpl": ".hookspecs",
     "make_plugin_manager": "._manager",
-    "run_experiment": "._session",
+    "run_experiment": "._run",
     "validate_file": "._config",
     "validate_mapping": "._config",
 }
@@ -83,11 +90,13 @@ __all__ = [
     "Registry",
     "RobotSpec",
     "RunError",
+    "RunInterrupted",
     "RunSettings",
     "RunSummary",
     "Scene",
     "SensorModelSpec",
     "SensorSpec",
+    "SessionView",
     "Source",
     "UsageError",
     "__version__",
@@ -117,12 +126,14 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # static type checkers see the real imports
     from ._bench import BenchOptions
     from ._config import Experiment, RunSettings, validate_file, validate_mapping
-    from ._errors import ExperimentError, HapticframeError, Issue, PluginConflictError, PluginError, PluginImportError, RunError, UsageError
+    from ._errors import ExperimentError, HapticframeError, Issue, PluginConflictError, PluginError, PluginImportError, RunError, RunInterrupted, UsageError
     from ._kind import Kind
     from ._manager import get_plugin_manager, get_registry, make_plugin_manager
     from ._registry import BrokenPlugin, Registered, Registry, Source
     from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
-    from ._session import RunSummary, run_experiment
+    from ._results import RunSummary
+    from ._run import run_experiment
+    from ._session import SessionView
     from ._specs import BenchSpec, ClassifierSpec, FeatureExtractorSpec, MapSpec, PlannerSpec, PluginConfig, PluginSpec, RobotSpec, SensorModelSpec, SensorSpec
     from ._version import __version__
     from .hookspecs import hookimpl

@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ._errors import UsageError
+from ._errors import PluginConflictError, UsageError
 from ._manager import get_registry
+from ._registry import BENCHMARK
 from ._specs import resolve_reference
 
 __all__ = ["BenchOptions", "run_bench"]
@@ -53,6 +54,9 @@ def run_bench(name: str, options: BenchOptions) -> Any:
     if name not in registry.benchmarks:
         available = ", ".join(sorted(registry.benchmarks)) or "none installed"
         raise UsageError(f"unknown benchmark {name!r}; available: {available}")
+    for conflict in registry.conflicts:
+        if (conflict.kind, conflict.name) == (BENCHMARK, name):
+            raise PluginConflictError(conflict.message())
     spec, _source = registry.benchmarks[name]
     suite = resolve_reference(spec.factory, what=f"benchmark {name!r}", install_hint=spec.install_hint)
     options.out_dir.mkdir(parents=True, exist_ok=True)

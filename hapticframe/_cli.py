@@ -2,12 +2,20 @@
 
 Kept import-light: each command imports what it needs when it runs, so ``--help``,
 ``plugins``, ``validate`` and ``schema`` never load torch, scikit-learn or device libraries.
-Exit status: 0 success, 1 failure while running, 2 bad input or usage.
+Exit status: 0 success, 1 failure while running, 2 bad input or usage, 130 or 143 a run
+interrupted by SIGINT (Ctrl-C) or SIGTERM. Output cut short by a closed pipe
+(``hapticframe schema | head``) is not an error.
+
+The library logs through :mod:`logging` and prints nothing itself; :func:`main` sends the
+``hapticframe`` logger's warnings (and, for the duration of the command, Python warnings)
+to stderr as one line each.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -25,9 +33,37 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+def _progress_line(text: str) -> None:
+    """A progress line of a long command: once the reader of stdout has gone away (a
+    closed pipe), the command carries on and writes its results without printing."""
+    try:
+        _out(text)
+    except BrokenPipeError:
+        _closed_pipe()
+
+
 def _one_line_warning(message: Any, category: Any, filename: str, lineno: int, file: Any = None,
                       line: Any = None) -> None:
     _err(f"warning: {message}")
+
+
+class _StderrHandler(logging.Handler):
+    """The library's log records as ``warning: message`` lines on the current stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            _err(f"{record.levelname.lower()}: {record.getMessage()}")
+        except Exception:
+            self.handleError(record)
+
+
+def _configure_logging(debug: bool) -> logging.Handler:
+    handler = _StderrHandler(logging.DEBUG if debug else logging.WARNING)
+    logger = logging.getLogger("hapticframe")
+    logger.addHandler(handler)
+    if debug:
+        logger.setLevel(logging.DEBUG)
+    return handler
 
 
 def _plugin_module(text: str) -> str:
@@ -180,16 +216,43 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 1 if failures else 0
 
 
+#: The figures the summary line of ``hapticframe run`` shows, when a run has them; every
+#: metric stays in ``metrics.json``.
+SUMMARY_METRICS = (
+    "movements",
+    "object_found",
+    "centroid_error_m",
+    "hausdorff_est_to_true_m",
+    "hausdorff_true_to_est_m",
+    "max_measured_force_n",
+    "contact_balanced_accuracy",
+    "wall_time_s",
+)
+
+
+def _summary(metrics: Any, label_channel: str = "contact") -> str:
+    """The few figures a person reads after a run: search result, force, accuracy, time."""
+    wanted = [k.replace("contact_", f"{label_channel}_", 1) for k in SUMMARY_METRICS]
+    parts = []
+    for key in wanted:
+        value = metrics.get(key)
+        if isinstance(value, bool):
+            parts.append(f"{key}={'yes' if value else 'no'}")
+        elif isinstance(value, (int, float)) and value == value:  # NaN stays in metrics.json
+            parts.append(f"{key}={_short(value)}")
+    return ", ".join(parts)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from ._session import run_experiment
+    from ._run import run_experiment
 
     experiment = _validate(args, args.file)
-    echo = (lambda _text: None) if args.quiet else _out
+    echo = (lambda _text: None) if args.quiet else _progress_line
     metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
                              progress=not args.quiet)
-    _out(f"results in {args.out}: " + ", ".join(
-        f"{k}={_short(v)}" for k, v in metrics.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
-    ))
+    label_channel = experiment.model.run.label_channel
+    _out(f"results in {args.out} (all metrics in metrics.json): "
+         + _summary(metrics, label_channel))
     return 0
 
 
@@ -197,7 +260,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
     experiment = _validate(args, args.file)
-    record = train_experiment(experiment, args.out, overwrite=args.overwrite, echo=_out)
+    record = train_experiment(experiment, args.out, overwrite=args.overwrite,
+                              echo=_progress_line)
     _out(f"trained {', '.join(record['trained']) or 'nothing'}; artifacts in {args.out}")
     return 0
 
@@ -312,11 +376,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
-    warnings.showwarning = _one_line_warning
-    from ._errors import HapticframeError
+    handler = _configure_logging(args.debug)
+    try:
+        # One-line warnings for this command only: catch_warnings restores the process's
+        # own showwarning when the command returns.
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return _dispatch(args)
+    except BrokenPipeError:
+        return _closed_pipe()
+    finally:
+        logging.getLogger("hapticframe").removeHandler(handler)
+
+
+def _closed_pipe() -> int:
+    """The reader of our output went away (``| head``): stop quietly, as ``cat`` does.
+
+    stdout is pointed at devnull so that the interpreter's final flush of the broken
+    stream raises nothing more.
+    """
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout without a descriptor (a test's capture)
+        pass
+    return 0
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    from ._errors import HapticframeError, RunInterrupted
 
     try:
         return int(args.func(args))
+    except BrokenPipeError:
+        raise
+    except RunInterrupted as exc:
+        _err(f"interrupted ({exc.signal_name}); the run's run.json records it")
+        return exc.exit_code
     except HapticframeError as exc:
         if args.debug:
             raise

@@ -1,7 +1,8 @@
 """Exceptions with exit codes and located messages.
 
 The CLI turns a :class:`HapticframeError` into one message and its :attr:`exit_code`
-(2: bad input or usage, 1: failure while running); anything else is a bug and is reported
+(2: bad input or usage, 1: failure while running, 130 or 143: interrupted by SIGINT or
+SIGTERM); anything else is a bug and is reported
 as such (``--debug`` shows the traceback).
 """
 
@@ -17,6 +18,7 @@ __all__ = [
     "PluginError",
     "PluginImportError",
     "RunError",
+    "RunInterrupted",
     "UsageError",
 ]
 
@@ -53,6 +55,22 @@ class RunError(HapticframeError):
     """A failure while an experiment runs."""
 
     exit_code = 1
+
+
+class RunInterrupted(HapticframeError):
+    """A run stopped by a signal: Ctrl-C (SIGINT) or SIGTERM.
+
+    Its exit status is the shell's for a process ended by that signal, 128 + the signal
+    number: 130 for SIGINT, 143 for SIGTERM. ``run.json`` records ``status: interrupted``
+    and the signal's name.
+    """
+
+    _EXIT_CODES = {"SIGINT": 130, "SIGTERM": 143}
+
+    def __init__(self, signal_name: str) -> None:
+        self.signal_name = signal_name
+        self.exit_code = self._EXIT_CODES.get(signal_name, 1)
+        super().__init__(f"the run was interrupted ({signal_name})")
 
 
 @dataclass(frozen=True)

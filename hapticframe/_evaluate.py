@@ -3,22 +3,37 @@
 - A map against the scene: centroid error and outline distances (Table 3.2).
 - A classifier against a sensor's label channel: balanced accuracy over frames and the
   timing of the first and last labelled interaction (Figure 2.5).
+- A finished run as a whole (:func:`score_run`): both of the above, the largest measured
+  force and the components' own metrics, for ``metrics.json``.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._errors import RunError
+from ._kind import Kind
 from ._scene import Scene
 from .geometry import blob_centroid, directed_hausdorff_both, main_outline, sample_grid
-from .kinds import Map, MovementResult, Region
+from .kinds import Map, MovementResult, Region, RunOutcome
 
-__all__ = ["evaluate_labels", "evaluate_map", "save_label_figure", "save_outline_figure"]
+if TYPE_CHECKING:
+    from ._session import Session
+
+__all__ = [
+    "evaluate_labels",
+    "evaluate_map",
+    "primary_classifier",
+    "save_label_figure",
+    "save_outline_figure",
+    "score_run",
+]
 
 
 def evaluate_map(
@@ -223,3 +238,108 @@ def save_label_figure(
     axes.legend(loc="center left", fontsize=8)
     figure.tight_layout()
     figure.savefig(path)
+
+
+# --- scoring a finished run -------------------------------------------------------------
+
+
+def score_run(session: Session) -> dict[str, Any]:
+    """The metrics of a finished run, for ``metrics.json``.
+
+    The planner's map against the scene (``outline.png``), the primary classifier against
+    the first streamed sensor that has ``run.label_channel`` (``labels.png``), the largest
+    force a sensor measured, and each component's own metrics from
+    :meth:`~hapticframe.kinds.Component.finalize`.
+    """
+    settings = session.settings
+    out: dict[str, Any] = {"movements": len(session.movements)}
+    scene = session.experiment.model.scene  # type: ignore[attr-defined]
+    map_id = _evaluation_map(session)
+    if scene is not None and scene.objects and map_id is not None:
+        # The robot knows where it met the object: the estimate is the blob nearest there.
+        met = [r.final_state.position_m for r in session.movements
+               if r.interacted and r.final_state is not None]
+        the_map: Map = session.components[map_id]  # type: ignore[assignment]
+        out.update(evaluate_map(
+            the_map,
+            scene,
+            level=settings.outline_level,
+            spacing_m=settings.evaluation_spacing_m,
+            near_m=np.mean(met, axis=0) if met else None,
+        ))
+        outline = out.pop("_outline")
+        out["evaluated_map"] = map_id
+        if settings.figures:
+            save_outline_figure(
+                session.out_dir / "outline.png", the_map.region, scene, session.movements,
+                outline, out["estimated_centroid_m"], settings.outline_level,
+            )
+    out.update(_label_metrics(session))
+    out["max_measured_force_n"] = session.max_measured_force_n
+    outcome = RunOutcome(
+        session.out_dir, scene, tuple(session.movements), session.components,
+        time.perf_counter() - session.started, figures=settings.figures,
+    )
+    for cid, component in session.components.items():
+        for key, value in dict(component.finalize(outcome)).items():
+            if key in out:
+                raise RunError(f"metric {key!r} of {cid!r} clashes with another metric")
+            out[key] = value
+    out["wall_time_s"] = time.perf_counter() - session.started
+    return out
+
+
+def primary_classifier(session: Session) -> str | None:
+    """The classifier whose decisions drive the run (as the dataflow picks it): the one
+    feeding the first sensor model, else the first classifier."""
+    for entry in session.experiment.of_kind(Kind.SENSOR_MODEL):
+        for name in entry.inputs:
+            if session.components[name].kind is Kind.CLASSIFIER:
+                return name
+    classifiers = session.experiment.of_kind(Kind.CLASSIFIER)
+    return classifiers[0].id if classifiers else None
+
+
+def _label_metrics(session: Session) -> dict[str, Any]:
+    """Score the primary classifier against the first streamed sensor that has a
+    ``run.label_channel`` channel (a synthetic or labelled recording); writes
+    ``labels.png``. Nothing when there is no such sensor or no classifier output."""
+    settings = session.settings
+    name = settings.label_channel
+    clf = primary_classifier(session)
+    training = session.training_sensors
+    sources = [
+        e.id for e in session.experiment.of_kind(Kind.SENSOR)
+        if e.id not in training
+        and name in session.components[e.id].channels  # type: ignore[attr-defined]
+    ]
+    if clf is None or not sources:
+        return {}
+    arrays = session.recorder.arrays()
+    times = arrays.get(f"classifier/{clf}/timestamps_s")
+    probabilities = arrays.get(f"classifier/{clf}/probabilities")
+    labels = arrays.get(f"sensor/{sources[0]}/{name}")
+    if times is None or probabilities is None or labels is None or not len(times):
+        return {}
+    label_times = arrays[f"sensor/{sources[0]}/timestamps_s"]
+    result = evaluate_labels(times, probabilities, label_times, labels, name)
+    events = result.pop("_events")
+    if settings.figures and result[f"{name}_frames"]:
+        classes = tuple(session.components[clf].classes)  # type: ignore[attr-defined]
+        save_label_figure(session.out_dir / "labels.png", times, probabilities, classes,
+                          label_times, labels, events, name)
+    return {**result, f"{name}_labels_from": sources[0]}
+
+
+def _evaluation_map(session: Session) -> str | None:
+    chosen = session.settings.evaluation_map
+    if chosen is not None:
+        if chosen not in session.components:
+            raise RunError(f"run.evaluation_map {chosen!r} is not a component id")
+        return chosen
+    for entry in session.experiment.of_kind(Kind.PLANNER):
+        for name in entry.inputs:
+            if session.components[name].kind is Kind.MAP:
+                return name
+    maps = session.experiment.of_kind(Kind.MAP)
+    return maps[-1].id if maps else None

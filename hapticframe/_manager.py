@@ -29,7 +29,7 @@ from . import hookspecs
 from ._errors import PluginImportError
 from ._kind import Kind
 from ._registry import BrokenPlugin, Registry, Source
-from ._specs import SPEC_TYPES, BenchSpec
+from ._specs import SPEC_TYPES, BenchSpec, add_local_module_dir
 
 __all__ = [
     "AUTOLOAD_ENV",
@@ -111,8 +111,14 @@ class PluginManager(pluggy.PluginManager):
         for impl in self.hook.hapticframe_benchmarks.get_hookimpls():
             source = self._source_of(impl.plugin)
             for record in self._records(impl, source, registry):
-                if isinstance(record, BenchSpec):
-                    registry.benchmarks.setdefault(record.name, (record, source))
+                if not isinstance(record, BenchSpec):
+                    registry.broken.append(BrokenPlugin(
+                        impl.plugin_name, source,
+                        f"hapticframe_benchmarks yielded {type(record).__name__}, "
+                        "expected BenchSpec",
+                    ))
+                    continue
+                registry.add_benchmark(record, source)
         return registry
 
     def _source_of(self, plugin: object) -> Source:
@@ -233,6 +239,8 @@ def _register_module(pm: PluginManager, module_name: str, module_dir: Path | Non
     finally:
         if added:
             sys.path.remove(str(module_dir))
+    if module_dir is not None:
+        add_local_module_dir(str(module_dir))
     if pm.is_registered(module):
         return  # already loaded through its entry point: the same module, nothing to add
     pm.register_source(module, Source("<plugin-module>", "", module_name, module_name))

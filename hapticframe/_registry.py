@@ -58,11 +58,16 @@ class BrokenPlugin:
     error: str
 
 
+#: The ``kind`` of a :class:`Conflict` between benchmark suites.
+BENCHMARK = "benchmark"
+
+
 @dataclass(frozen=True)
 class Conflict:
-    """One (kind, name) registered by more than one source."""
+    """One (kind, name) registered by more than one source (``kind`` is :data:`BENCHMARK`
+    for two benchmark suites of one name)."""
 
-    kind: Kind
+    kind: Kind | str
     name: str
     sources: tuple[Source, ...]
 
@@ -85,16 +90,27 @@ class Registry:
     def add(self, spec: PluginSpec, source: Source) -> None:
         existing = self.plugins[spec.kind].get(spec.name)
         if existing is not None:
-            for conflict in self.conflicts:
-                if (conflict.kind, conflict.name) == spec.key:
-                    self.conflicts.remove(conflict)
-                    sources = (*conflict.sources, source)
-                    break
-            else:
-                sources = (existing.source, source)
-            self.conflicts.append(Conflict(spec.kind, spec.name, sources))
+            self._conflict(spec.kind, spec.name, existing.source, source)
             return
         self.plugins[spec.kind][spec.name] = Registered(spec, source)
+
+    def add_benchmark(self, spec: BenchSpec, source: Source) -> None:
+        """Register a benchmark suite; a second suite of the same name is a conflict."""
+        existing = self.benchmarks.get(spec.name)
+        if existing is not None:
+            self._conflict(BENCHMARK, spec.name, existing[1], source)
+            return
+        self.benchmarks[spec.name] = (spec, source)
+
+    def _conflict(self, kind: Kind | str, name: str, first: Source, source: Source) -> None:
+        for conflict in self.conflicts:
+            if (conflict.kind, conflict.name) == (kind, name):
+                self.conflicts.remove(conflict)
+                sources = (*conflict.sources, source)
+                break
+        else:
+            sources = (first, source)
+        self.conflicts.append(Conflict(kind, name, sources))
 
     def raise_for_conflicts(self) -> None:
         if self.conflicts:

@@ -8,6 +8,7 @@ implementation is a ``"module:attribute"`` string resolved when an experiment is
 from __future__ import annotations
 
 import importlib
+import sys
 import re
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -45,6 +46,34 @@ class PluginConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+#: Directories that lab-local plugin modules (``--plugin-module``) were imported from.
+_LOCAL_MODULE_DIRS: list[str] = []
+
+
+def add_local_module_dir(directory: str) -> None:
+    """Remember where a ``--plugin-module`` was imported from: implementations in its
+    sibling modules are then found there too (a lab keeps registration and
+    implementation apart), without leaving the directory on ``sys.path``."""
+    if directory not in _LOCAL_MODULE_DIRS:
+        _LOCAL_MODULE_DIRS.append(directory)
+
+
+def _import_module(module_name: str) -> Any:
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        top = module_name.partition(".")[0]
+        if not _LOCAL_MODULE_DIRS or (exc.name or "").partition(".")[0] != top:
+            raise
+    added = [d for d in _LOCAL_MODULE_DIRS if d not in sys.path]
+    sys.path[:0] = added
+    try:
+        return importlib.import_module(module_name)
+    finally:
+        for directory in added:
+            sys.path.remove(directory)
+
+
 def resolve_reference(reference: str, *, what: str = "", install_hint: str = "") -> Any:
     """Import ``"package.module:attribute"`` and return the attribute.
 
@@ -56,7 +85,7 @@ def resolve_reference(reference: str, *, what: str = "", install_hint: str = "")
     """
     module_name, _, attr_path = reference.partition(":")
     try:
-        obj: Any = importlib.import_module(module_name)
+        obj: Any = _import_module(module_name)
         for part in attr_path.split("."):
             obj = getattr(obj, part)
     except ImportError as exc:

@@ -4,30 +4,43 @@ The experiment's sensors must be finite (synthetic trials, recordings). Their re
 (trials) flow through the components in build order: each feature extractor is fitted on
 its inputs and then transforms them; each classifier is fitted on its inputs with labels
 taken from the sensors' label channel (``run.label_channel``, default ``contact``) at the
-classifier inputs' timestamps. Components that can ``save(directory)`` write their
-artifacts into ``DIR/<component id>/``, and ``DIR/train.json`` records the seed, versions,
-plugins, the resolved config and each component's training report.
+classifier inputs' timestamps. Components that are
+:class:`~hapticframe.kinds.Persistent` write their artifacts into ``DIR/<component id>/``,
+and ``DIR/train.json`` records the seed, versions, plugins, the resolved config and the
+report of each :class:`~hapticframe.kinds.Trainable` component.
+
+This module uses :mod:`~hapticframe._assembly` and :mod:`~hapticframe._results`; the run
+(:mod:`~hapticframe._run`) uses it to fit before its loop, never the other way round.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ._assembly import build_components
 from ._config import Experiment
 from ._dataflow import merge_batches
 from ._errors import HapticframeError, RunError, UsageError
 from ._kind import Kind
-from ._session import _write_json, build_components
-from ._version import __version__
-from .kinds import Classifier, FeatureExtractor, SampleBatch, Sensor
+from ._results import environment, write_json
+from .kinds import Classifier, FeatureExtractor, Persistent, SampleBatch, Sensor, Trainable
 
-__all__ = ["collect_recordings", "fit_components", "labels_at", "train_experiment"]
+__all__ = [
+    "collect_recordings",
+    "fit_components",
+    "labels_at",
+    "train_experiment",
+    "training_reports",
+]
+
+_log = logging.getLogger("hapticframe.train")
 
 
 def labels_at(times_s: np.ndarray, source: SampleBatch, channel: str) -> np.ndarray:
@@ -70,12 +83,26 @@ def collect_recordings(
     return [{sid: recs[i] for sid, recs in per_sensor.items()} for i in range(count)]
 
 
+def training_reports(components: Mapping[str, Any], trained: Sequence[str]) -> dict[str, Any]:
+    """The :meth:`~hapticframe.kinds.Trainable.training_report` of each fitted component
+    that is :class:`~hapticframe.kinds.Trainable` (None for one that is not)."""
+    reports: dict[str, Any] = {}
+    for cid in trained:
+        component = components[cid]
+        if isinstance(component, Trainable):
+            with _located(cid, type(component).__name__, "reading the training report of"):
+                reports[cid] = dict(component.training_report())
+        else:
+            reports[cid] = None
+    return reports
+
+
 def fit_components(
     experiment: Experiment,
     components: Mapping[str, Any],
     recordings: list[dict[str, SampleBatch]],
     label_channel: str,
-    echo: Callable[[str], None] = print,
+    echo: Callable[[str], None] = _log.info,
 ) -> list[str]:
     """Fit the feature extractors and classifiers in build order; the ids fitted.
 
@@ -110,14 +137,14 @@ def fit_components(
 
 
 @contextmanager
-def _located(component_id: str, type_name: str) -> Iterator[None]:
+def _located(component_id: str, type_name: str, doing: str = "fitting") -> Iterator[None]:
     """Name the component whose ``fit`` failed (a plugin's error says what, not where)."""
     try:
         yield
     except HapticframeError:
         raise
     except Exception as exc:
-        raise RunError(f"fitting {component_id} ({type_name}) failed: "
+        raise RunError(f"{doing} {component_id} ({type_name}) failed: "
                        f"{type(exc).__name__}: {exc}") from exc
 
 
@@ -126,16 +153,16 @@ def train_experiment(
     out_dir: str | Path,
     *,
     overwrite: bool = False,
-    echo: Callable[[str], None] = print,
+    echo: Callable[[str], None] = _log.info,
 ) -> dict[str, Any]:
     """Fit every trainable component of ``experiment`` and save the artifacts into ``out_dir``."""
     out = Path(out_dir)
     if (out / "train.json").exists() and not overwrite:
         raise UsageError(f"--out {out} already holds a training run (train.json); pass --overwrite")
     started = time.perf_counter()
-    components = build_components(experiment)
     label_channel = experiment.model.run.label_channel  # type: ignore[attr-defined]
-    try:
+    with ExitStack() as stack:
+        components = build_components(experiment, stack)
         # With run.train_from, the training sensors stand in for the sensors a run streams.
         sources = dict(experiment.model.run.train_from) or {  # type: ignore[attr-defined]
             e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
@@ -152,8 +179,8 @@ def train_experiment(
             "label_channel": label_channel,
             "trained": trained,
             "artifacts": saved,
-            "reports": {cid: getattr(components[cid], "training_report", None) for cid in trained},
-            "versions": {"hapticframe": __version__, "numpy": np.__version__},
+            "reports": training_reports(components, trained),
+            "versions": environment(),
             "plugins": [
                 {"id": e.id, "kind": e.kind.value, "type": e.type,
                  "distribution": e.registered.source.distribution, "version": e.registered.source.version}
@@ -162,11 +189,8 @@ def train_experiment(
             "resolved_config": experiment.resolved_config(),
             "wall_time_s": time.perf_counter() - started,
         }
-        _write_json(out / "train.json", record)
+        write_json(out / "train.json", record)
         return record
-    finally:
-        for component in components.values():
-            component.close()
 
 
 def _label_source(recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str) -> SampleBatch:
@@ -179,10 +203,11 @@ def _label_source(recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str
 def _save(components: Mapping[str, Any], trained: Sequence[str], out: Path) -> dict[str, str]:
     saved = {}
     for cid in trained:
-        save = getattr(components[cid], "save", None)
-        if callable(save):
+        component = components[cid]
+        if isinstance(component, Persistent):
             target = out / cid
             target.mkdir(parents=True, exist_ok=True)
-            save(target)
+            with _located(cid, type(component).__name__, "saving"):
+                component.save(target)
             saved[cid] = str(target)
     return saved

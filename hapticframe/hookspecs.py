@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import pluggy
 
 if TYPE_CHECKING:
-    from ._session import Session
+    from ._session import SessionView
     from ._specs import (
         BenchSpec,
         ClassifierSpec,
@@ -89,17 +89,21 @@ def hapticframe_addhooks(pluginmanager: pluggy.PluginManager) -> None:
 
 
 @hookspec
-def hapticframe_session_start(session: Session) -> None:
-    """Called after an experiment is built, before its first step."""
+def hapticframe_session_start(session: SessionView) -> None:
+    """Called after an experiment is built, before its first step.
+
+    ``session`` is a read-only :class:`~hapticframe.SessionView` of the run.
+    """
 
 
 @hookspec
-def hapticframe_session_finish(session: Session, status: str) -> None:
-    """Called once a run ends; ``status`` is ``"ok"`` or ``"failed"``."""
+def hapticframe_session_finish(session: SessionView, status: str) -> None:
+    """Called once a run ends, before its components are closed; ``status`` is ``"ok"``,
+    ``"failed"`` or ``"interrupted"``."""
 
 
 @hookspec
-def hapticframe_run_metadata(session: Session) -> Mapping[str, Any] | None:
+def hapticframe_run_metadata(session: SessionView) -> Mapping[str, Any] | None:
     """Return extra entries for the run's ``run.json`` (merged under ``"plugins"``)."""
 
 

@@ -2,6 +2,8 @@
 
 One module per kind states its contract; the data records are shared. Data flows one way:
 sensor → feature extractor → classifier → sensor model → map → planner → robot.
+What only some components can do (train, persist, evaluate on a grid) is declared in
+:mod:`hapticframe.kinds.capabilities`.
 """
 
 from ._base import BuildContext, Component, RunOutcome
@@ -18,6 +20,7 @@ from ._records import (
     SampleBatch,
     concatenate_batches,
 )
+from .capabilities import GridQueryable, Persistent, Trainable
 from .classifier import Classifier
 from .feature_extractor import FeatureExtractor
 from .map import Map
@@ -34,11 +37,13 @@ __all__ = [
     "Component",
     "ExploratoryMovement",
     "FeatureExtractor",
+    "GridQueryable",
     "LocatedMeasurement",
     "Map",
     "MapEstimate",
     "MovementResult",
     "Observations",
+    "Persistent",
     "Planner",
     "Region",
     "Robot",
@@ -47,5 +52,6 @@ __all__ = [
     "SampleBatch",
     "Sensor",
     "SensorModel",
+    "Trainable",
     "concatenate_batches",
 ]

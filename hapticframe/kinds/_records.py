@@ -3,6 +3,11 @@
 Every array is float64 unless stated, SI units throughout (REP 103): metres, seconds,
 newtons, radians. Records validate their shapes on construction so that a plugin that
 emits a malformed record fails where it emits it, not three components downstream.
+
+Records own their arrays: a writable array (or a list) given to a record is copied into a
+read-only array, so a caller that later changes its own array cannot change a validated
+record. A read-only array is taken as it is, without a copy: by numpy's convention nobody
+writes to it (every record array is one, so records hand arrays on to records for free).
 """
 
 from __future__ import annotations
@@ -33,13 +38,23 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 
+def _owned(value: Any, dtype: type) -> Any:
+    """``value`` as a read-only array of ``dtype`` that the record owns.
+
+    A read-only array of that dtype is taken as is; anything else is copied, so that the
+    caller's writable array and the record never share memory.
+    """
+    if isinstance(value, np.ndarray) and value.dtype == dtype and not value.flags.writeable:
+        return value
+    array = np.array(value, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
+
 def _as_float_array(value: ArrayLike, name: str, ndim: int | None = None) -> FloatArray:
-    # A read-only view: the record cannot be changed through it, the caller's array stays
-    # writable, and no data is copied when it already is float64.
-    array = np.asarray(value, dtype=np.float64).view()
+    array: FloatArray = _owned(value, np.float64)
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
-    array.setflags(write=False)
     return array
 
 
@@ -113,21 +128,19 @@ class SampleBatch:
         for name, value in self.channels.items():
             # _as_float_array and _check_rows inline: no message is formatted per channel
             # unless a check fails.
-            array = np.asarray(value, dtype=np.float64).view()
+            array = _owned(value, np.float64)
             if array.ndim == 0:
                 raise ValueError(f"channel {name!r} must have a sample axis")
             if array.shape[0] != t.size:
                 _check_rows(f"channel {name!r}", array, t.size)
-            array.setflags(write=False)
             channels[name] = array
         valid = {}
         for name, value in self.valid.items():
             if name not in channels:
                 raise ValueError(f"validity given for unknown channel {name!r}")
-            mask = np.asarray(value, dtype=bool).view()
+            mask = _owned(value, np.bool_)
             if mask.shape != (t.size,):
                 raise ValueError(f"valid[{name!r}] must have shape ({t.size},), got {mask.shape}")
-            mask.setflags(write=False)
             valid[name] = mask
         object.__setattr__(self, "channels", MappingProxyType(channels))
         object.__setattr__(self, "valid", MappingProxyType(valid))

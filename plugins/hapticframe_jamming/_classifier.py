@@ -26,9 +26,9 @@ on mid-movement does not see a spurious step.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import math
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -192,6 +192,7 @@ class ForceRateJammingClassifier(Classifier):
     def __init__(self, config: ForceRateJammingConfig, context: BuildContext) -> None:
         super().__init__(config, context)
         self._sample_rate_hz = self._resolve_sample_rate(config, context)
+        self._training: dict[str, Any] = {}
         self._build()
 
     @staticmethod
@@ -330,6 +331,19 @@ class ForceRateJammingClassifier(Classifier):
             batches, labels, base_config=self.config, sample_rate_hz=self._sample_rate_hz
         )
         self._build()
+        self._training = {
+            "recordings": len(batches),
+            "samples": sum(len(b) for b in batches),
+            "jamming_force_n": self.config.jamming_force_n,
+            "jamming_rate_n_per_s": self.config.jamming_rate_n_per_s,
+            "contact_force_n": self.config.contact_force_n,
+            "contact_rate_n_per_s": self.config.contact_rate_n_per_s,
+        }
+
+    def training_report(self) -> dict[str, Any]:
+        """What the last fit did (:class:`hapticframe.kinds.Trainable`): the recordings it
+        saw and the four thresholds it chose; empty before a fit."""
+        return dict(self._training)
 
     # --- extras ----------------------------------------------------------------------------
 

@@ -184,6 +184,11 @@ class LinearSVMClassifier(Classifier):
             "training_metrics": self.training_metrics,
         }
 
+    def training_report(self) -> dict[str, Any]:
+        """What the last fit did (:class:`hapticframe.kinds.Trainable`): a copy of
+        :attr:`training_metrics`, also when they were read from a saved model; empty before."""
+        return dict(self.training_metrics)
+
     def save(self, directory: str | Path) -> Path:
         """Write ``model.npz`` (coef, mean, spread) and ``model.json`` into ``directory``."""
         out = Path(directory)

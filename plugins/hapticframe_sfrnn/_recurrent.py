@@ -283,6 +283,11 @@ class RecurrentClassifier(Classifier):
             "saved_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         }
 
+    def training_report(self) -> dict[str, Any]:
+        """What the last fit did (:class:`hapticframe.kinds.Trainable`): a copy of
+        :attr:`training_metrics`, also when they were read from a saved model; empty before."""
+        return dict(self.training_metrics)
+
     def save(self, directory: str | Path) -> Path:
         """Write ``weights.pt`` and ``model.json`` into ``directory`` (created); return it."""
         out = Path(directory)

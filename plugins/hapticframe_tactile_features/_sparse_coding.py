@@ -239,6 +239,19 @@ class SparseCodingExtractor(FeatureExtractor):
         self.fit_stats = stats
         self._refresh()
 
+    def training_report(self) -> dict[str, Any]:
+        """What the last fit did (:class:`hapticframe.kinds.Trainable`): per modality the
+        dictionary learner's statistics and the amplitude reference; empty before a fit."""
+        if not self.fitted:
+            return {}
+        return {
+            "modalities": {
+                m: {**dict(self.fit_stats.get(m, {})),
+                    "amplitude_reference": self.amplitude_references[m]}
+                for m in self.modalities
+            },
+        }
+
     # -- persistence ---------------------------------------------------------------------
 
     def metadata(self) -> dict[str, Any]:

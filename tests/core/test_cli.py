@@ -124,17 +124,17 @@ def test_train_fits_classifiers_on_labelled_recordings_and_saves(lab_dir, capsys
 
 
 def test_quiet_asks_every_component_to_draw_no_progress_bar(lab_dir, monkeypatch):
-    import hapticframe._session as session
+    import hapticframe._assembly as assembly
 
     seen: list[set[bool]] = []
-    build = session.build_components
+    build = assembly.build_components
 
-    def spy(experiment, **kwargs):
-        built = build(experiment, **kwargs)
+    def spy(experiment, stack, **kwargs):
+        built = build(experiment, stack, **kwargs)
         seen.append({component.context.progress for component in built.values()})
         return built
 
-    monkeypatch.setattr(session, "build_components", spy)
+    monkeypatch.setattr(assembly, "build_components", spy)
     for flags, expected in (([], True), (["--quiet"], False)):
         out = lab_dir / f"run-{len(seen)}"
         assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), *flags]) == 0

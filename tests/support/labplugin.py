@@ -92,24 +92,35 @@ class ThresholdConfig(PluginConfig):
 
 
 class ThresholdClassifier(Classifier):
-    """Contact when the force magnitude exceeds a threshold (stateless; trainable)."""
+    """Contact when the force magnitude exceeds a threshold (stateless; trainable and
+    persistent: see hapticframe.kinds.Trainable and Persistent)."""
 
     def __init__(self, config: ThresholdConfig, context):  # type: ignore[no-untyped-def]
         super().__init__(config, context)
         self.threshold_n = config.threshold_n
-        self.training_report: dict[str, float] = {}
+        self._report: dict[str, float] = {}
+
+    def training_report(self) -> dict[str, float]:
+        return dict(self._report)
 
     def fit(self, batches, labels) -> None:  # type: ignore[no-untyped-def]
         force = np.concatenate([np.linalg.norm(b.channels["force_n"], axis=1) for b in batches])
         label = np.concatenate(labels)
         self.threshold_n = float((force[label == 1].mean() + force[label == 0].mean()) / 2)
-        self.training_report = {"threshold_n": self.threshold_n}
+        self._report = {"threshold_n": self.threshold_n}
 
     def save(self, directory) -> None:  # type: ignore[no-untyped-def]
         import json
         from pathlib import Path
 
         (Path(directory) / "threshold.json").write_text(json.dumps({"threshold_n": self.threshold_n}))
+
+    def load(self, directory) -> None:  # type: ignore[no-untyped-def]
+        import json
+        from pathlib import Path
+
+        text = (Path(directory) / "threshold.json").read_text()
+        self.threshold_n = float(json.loads(text)["threshold_n"])
 
     @property
     def classes(self) -> tuple[str, ...]:

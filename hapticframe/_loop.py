@@ -1,0 +1,178 @@
+"""The run loop: a closed loop of exploratory movements, or an open loop over sensors.
+
+It decides when the perception chain ticks; :class:`~hapticframe._dataflow.Dataflow`
+knows how samples become features, probabilities, observations and map updates. Calls go
+one way: the orchestrator (:mod:`hapticframe._run`) calls :func:`run_loop`, which calls the
+dataflow and the components; nothing here writes files or scores results.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ._dataflow import Dataflow
+from ._errors import RunError
+from ._kind import Kind
+from ._session import Session
+from .kinds import Component, MovementResult, Planner, Robot, Sensor
+
+__all__ = ["run_loop"]
+
+
+def run_loop(session: Session) -> None:
+    """Run the closed loop (a planner and a robot) or the open loop (sensors only)."""
+    planners, robots = session.of_kind(Kind.PLANNER), session.of_kind(Kind.ROBOT)
+    flow = Dataflow(session.experiment, session.components, session.recorder,
+                    session.training_sensors)
+    if planners or robots:
+        if len(planners) != 1 or len(robots) != 1:
+            raise RunError(
+                "a closed-loop run needs exactly one planner and one robot "
+                f"(found {len(planners)} planner(s) and {len(robots)} robot(s))"
+            )
+        _closed_loop(session, flow, planners[0], robots[0])  # type: ignore[arg-type]
+    else:
+        _open_loop(session, flow)
+
+
+def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robot) -> None:
+    settings = session.settings
+    limit = min(settings.max_movements, planner.max_movements)
+    chain: list[Component] = [robot, *(session.components[i] for i in flow.rewindable)]
+    lookahead = settings.lookahead_steps
+    for index in range(limit):
+        movement = planner.propose()
+        if movement is None:
+            return
+        flow.start_stream()
+        robot.begin(movement)
+        if lookahead > 1 and any(c.checkpoint() is None for c in chain):
+            lookahead = 1  # a component that cannot rewind: one step at a time
+        steps, halted_by_loop = _movement(session, flow, robot, index, chain, lookahead)
+        flow.flush_maps()
+        reason = halted_by_loop or robot.halt_reason
+        result = MovementResult(
+            index=index,
+            movement=movement,
+            halted=bool(reason),
+            halt_reason=reason,
+            final_state=robot.state,
+            final_class=flow.latest_class(),
+            max_force_n=flow.force_max_n,
+        )
+        session.movements.append(result)
+        _note_force(session, flow.force_max_n)
+        _progress(session, result, steps)
+        for component in session.components.values():
+            component.on_movement_end(result)
+    session.echo(f"stopped after {limit} movements (the movement limit)")
+
+
+def _movement(
+    session: Session, flow: Dataflow, robot: Robot, index: int, chain: list[Component],
+    lookahead: int,
+) -> tuple[int, str]:
+    """Step the robot through the movement it has begun; returns the steps taken and
+    ``"interaction"`` when the loop halted it.
+
+    With ``lookahead > 1`` the robot runs up to that many steps ahead and the chain
+    classifies them as one batch. A batch in which the primary classifier reports an
+    interaction is rewound (``chain``: the robot, streamed sensors, extractors and
+    classifiers) and replayed one step at a time, so the loop halts at the same step,
+    with the same records, as without look-ahead. Batches end on multiples of
+    ``run.map_update_every_steps`` so that maps are updated at the same steps too.
+    """
+    # Settings read once: the step loop below runs some 20,000 times per search.
+    settings = session.settings
+    every = settings.map_update_every_steps
+    halt_on_interaction = settings.halt_on_interaction
+    max_steps = settings.max_steps_per_movement
+    robot_id = robot.id
+    halted_by_loop = ""
+    steps = 0
+    replay_until = 0  # steps below this run one at a time (a rewound batch)
+    while True:
+        if steps >= max_steps:
+            raise RunError(f"movement {index + 1} did not end within {max_steps} steps")
+        batch = min(lookahead, max_steps - steps)
+        if every:
+            batch = min(batch, every - steps % every)
+        if batch > 1 and steps >= replay_until and not halted_by_loop:
+            snapshots = [component.checkpoint() for component in chain]
+            states = []
+            for _ in range(batch):
+                state = robot.step()
+                if state is None:
+                    break
+                states.append(state)
+            if not states:
+                break
+            outputs, classified = flow.read_and_classify()
+            if halt_on_interaction and flow.holds_interaction(classified):
+                for component, snapshot in zip(chain, snapshots):
+                    component.rewind(snapshot)
+                replay_until = steps + len(states)
+                continue
+            for state in states:
+                flow.record_robot_state(robot_id, state, index)
+            flow.commit(outputs, classified)
+            steps += len(states)
+        else:
+            state = robot.step()
+            if state is None:
+                break
+            steps += 1
+            flow.record_robot_state(robot_id, state, index)
+            flow.tick()
+            if halt_on_interaction and not halted_by_loop:
+                detected = flow.interaction_detected()
+                if detected is not None:
+                    halted_by_loop = "interaction"
+                    robot.halt("interaction")
+        if every and steps % every == 0:
+            flow.flush_maps()
+    return steps, halted_by_loop
+
+
+def _open_loop(session: Session, flow: Dataflow) -> None:
+    training = session.training_sensors
+    sensors: list[Sensor] = [
+        s for s in session.of_kind(Kind.SENSOR) if s.id not in training  # type: ignore[misc]
+    ]
+    if not sensors:
+        raise RunError("nothing to run: the experiment has no sensors and no robot")
+    max_reads = session.settings.max_reads
+    reads = 0
+    for reads in range(1, max_reads + 1):
+        if all(s.exhausted for s in sensors):
+            break
+        flow.tick()
+        flow.flush_maps()
+    else:
+        session.echo(f"stopped after {max_reads} reads (run.max_reads)")
+    session.details["sensor_reads"] = reads
+    _note_force(session, flow.force_max_n)
+
+
+def _note_force(session: Session, force_n: float) -> None:
+    if not math.isnan(force_n):
+        previous = session.max_measured_force_n
+        session.max_measured_force_n = force_n if math.isnan(previous) else max(previous, force_n)
+
+
+def _progress(session: Session, result: MovementResult, steps: int) -> None:
+    m = result.movement
+    # The force a sensor measured (noise included), as metrics.json's max_measured_force_n;
+    # a simulator's true force is its own metric.
+    force = (
+        "" if math.isnan(result.max_force_n)
+        else f"  max measured force {result.max_force_n:5.1f} N"
+    )
+    state = result.final_class or "-"
+    # Fixed-width fields first and the free-form label last, so the columns line up.
+    label = f"  {m.label}" if m.label else ""
+    session.echo(
+        f"EM {result.index + 1:>3} {m.phase or '':<7} "
+        f"{result.halt_reason or 'completed':<12} state {state:<8} "
+        f"{steps:>5d} steps{force:<27}{label}"
+    )

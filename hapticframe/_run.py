@@ -1,0 +1,189 @@
+"""``hapticframe run``: one experiment from validated file to written results.
+
+The orchestrator. It calls, in this order and never the other way round:
+:mod:`~hapticframe._assembly` (build the components under one exit stack),
+:mod:`~hapticframe._train` (fit before the run, ``run.train_from``),
+:mod:`~hapticframe._loop` (the closed or open loop), :mod:`~hapticframe._evaluate`
+(score the run) and :mod:`~hapticframe._results` (write ``trace.npz``, ``metrics.json`` and
+``run.json``). An experiment that fails to build writes nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import threading
+import time
+import types
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import ExitStack, contextmanager
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from . import _assembly
+from ._config import Experiment
+from ._errors import HapticframeError, RunError, RunInterrupted, UsageError
+from ._evaluate import score_run
+from ._loop import run_loop
+from ._results import RunSummary, run_record, save_outputs, write_json
+from ._session import Session
+from ._train import collect_recordings, fit_components, training_reports
+from .kinds import Component
+
+__all__ = ["RunSummary", "run_experiment"]
+
+_log = logging.getLogger("hapticframe.run")
+
+
+def _prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {out_dir} exists and is not a directory")
+    if out_dir.exists() and (out_dir / "run.json").exists() and not overwrite:
+        raise UsageError(
+            f"--out {out_dir} already holds a run (run.json); choose another directory or "
+            "pass --overwrite"
+        )
+
+
+def _fit_before_run(session: Session) -> None:
+    """Fit feature extractors and classifiers on the training sensors' recordings."""
+    sources = session.settings.train_from
+    if not sources:
+        return
+    started = time.perf_counter()
+    recordings = collect_recordings(session.components, sources)
+    session.echo(
+        f"fitting before the run on {len(recordings)} recordings of "
+        f"{', '.join(sorted(set(sources.values())))}"
+    )
+    trained = fit_components(session.experiment, session.components, recordings,
+                             session.settings.label_channel, session.echo)
+    session.details["training"] = {
+        "recordings": len(recordings),
+        "trained": trained,
+        "reports": training_reports(session.components, trained),
+        "wall_time_s": time.perf_counter() - started,
+    }
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into :class:`RunInterrupted` while the run runs (main thread only), so
+    that components are closed and ``run.json`` is written as for Ctrl-C."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: types.FrameType | None) -> None:
+        raise RunInterrupted("SIGTERM")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _blame(exc: BaseException, components: Mapping[str, Component]) -> str:
+    """`` in 'id' (kind 'type')`` for the innermost component the traceback passes through."""
+    ids = {id(c): cid for cid, c in components.items()}
+    found = ""
+    tb = exc.__traceback__
+    while tb is not None:
+        owner = tb.tb_frame.f_locals.get("self")
+        if owner is not None and id(owner) in ids:
+            component = components[ids[id(owner)]]
+            found = f" in {ids[id(owner)]!r} ({component.kind})"
+        tb = tb.tb_next
+    return found
+
+
+def run_experiment(
+    experiment: Experiment,
+    out_dir: str | Path,
+    *,
+    overwrite: bool = False,
+    echo: Callable[[str], None] | None = None,
+    progress: bool = True,
+) -> RunSummary:
+    """Build and run ``experiment``, writing results into ``out_dir``.
+
+    ``echo`` receives the progress lines (default: the ``hapticframe.run`` logger at INFO
+    level); ``progress=False`` also asks the components to draw no progress bars of their
+    own (``--quiet``).
+
+    Returns
+    -------
+    RunSummary
+        The metrics written to ``metrics.json``.
+
+    Raises
+    ------
+    ExperimentError, UsageError
+        Before anything is written (exit status 2).
+    RunError
+        When the run fails, or a component's ``close()`` raises; ``run.json`` then records
+        the failure (exit status 1).
+    RunInterrupted
+        On Ctrl-C (SIGINT) or SIGTERM while running; ``run.json`` records
+        ``status: interrupted`` and the signal (exit status 130 or 143).
+    """
+    out = Path(out_dir)
+    _prepare_out_dir(out, overwrite)
+    say = echo if echo is not None else _log.info
+    close_errors: list[str] = []
+
+    def on_close_error(component_id: str, exc: BaseException) -> None:
+        close_errors.append(f"closing {component_id!r} failed: {type(exc).__name__}: {exc}")
+
+    session: Session | None = None
+    error: str | None = None
+    signal_name: str | None = None
+    metrics: dict[str, Any] = {}
+    try:
+        with _sigterm_as_interrupt(), ExitStack() as stack:
+            components = _assembly.build_components(
+                experiment, stack, progress=progress, on_close_error=on_close_error
+            )
+            out.mkdir(parents=True, exist_ok=True)  # only once everything is built
+            session = Session(experiment, out, components, say)
+            session.started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
+            try:
+                session.hook.hapticframe_session_start(session=session.view())
+                _fit_before_run(session)
+                run_loop(session)
+                metrics = score_run(session)
+                save_outputs(session, metrics)
+                session.status = "ok"
+            except RunInterrupted as exc:
+                session.status, signal_name, error = "interrupted", exc.signal_name, None
+                raise
+            except KeyboardInterrupt as exc:
+                session.status, signal_name = "interrupted", "SIGINT"
+                raise RunInterrupted("SIGINT") from exc
+            except HapticframeError as exc:
+                session.status, error = "failed", str(exc)
+                raise
+            except Exception as exc:
+                session.status = "failed"
+                error = f"{type(exc).__name__}{_blame(exc, components)}: {exc}"
+                raise RunError(f"the run failed: {error}") from exc
+            finally:
+                session.hook.hapticframe_session_finish(
+                    session=session.view(), status=session.status
+                )
+        # The stack has closed every component by now.
+    finally:
+        if session is not None:
+            if close_errors and session.status == "ok":
+                session.status, error = "failed", "; ".join(close_errors)
+            elif close_errors:
+                session.details["close_errors"] = close_errors
+            wall = time.perf_counter() - session.started
+            write_json(out / "run.json", run_record(session, wall, error, signal_name))
+    if close_errors:
+        raise RunError("; ".join(close_errors))
+    summary = RunSummary(metrics)
+    summary.out_dir = out
+    return summary

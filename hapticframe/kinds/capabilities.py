@@ -1,0 +1,76 @@
+"""Optional capabilities a component declares: trainable, persistent, grid-queryable.
+
+A kind's interface holds what every component of the kind does. What only some do is
+declared here, as :func:`~typing.runtime_checkable` protocols: a component has the
+capability when its class defines the protocol's methods, and the core, the conformance
+kit and other plugins ask ``isinstance(component, Trainable)`` instead of looking a method
+up by name. A plugin may also list the protocol among its base classes, which states the
+intent and lets a type checker hold the signatures to the protocol's.
+
+- :class:`Trainable`: ``fit`` (the kind's own signature) and ``training_report()``. The
+  core fits feature extractors and classifiers whether or not they report; a trainable
+  one's report is written to ``train.json`` and to ``run.json`` (``details.training``).
+- :class:`Persistent`: ``save(directory)`` and ``load(directory)``. ``hapticframe train``
+  saves each fitted persistent component into ``DIR/<component id>/``.
+- :class:`GridQueryable`: a map that computes its mean and std on a regular grid faster
+  than :meth:`~hapticframe.kinds.Map.query` on the same points; planners use it when offered.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["GridQueryable", "Persistent", "Trainable"]
+
+FloatArray = NDArray[np.float64]
+
+
+@runtime_checkable
+class Trainable(Protocol):
+    """A component that learns from recordings and reports how the learning went.
+
+    ``fit`` keeps its kind's signature (:meth:`FeatureExtractor.fit(batches)
+    <hapticframe.kinds.FeatureExtractor.fit>`, :meth:`Classifier.fit(batches, labels)
+    <hapticframe.kinds.Classifier.fit>`).
+    """
+
+    def fit(self, *args: Any, **kwargs: Any) -> None:
+        """Learn from recordings (the kind's signature)."""
+
+    def training_report(self) -> Mapping[str, Any]:
+        """What the last fit did, as plain JSON-able values (counts, losses, accuracies,
+        times in seconds, learned thresholds). An empty mapping before any fit; after a fit,
+        never empty."""
+        ...
+
+
+@runtime_checkable
+class Persistent(Protocol):
+    """A component whose learned state can be written to and read from a directory."""
+
+    def save(self, directory: str | Path) -> Any:
+        """Write the learned state into ``directory`` (it exists); plain arrays and JSON,
+        never pickles. The return value is ignored."""
+
+    def load(self, directory: str | Path) -> None:
+        """Read the state :meth:`save` wrote into ``directory``; raise ``ValueError`` when
+        it does not fit this component's config."""
+
+
+@runtime_checkable
+class GridQueryable(Protocol):
+    """A map that evaluates itself on a regular grid over its region in one call."""
+
+    def probability_grid(
+        self, spacing_m: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``(xs, ys, mean, std)``: the cell centres ``xs (nx,)`` and ``ys (ny,)`` in metres
+        of a grid of about ``spacing_m`` over the region, and the occupancy mean and its
+        standard deviation there, each ``(ny, nx)`` (the values :meth:`Map.query` gives at
+        those points, to rounding)."""
+        ...
