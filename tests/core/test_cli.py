@@ -139,3 +139,76 @@ def test_quiet_asks_every_component_to_draw_no_progress_bar(lab_dir, monkeypatch
         out = lab_dir / f"run-{len(seen)}"
         assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), *flags]) == 0
         assert seen[-1] == {expected}
+
+
+def test_hooks_receive_a_read_only_public_session_view(lab_dir):
+    from hapticframe import SessionView
+
+    out = lab_dir / "run"
+    assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+    view = sys.modules["labplugin"].SEEN_SESSIONS[-1]
+    assert isinstance(view, SessionView)
+    assert view.name == "lab-open-loop" and view.out_dir == out and view.status == "ok"
+    assert set(view.components) == {"sweep", "contact", "point", "cells"}
+    with pytest.raises(TypeError):
+        view.components["extra"] = view.components["sweep"]  # type: ignore[index]
+
+
+def test_a_closed_pipe_ends_a_command_quietly():
+    # `hapticframe schema | head -1`: the reader goes away after one line.
+    proc = subprocess.run(
+        f"{sys.executable} -m hapticframe schema | head -1", shell=True, capture_output=True,
+        text=True, timeout=60,
+    )
+    assert proc.stdout.strip() == "{"
+    assert "BrokenPipeError" not in proc.stderr and "error" not in proc.stderr
+
+
+def test_main_leaves_the_process_warning_display_and_logging_as_it_found_them(lab_dir):
+    import logging
+    import warnings
+
+    before = warnings.showwarning
+    handlers = list(logging.getLogger("hapticframe").handlers)
+    assert main(["plugins"]) == 0
+    assert warnings.showwarning is before
+    assert logging.getLogger("hapticframe").handlers == handlers
+    assert any(isinstance(h, logging.NullHandler) for h in handlers)  # a library's default
+
+
+def test_the_library_logs_and_the_cli_prints_its_warnings(lab_dir, capsys):
+    import logging
+
+    assert main(["plugins"]) == 0  # the CLI's handler is in place only while main runs
+    capsys.readouterr()
+    logging.getLogger("hapticframe.test").warning("outside a command")
+    assert "outside a command" not in capsys.readouterr().err
+
+    from hapticframe import _cli
+
+    original = _cli.cmd_plugins
+
+    def noisy(args):  # type: ignore[no-untyped-def]
+        logging.getLogger("hapticframe.test").warning("the port is slow")
+        return original(args)
+
+    try:
+        _cli.cmd_plugins = noisy
+        parser_default = main(["plugins"])
+    finally:
+        _cli.cmd_plugins = original
+    assert parser_default == 0
+    assert "warning: the port is slow" in capsys.readouterr().err
+
+
+def test_the_run_summary_keeps_the_few_figures_a_person_reads(lab_dir, capsys):
+    out = lab_dir / "run"
+    assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out)]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert line.startswith(f"results in {out} (all metrics in metrics.json): ")
+    assert "centroid_error_m=" in line and "object_found=yes" in line
+    assert "contact_balanced_accuracy=" in line
+    # The largest force on the console is the one metrics.json records.
+    assert f"max_measured_force_n={metrics['max_measured_force_n']:.4g}" in line
+    assert "contact_frames" not in line and "contact_frames" in metrics  # the rest stays there

@@ -132,3 +132,35 @@ def test_error_hints_from_plugins_are_printed(site, capsys):
         assert "no such file" in err and "hint: check the rig's cable" in err
     finally:
         get_plugin_manager.cache_clear()
+
+
+BENCH = """
+from hapticframe import BenchSpec, hookimpl
+
+@hookimpl
+def hapticframe_benchmarks():
+    yield BenchSpec("lab-suite", "A lab's suite.", "{module}:run")
+    yield {extra}
+"""
+
+
+def test_a_benchmark_registered_twice_is_a_conflict_and_a_non_spec_is_broken(site, monkeypatch):
+    from hapticframe._bench import BenchOptions, run_bench
+    from hapticframe._errors import PluginConflictError
+    from hapticframe._registry import BENCHMARK
+
+    for dist, version in (("lab-one", "1.0"), ("lab-two", "3.1")):
+        module = dist.replace("-", "_") + "_bench"
+        make_dist(site, dist, version, {dist: module},
+                  {module: BENCH.format(module=module, extra='"not a spec"')})
+    registry = make_plugin_manager().registry
+    [conflict] = registry.conflicts
+    assert (conflict.kind, conflict.name) == (BENCHMARK, "lab-suite")
+    assert "lab-one 1.0" in conflict.message() and "lab-two 3.1" in conflict.message()
+    assert sum("expected BenchSpec" in b.error for b in registry.broken) == 2
+    # Running the conflicted name is an error that names both, as for any plugin.
+    import hapticframe._bench as bench
+
+    monkeypatch.setattr(bench, "get_registry", lambda: registry)
+    with pytest.raises(PluginConflictError, match="lab-one 1.0"):
+        run_bench("lab-suite", BenchOptions(out_dir=site / "bench"))

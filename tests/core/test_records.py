@@ -85,3 +85,31 @@ def test_region_and_movement():
     assert move.length_m == pytest.approx(5.0)
     with pytest.raises(ValueError):
         ExploratoryMovement((0, 0), (np.nan, 1))
+
+
+def test_records_own_their_arrays_a_callers_later_change_cannot_reach_them():
+    t = np.array([0.0, 1.0])
+    p = np.array([[0.9, 0.1], [0.2, 0.8]])
+    probs = ClassProbabilities(t, p, ("free", "contact"))
+    p[0] = [5.0, -4.0]  # the caller reuses its buffer
+    t[1] = -1.0
+    assert probs.probabilities[0].tolist() == [0.9, 0.1] and probs.timestamps_s[1] == 1.0
+    force = np.ones((2, 2))
+    valid = np.array([True, True])
+    batch = SampleBatch(np.array([0.0, 1.0]), {"force_n": force}, {"force_n": valid})
+    force[:] = np.nan
+    valid[0] = False
+    assert np.isfinite(batch.channels["force_n"]).all() and batch.valid["force_n"].all()
+    points = np.zeros((1, 2))
+    obs = Observations(points, np.array([1.0]))
+    points[0] = [np.nan, 3.0]
+    assert obs.points_m.tolist() == [[0.0, 0.0]]
+    with pytest.raises(ValueError):
+        probs.probabilities[0, 0] = 0.5  # and they stay read-only
+
+
+def test_records_hand_read_only_arrays_on_without_copying():
+    batch = SampleBatch(np.array([0.0, 1.0]), {"force_n": np.ones((2, 2))})
+    again = SampleBatch(batch.timestamps_s, dict(batch.channels))
+    assert again.channels["force_n"] is batch.channels["force_n"]
+    assert again.timestamps_s is batch.timestamps_s

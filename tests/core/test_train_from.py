@@ -115,3 +115,95 @@ def test_a_failing_fit_names_its_component(lab_dir, monkeypatch, capsys):
     located = "fitting contact (lab-threshold) failed: ValueError: no contact frames to learn from"
     assert err.count(located) == 2
     assert "Traceback" not in err
+
+
+# The README's perception example (examples/perception-belief-map.yaml) made tiny: a few
+# short training trials, one epoch, small networks; every bundled trainable plugin that
+# reads BioTac frames is in it (the jamming classifier, which reads a force, is checked
+# below on its own).
+TINY_PERCEPTION = """\
+schema_version: 1
+name: tiny-perception
+seed: 3
+sensors:
+  - id: fingertip
+    type: biotac
+    config: {source: synthetic, medium: cottonwood_beads, speed_m_per_s: 0.04, has_object: true, tare_frames: 10, tare_source: air}
+  - id: training-trials
+    type: biotac
+    config: {source: synthetic, dataset: training, n_trials: 4, tare_frames: 10, tare_source: air}
+feature_extractors:
+  - {id: emd, type: emd-features, inputs: [fingertip]}
+  - id: codes
+    type: sparse-coding
+    inputs: [emd]
+    config: {fit_epochs: 1, pac_atoms: 8, pdc_atoms: 4, electrodes_atoms: 8}
+classifiers:
+  - id: sf-rnn
+    type: sf-rnn
+    inputs: [codes]
+    config: {max_epochs: 1, gru_units: 4, progress: false, pac_code_size: 8, pdc_code_size: 4, electrodes_code_size: 8}
+  - id: fusion
+    type: fusion-rnn
+    inputs: [codes]
+    config: {max_epochs: 1, branch_units: 4, fusion_units: 4, progress: false, pac_code_size: 8, pdc_code_size: 4, electrodes_code_size: 8}
+  - id: svm
+    type: linear-svm
+    inputs: [fingertip]
+    config: {inputs: {pac: 22, pdc: 1, electrodes: 19}}
+run:
+  train_from: {fingertip: training-trials}
+"""
+
+
+@pytest.mark.slow  # about 15 s of CPU: torch, EMD and trial synthesis for every model
+def test_train_json_reports_on_every_bundled_trainable_plugin(tmp_path):
+    path = tmp_path / "tiny.yaml"
+    path.write_text(TINY_PERCEPTION)
+    out = tmp_path / "trained"
+    assert main(["train", str(path), "--out", str(out)]) == 0
+    record = json.loads((out / "train.json").read_text())
+    assert record["trained"] == ["emd", "codes", "sf-rnn", "fusion", "svm"]
+    reports = record["reports"]
+    assert reports["emd"] is None  # EMD features learn nothing: not Trainable
+    for cid in ("codes", "sf-rnn", "fusion", "svm"):
+        assert isinstance(reports[cid], dict) and reports[cid], cid
+    assert reports["svm"]["train_trials"] == 4
+    assert reports["sf-rnn"]["epochs"] >= 1
+    assert set(reports["codes"]["modalities"]) == {"pac", "pdc", "electrodes"}
+    assert set(record["artifacts"]) == {"codes", "sf-rnn", "fusion", "svm"}  # Persistent
+    assert record["versions"]["numpy"] == np.__version__ and "git_commit" in record["versions"]
+
+
+def test_the_jamming_classifier_reports_the_thresholds_it_learned():
+    from hapticframe.kinds import BuildContext, SampleBatch, Trainable
+    from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
+
+    classifier = ForceRateJammingClassifier(
+        ForceRateJammingConfig(sample_rate_hz=100.0),
+        BuildContext(id="jam", rng=np.random.default_rng(0)),
+    )
+    assert isinstance(classifier, Trainable) and classifier.training_report() == {}
+    t = np.arange(400) / 100.0
+    force = np.where(t < 2.0, 2.0, 2.0 + 40.0 * (t - 2.0))  # free, then a steep rise
+    labels = np.where(t < 2.0, 0, 1)
+    batch = SampleBatch(t, {"force_n": np.column_stack([force, np.zeros_like(force)])})
+    classifier.fit([batch], [labels])
+    report = classifier.training_report()
+    assert report["recordings"] == 1 and report["samples"] == 400
+    assert report["jamming_force_n"] == classifier.config.jamming_force_n
+
+
+def test_bundled_plugins_declare_their_capabilities():
+    from hapticframe.kinds import FeatureExtractor, GridQueryable, Persistent, Trainable
+    from hapticframe_bhm import BayesianHilbertMap
+    from hapticframe_jamming import ForceRateJammingClassifier
+    from hapticframe_sfrnn import FusionRNNClassifier, LinearSVMClassifier, SFRNNClassifier
+    from hapticframe_tactile_features import EMDFeatureExtractor, SparseCodingExtractor
+
+    for cls in (SFRNNClassifier, FusionRNNClassifier, LinearSVMClassifier, SparseCodingExtractor):
+        assert issubclass(cls, Trainable) and issubclass(cls, Persistent), cls
+    assert issubclass(ForceRateJammingClassifier, Trainable)
+    assert not issubclass(EMDFeatureExtractor, Trainable)
+    assert not issubclass(FeatureExtractor, Trainable)  # fit alone declares nothing
+    assert issubclass(BayesianHilbertMap, GridQueryable)

@@ -204,10 +204,13 @@ def hapticframe_sensors() -> Iterator[SensorSpec]:
 
 
 SESSIONS: list[tuple[str, str]] = []
+#: The session objects the hooks received (the tests check they are public views).
+SEEN_SESSIONS: list[object] = []
 
 
 @hookimpl
 def hapticframe_session_start(session) -> None:  # type: ignore[no-untyped-def]
+    SEEN_SESSIONS.append(session)
     SESSIONS.append(("start", session.experiment.model.name))
 
 
