@@ -68,7 +68,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe.geometry import blob_centroid, sample_grid
-from hapticframe.kinds import BuildContext, ExploratoryMovement, Map, MovementResult
+from hapticframe.kinds import (
+    BuildContext,
+    ExploratoryMovement,
+    GridQueryable,
+    Map,
+    MovementResult,
+)
 
 from ._base import LinePlanner
 from ._config import TwoPhaseCoverageConfig
@@ -367,13 +373,13 @@ class TwoPhaseCoverage(LinePlanner):
         return np.asarray(centre, dtype=np.float64)
 
     def _map_grid(self) -> tuple[FloatArray, FloatArray, FloatArray] | None:
-        """The map's mean on a grid: its own ``probability_grid`` if it has one, else queries."""
+        """The map's mean on a grid: its own when it is
+        :class:`~hapticframe.kinds.GridQueryable`, else from queries."""
         if self._map is None:
             return None
         spacing = self.config.grid_spacing_m
-        own_grid = getattr(self._map, "probability_grid", None)
-        if callable(own_grid):
-            xs, ys, mean, _ = own_grid(spacing)
+        if isinstance(self._map, GridQueryable):
+            xs, ys, mean, _ = self._map.probability_grid(spacing)
             xs, ys = np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)
             mean = np.asarray(mean, dtype=np.float64)
             if mean.size == xs.size * ys.size:
