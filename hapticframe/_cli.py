@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import sys
 import warnings
@@ -53,7 +54,7 @@ class _StderrHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         try:
             _err(f"{record.levelname.lower()}: {record.getMessage()}")
-        except Exception:
+        except Exception:  # noqa: BLE001  (logging's own policy for a failing handler)
             self.handleError(record)
 
 
@@ -238,7 +239,7 @@ def _summary(metrics: Any, label_channel: str = "contact") -> str:
         value = metrics.get(key)
         if isinstance(value, bool):
             parts.append(f"{key}={'yes' if value else 'no'}")
-        elif isinstance(value, (int, float)) and value == value:  # NaN stays in metrics.json
+        elif isinstance(value, (int, float)) and not math.isnan(value):  # NaN: metrics.json
             parts.append(f"{key}={_short(value)}")
     return ", ".join(parts)
 

@@ -8,8 +8,8 @@ implementation is a ``"module:attribute"`` string resolved when an experiment is
 from __future__ import annotations
 
 import importlib
-import sys
 import re
+import sys
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 

@@ -38,21 +38,25 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 
-def _owned(value: Any, dtype: type) -> Any:
+_FLOAT64 = np.dtype(np.float64)
+_BOOL = np.dtype(np.bool_)
+
+
+def _owned(value: Any, dtype: np.dtype[Any]) -> Any:
     """``value`` as a read-only array of ``dtype`` that the record owns.
 
     A read-only array of that dtype is taken as is; anything else is copied, so that the
     caller's writable array and the record never share memory.
     """
-    if isinstance(value, np.ndarray) and value.dtype == dtype and not value.flags.writeable:
+    if type(value) is np.ndarray and value.dtype is dtype and not value.flags.writeable:
         return value
-    array = np.array(value, dtype=dtype)
+    array: np.ndarray[Any, Any] = np.array(value, dtype=dtype)
     array.setflags(write=False)
     return array
 
 
 def _as_float_array(value: ArrayLike, name: str, ndim: int | None = None) -> FloatArray:
-    array: FloatArray = _owned(value, np.float64)
+    array: FloatArray = _owned(value, _FLOAT64)
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must have {ndim} dimension(s), got shape {array.shape}")
     return array
@@ -128,7 +132,7 @@ class SampleBatch:
         for name, value in self.channels.items():
             # _as_float_array and _check_rows inline: no message is formatted per channel
             # unless a check fails.
-            array = _owned(value, np.float64)
+            array = _owned(value, _FLOAT64)
             if array.ndim == 0:
                 raise ValueError(f"channel {name!r} must have a sample axis")
             if array.shape[0] != t.size:
@@ -138,7 +142,7 @@ class SampleBatch:
         for name, value in self.valid.items():
             if name not in channels:
                 raise ValueError(f"validity given for unknown channel {name!r}")
-            mask = _owned(value, np.bool_)
+            mask: NDArray[np.bool_] = _owned(value, _BOOL)
             if mask.shape != (t.size,):
                 raise ValueError(f"valid[{name!r}] must have shape ({t.size},), got {mask.shape}")
             valid[name] = mask
