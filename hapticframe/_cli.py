@@ -227,12 +227,15 @@ SUMMARY_METRICS = (
     "hausdorff_true_to_est_m",
     "max_measured_force_n",
     "contact_balanced_accuracy",
+    "first_contact_error_s",
+    "last_contact_error_s",
     "wall_time_s",
 )
 
 
 def _summary(metrics: Any, label_channel: str = "contact") -> str:
-    """The few figures a person reads after a run: search result, force, accuracy, time."""
+    """The few figures a person reads after a run: search result, force, accuracy, time
+    (``contact`` in the names stands for ``run.label_channel``)."""
     wanted = [k.replace("contact_", f"{label_channel}_", 1) for k in SUMMARY_METRICS]
     parts = []
     for key in wanted:
