@@ -1,10 +1,11 @@
 """The failure zone ahead of a plate raked through dry granular material, as pure functions.
 
-Wick and Perumpral's model (dissertation section 3.4.3.1, Figure 3.2): a plate at depth ``d``
-and angle ``α`` to the free surface fails a central wedge bounded by two side crescents. A
-shear band at angle ``β`` leaves the plate's lower edge and meets the free surface at the
-*rupture distance* ``r`` ahead of the plate; in the map plane the zone is the sector of
-radius ``r`` and half-angle ``η`` about the direction of motion (Eq. 3.2).
+Wick and Perumpral's model (dissertation sections 3.3.1 and 3.4.3.1, Figure 3.2; the
+material's parameters in section 3.5.1 and Table 3.1): a plate at depth ``d`` and angle ``α``
+to the free surface fails a central wedge bounded by two side crescents. A shear band at
+angle ``β`` leaves the plate's lower edge and meets the free surface at the *rupture
+distance* ``r`` ahead of the plate; in the map plane the zone is the sector of radius ``r``
+and half-angle ``η`` about the direction of motion (Eq. 3.2).
 
 One policy for every function here:
 
@@ -56,9 +57,9 @@ def arthur_angle(
 ) -> float | FloatArray:
     """Shear-band angle β from the Arthur angle, β = π/4 − (φ + ψ)/4.
 
-    Table 3.1, note †, of the dissertation (Arthur et al., 1977): numerical simulations
-    put the average shear-band angle close to the Arthur angle when φ > 20°. For the
-    dissertation's sand mixture (φ = 42°, ψ = 12°) β = 31.5°.
+    Dissertation section 3.5.1 and Table 3.1, note † (Arthur et al., 1977): numerical
+    simulations put the average shear-band angle close to the Arthur angle when φ > 20°.
+    For the dissertation's sand mixture (φ = 42°, ψ = 12°) β = 31.5°.
 
     Parameters
     ----------
