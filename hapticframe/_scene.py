@@ -50,11 +50,6 @@ class Material(BaseModel):
     dilation_angle_deg: float = Field(12.0, ge=0, lt=90, description="Dilation angle ψ.")
     bulk_density_kg_per_m3: float = Field(1800.0, gt=0)
 
-    @property
-    def shear_band_angle_deg(self) -> float:
-        """Arthur angle β = 45° − (φ + ψ)/4 (31.5° for the defaults)."""
-        return 45.0 - (self.friction_angle_deg + self.dilation_angle_deg) / 4.0
-
 
 @functools.lru_cache(maxsize=64)
 def _placement(

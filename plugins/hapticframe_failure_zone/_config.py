@@ -17,12 +17,13 @@ class FailureZoneConfig(PluginConfig):
     """Failure-zone kernel (dissertation Eqs. 3.2-3.4, Table 3.1).
 
     Three parameter schedules: ``"empirical"`` uses Table 3.1's γ_r = 1/(72·0.82ⁿ) cm⁻² and
-    η = (50 + 7n)° with n the number of *pairs* of interacting movements so far, the sector
-    range being the distance where the kernel halves, r = sqrt(ln 2/γ_r); ``"analytic"``
-    uses the rupture distance r = d(cot α + cot β), γ_r = ln 2/r² and the side-crescent
-    formula η = asin((6.03 + 0.460 r + 0.0904 α)/r) (cm, degrees), whose argument is
-    clipped to [−1, 1] with a :class:`FailureZoneAngleWarning`; ``"hybrid"`` (the default)
-    takes r and γ_r as the analytic schedule and η from Table 3.1's line.
+    η = (50 + 7n)° (capped at 90°) with n the number of *pairs* of interacting movements so
+    far, the sector range being the distance where the kernel halves, r = sqrt(ln 2/γ_r);
+    ``"analytic"`` uses the rupture distance r = d(cot α + cot β), γ_r = ln 2/r² and the
+    side-crescent formula η = asin((6.03 + 0.460 r + 0.0904 α)/r) (cm, degrees), whose
+    argument is clipped to 1 (η = 90°) with a :class:`FailureZoneAngleWarning`; ``"hybrid"``
+    (the default) takes r and γ_r as the analytic schedule and η from Table 3.1's line. The
+    three mechanics formulas come from :mod:`hapticframe_granular`.
 
     The calibration fields below default to values measured against the force-rate
     classifier in the sandbox simulator; each names the dissertation's value, and the
@@ -80,7 +81,11 @@ class FailureZoneConfig(PluginConfig):
         0.82, gt=0, description="Table 3.1: the per-pair ratio of γ_r's denominator."
     )
     empirical_eta_base_deg: float = Field(
-        50.0, ge=0, le=180, description="Table 3.1: η = base + step · n, degrees; the base."
+        50.0,
+        ge=0,
+        le=90,
+        description="Table 3.1: η = base + step · n, degrees; the base. η is capped at 90° "
+        "(the failure zone lies ahead of the plate).",
     )
     empirical_eta_step_deg: float = Field(
         7.0, ge=0, description="Table 3.1: the per-pair increase of η, degrees."

@@ -1,11 +1,13 @@
 """Pure array functions of the failure-zone sensor model (dissertation section 3.4.3.1).
 
-Everything here is stateless numpy: the rupture distance of a raking plate, the Arthur
-angle, the two parameter schedules (Table 3.1's empirical one and the analytic one), the
-three-state kernel targets of Eqs. 3.3-3.4 and the sampling of the sector of Eq. 3.2.
+Everything here is stateless numpy: the kernel bandwidth γ_r (Eq. 3.3 and Table 3.1's
+empirical line), the depth schedule, the three-state kernel targets of Eqs. 3.3-3.4 and the
+sampling of the sector of Eq. 3.2. The granular mechanics that size the sector (the Arthur
+angle, the rupture distance, the side-crescent angle) live in :mod:`hapticframe_granular`,
+shared with the ``sandbox`` simulator.
 
-Units are SI (metres, radians, m^-2) unless a name says otherwise; the two published
-empirical formulas are stated in centimetres and degrees and are converted explicitly.
+Units are SI (metres, radians, m^-2) unless a name says otherwise; the published empirical
+formula for γ_r is stated in cm^-2 and is converted explicitly.
 """
 
 from __future__ import annotations
@@ -16,18 +18,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "FailureZoneAngleWarning",
     "STATES",
-    "analytic_side_angle",
-    "arthur_angle_deg",
+    "FailureZoneAngleWarning",
     "depth_schedule",
     "disc_offsets",
     "empirical_gamma",
-    "empirical_side_angle",
     "kernel_targets",
     "mixture_targets",
     "range_from_gamma",
-    "rupture_distance",
     "rupture_gamma",
     "sector_offsets",
     "state_coverage",
@@ -43,48 +41,10 @@ _CM_PER_M = 100.0
 
 
 class FailureZoneAngleWarning(UserWarning):
-    """The analytic side-crescent formula left the domain of arcsin and was clipped."""
+    """The analytic side-crescent formula left the domain of arcsin and was clipped.
 
-
-def arthur_angle_deg(friction_angle_deg: float, dilation_angle_deg: float) -> float:
-    """Shear-band angle from the Arthur angle, β = 45° − (φ + ψ)/4 (Table 3.1, note †).
-
-    >>> arthur_angle_deg(42.0, 12.0)
-    31.5
+    See :func:`hapticframe_granular.side_crescent_angle_analytic`.
     """
-    return 45.0 - (float(friction_angle_deg) + float(dilation_angle_deg)) / 4.0
-
-
-def rupture_distance(
-    depth_m: ArrayLike, rake_angle_rad: float, shear_band_angle_rad: float
-) -> FloatArray:
-    """Distance ahead of the plate where the shear band meets the free surface.
-
-    ``r = d (cot α + cot β)`` (Wick & Perumpral): the failure wedge of a plate at depth
-    ``d`` and angle ``α`` to the free surface, bounded by a shear band at angle ``β``.
-    Negative results (a plate leaning far back) are returned as 0.
-
-    Parameters
-    ----------
-    depth_m : array_like
-        Plate (fingertip) depth below the free surface, metres; must be finite.
-    rake_angle_rad : float
-        α in (0, π); π/2 for a vertical fingertip.
-    shear_band_angle_rad : float
-        β in (0, π/2).
-    """
-    d = np.asarray(depth_m, dtype=np.float64)
-    if not np.all(np.isfinite(d)):
-        raise ValueError("depth_m must be finite")
-    if not 0.0 < rake_angle_rad < math.pi:
-        raise ValueError(f"rake angle must lie in (0, pi), got {rake_angle_rad}")
-    if not 0.0 < shear_band_angle_rad < math.pi / 2:
-        raise ValueError(f"shear-band angle must lie in (0, pi/2), got {shear_band_angle_rad}")
-    # cos/sin rather than 1/tan: exact 0 for a vertical plate instead of 6e-17.
-    factor = math.cos(rake_angle_rad) / math.sin(rake_angle_rad) + 1.0 / math.tan(
-        shear_band_angle_rad
-    )
-    return np.maximum(d * factor, 0.0)
 
 
 def rupture_gamma(range_m: ArrayLike) -> FloatArray:
@@ -120,41 +80,6 @@ def empirical_gamma(
         raise ValueError("scale_cm2 and ratio must be positive")
     gamma_per_cm2 = 1.0 / (scale_cm2 * ratio**n)
     return gamma_per_cm2 * _CM_PER_M**2
-
-
-def empirical_side_angle(
-    pair_count: int, base_deg: float = 50.0, step_deg: float = 7.0
-) -> float:
-    """Table 3.1's side-crescent angle η = (50 + 7n)°, in radians, clipped to [0, π].
-
-    Beyond n = 18 the published line exceeds 180°, where a half-angle stops meaning
-    anything; the clip keeps the sector a (full) disc.
-    """
-    n = _check_count(pair_count)
-    return float(np.clip(math.radians(base_deg + step_deg * n), 0.0, math.pi))
-
-
-def analytic_side_angle(range_m: float, rake_angle_rad: float) -> tuple[float, float]:
-    """Side-crescent angle η = asin((6.03 + 0.460 r + 0.0904 α) / r), clipped to [−1, 1].
-
-    The empirical line is published with ``r`` in centimetres and ``α`` in degrees; both
-    are converted here. For the dissertation's own numbers the argument exceeds 1 (r =
-    7.1 cm, α = 90°: 17.4 / 7.1 ≈ 2.45), so arcsin would be undefined; the argument is
-    clipped and the caller decides how to report it.
-
-    Returns
-    -------
-    eta_rad : float
-        η in [−π/2, π/2], never NaN.
-    argument : float
-        The unclipped argument of arcsin (finite), so callers can tell when it was clipped.
-    """
-    if not (math.isfinite(range_m) and range_m > 0):
-        raise ValueError(f"range_m must be finite and positive, got {range_m}")
-    r_cm = range_m * _CM_PER_M
-    alpha_deg = math.degrees(rake_angle_rad)
-    argument = (6.03 + 0.460 * r_cm + 0.0904 * alpha_deg) / r_cm
-    return math.asin(min(1.0, max(-1.0, argument))), argument
 
 
 def depth_schedule(

@@ -40,7 +40,7 @@ replaying searches of the ``search`` benchmark on seeds 100 and above (never see
   *pair* of interactions, while the soil (and so the rupture distance) shrinks after *every*
   interacting movement; the robot reports its raking depth, so r = d (cot α + cot β) is used
   directly (7.2, 5.5, 4.7, 4.3 cm, the rupture distances Table 3.1 lists). η keeps Table
-  3.1's line 50 + 7n.
+  3.1's line 50 + 7n, capped at 90° (:func:`hapticframe_granular.side_crescent_angle`).
 - *Free movement reaches 0.85 r with targets near 0* (``free_range_scale: 0.85``,
   ``free_gamma_scale: 0.04``). The classifier halts a movement when the object is about
   0.7 r ahead (mean 0.71 r, sd 0.08 r at 4.4 cm depth; 0.58 r at 2.65 cm), so a free sample
@@ -74,6 +74,12 @@ import warnings
 from typing import Any
 
 import numpy as np
+from hapticframe_granular import (
+    arthur_angle,
+    rupture_distance,
+    side_crescent_angle,
+    side_crescent_angle_analytic,
+)
 from numpy.typing import NDArray
 
 from hapticframe.kinds import (
@@ -88,16 +94,12 @@ from ._config import FailureZoneConfig
 from ._functional import (
     STATES,
     FailureZoneAngleWarning,
-    disc_offsets,
-    kernel_targets,
-    analytic_side_angle,
-    arthur_angle_deg,
     depth_schedule,
+    disc_offsets,
     empirical_gamma,
-    empirical_side_angle,
+    kernel_targets,
     mixture_targets,
     range_from_gamma,
-    rupture_distance,
     rupture_gamma,
     sector_offsets,
     state_coverage,
@@ -113,8 +115,8 @@ _NOTHING = Observations.empty()
 #: Entries kept in each cache of sector geometry before it is cleared (depths vary little).
 _CACHE_SIZE = 64
 
-#: Shear-band angle when neither the config nor a scene gives one (φ = 42°, ψ = 12°).
-_DEFAULT_SHEAR_BAND_DEG = arthur_angle_deg(42.0, 12.0)
+#: Shear-band angle (rad) when neither the config nor a scene gives one (φ = 42°, ψ = 12°).
+_DEFAULT_SHEAR_BAND_RAD = arthur_angle(math.radians(42.0), math.radians(12.0))
 
 
 class FailureZoneKernel(SensorModel):
@@ -130,14 +132,20 @@ class FailureZoneKernel(SensorModel):
     def __init__(self, config: FailureZoneConfig, context: BuildContext) -> None:
         super().__init__(config, context)
         if config.shear_band_angle_deg is not None:
-            beta_deg = config.shear_band_angle_deg
+            beta = math.radians(config.shear_band_angle_deg)
         elif context.scene is not None:
-            beta_deg = context.scene.material.shear_band_angle_deg
+            material = context.scene.material
+            beta = arthur_angle(
+                math.radians(material.friction_angle_deg),
+                math.radians(material.dilation_angle_deg),
+            )
         else:
-            beta_deg = _DEFAULT_SHEAR_BAND_DEG
-        if not 0.0 < beta_deg < 90.0:
-            raise ValueError(f"shear-band angle must lie in (0, 90) degrees, got {beta_deg}")
-        self.shear_band_angle_rad = math.radians(beta_deg)
+            beta = _DEFAULT_SHEAR_BAND_RAD
+        if not 0.0 < beta < math.pi / 2:
+            raise ValueError(
+                f"shear-band angle must lie in (0, 90) degrees, got {math.degrees(beta)}"
+            )
+        self.shear_band_angle_rad = beta
         self.rake_angle_rad = math.radians(config.rake_angle_deg)
         self._warned_angle = False
         self._class_cache: dict[tuple[str, ...], FloatArray] = {}
@@ -198,23 +206,27 @@ class FailureZoneKernel(SensorModel):
                 self.pair_count, c.empirical_gamma_scale_cm2, c.empirical_gamma_ratio
             )
             reach = float(range_from_gamma(gamma))
-            eta = empirical_side_angle(
-                self.pair_count, c.empirical_eta_base_deg, c.empirical_eta_step_deg
+            eta = side_crescent_angle(
+                self.pair_count,
+                base_deg=c.empirical_eta_base_deg,
+                step_deg=c.empirical_eta_step_deg,
             )
             return min(max(reach, c.min_range_m), c.max_range_m), gamma, eta
         if c.use_measured_depth and math.isfinite(depth_m):
             depth = max(depth_m, 0.0)
         else:
             depth = self.scheduled_depth_m()
-        reach = float(rupture_distance(depth, self.rake_angle_rad, self.shear_band_angle_rad))
+        reach = rupture_distance(depth, self.rake_angle_rad, self.shear_band_angle_rad)
         reach = min(max(reach, c.min_range_m), c.max_range_m)
         if c.schedule == "hybrid":
-            eta = empirical_side_angle(
-                self.pair_count, c.empirical_eta_base_deg, c.empirical_eta_step_deg
+            eta = side_crescent_angle(
+                self.pair_count,
+                base_deg=c.empirical_eta_base_deg,
+                step_deg=c.empirical_eta_step_deg,
             )
             return reach, float(rupture_gamma(reach)), eta
-        eta, argument = analytic_side_angle(reach, self.rake_angle_rad)
-        if abs(argument) > 1.0 and not self._warned_angle:
+        eta, argument = side_crescent_angle_analytic(reach, self.rake_angle_rad)
+        if argument > 1.0 and not self._warned_angle:
             self._warned_angle = True
             warnings.warn(
                 f"failure-zone kernel {self.id!r}: the side-crescent formula gives "
@@ -223,7 +235,7 @@ class FailureZoneKernel(SensorModel):
                 FailureZoneAngleWarning,
                 stacklevel=2,
             )
-        return reach, float(rupture_gamma(reach)), max(eta, 0.0)
+        return reach, float(rupture_gamma(reach)), eta
 
     def state_ranges(self, reach_m: float) -> tuple[FloatArray, FloatArray]:
         """Inner and outer radial bounds of the free, jamming and contact sectors (m)."""

@@ -4,7 +4,10 @@ The failure zone ahead of a plate raked through dry granular material (Wick and 
 Kobayakawa et al.; thesis section 3.3.1 and Figure 3.2) is a central wedge bounded by two
 side crescents. In the map plane it is modelled as the circular sector of radius ``r`` (the
 rupture distance) and half-angle ``eta`` (the side-crescent angle) centred on the direction
-of motion (Eq. 3.2). Everything here is stateless; the robot class strings it together.
+of motion (Eq. 3.2). The rupture distance, the side-crescent angle and the shear-band
+(Arthur) angle come from :mod:`hapticframe_granular`, shared with the failure-zone sensor
+model; the geometry and force pieces below are the simulator's own. Everything here is
+stateless; the robot class strings it together.
 
 Units: metres, seconds, newtons, radians, except parameters whose names end in ``_deg``.
 """
@@ -17,85 +20,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "arthur_angle_deg",
     "contact_force_n",
     "first_hit_distances",
     "free_drag_n",
     "jamming_force_n",
     "plate_edge_offsets",
     "plate_edge_points",
-    "rupture_distance_m",
     "sector_ray_points",
     "shear_cycle_factor",
-    "side_crescent_angle_deg",
     "startup_factor",
     "unit_vector",
 ]
 
 FloatArray = NDArray[np.float64]
-
-
-def arthur_angle_deg(friction_angle_deg: float, dilation_angle_deg: float) -> float:
-    """Shear-band angle from the Arthur angle, β = 45° − (φ + ψ)/4.
-
-    Parameters
-    ----------
-    friction_angle_deg : float
-        Internal friction angle φ in degrees (42° for the thesis's sand mixture).
-    dilation_angle_deg : float
-        Dilation angle ψ in degrees (12° for the thesis's sand mixture).
-
-    Returns
-    -------
-    float
-        β in degrees (31.5° for the thesis's values).
-    """
-    return 45.0 - (float(friction_angle_deg) + float(dilation_angle_deg)) / 4.0
-
-
-def rupture_distance_m(depth_m: ArrayLike, rake_angle_deg: float, shear_band_angle_deg: float):
-    """Distance ahead of the plate where the shear band meets the free surface.
-
-    ``r = d (cot α + cot β)`` (Figure 3.2), with ``α`` the plate angle to the free surface
-    (90° for vertical raking) and ``β`` the shear-band angle.
-
-    Parameters
-    ----------
-    depth_m : float or array
-        Raking depth ``d`` (non-negative).
-    rake_angle_deg, shear_band_angle_deg : float
-        α and β in degrees, each in (0, 180) and (0, 90) respectively.
-
-    Returns
-    -------
-    float or ndarray
-        ``r`` in metres, same shape as ``depth_m``.
-    """
-    if not 0.0 < rake_angle_deg < 180.0:
-        raise ValueError(f"rake_angle_deg must lie in (0, 180), got {rake_angle_deg}")
-    if not 0.0 < shear_band_angle_deg < 90.0:
-        raise ValueError(f"shear_band_angle_deg must lie in (0, 90), got {shear_band_angle_deg}")
-    d = np.asarray(depth_m, dtype=np.float64)
-    if np.any(~np.isfinite(d)) or np.any(d < 0):
-        raise ValueError("depth_m must be finite and non-negative")
-    cot_alpha = 1.0 / np.tan(np.radians(rake_angle_deg))
-    cot_beta = 1.0 / np.tan(np.radians(shear_band_angle_deg))
-    # cot(90°) evaluates to ~6e-17, not 0; snap it so vertical raking is exact.
-    if abs(cot_alpha) < 1e-12:
-        cot_alpha = 0.0
-    r = d * (cot_alpha + cot_beta)
-    return float(r) if r.ndim == 0 else r
-
-
-def side_crescent_angle_deg(pairwise_interactions: int, max_deg: float = 90.0) -> float:
-    """Empirical side-crescent angle η = (50 + 7n)° of Table 3.1, capped at ``max_deg``.
-
-    The cap keeps the failure zone ahead of the plate: a sector wider than ±90° would reach
-    behind it.
-    """
-    if pairwise_interactions < 0:
-        raise ValueError("pairwise_interactions must be non-negative")
-    return float(min(50.0 + 7.0 * pairwise_interactions, max_deg))
 
 
 def unit_vector(angle_rad: ArrayLike) -> FloatArray:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from hapticframe_granular import arthur_angle, rupture_distance, side_crescent_angle
 from numpy.typing import NDArray
 
 from hapticframe.kinds import (
@@ -120,16 +121,16 @@ class SandboxRobot(Robot):
         self._scene = context.scene
         self._rng = context.rng
         self._dt = 1.0 / config.control_rate_hz
-        self._beta_deg = (
-            config.shear_band_angle_deg
+        material = context.scene.material
+        self._beta_rad = (
+            math.radians(config.shear_band_angle_deg)
             if config.shear_band_angle_deg is not None
-            else context.scene.material.shear_band_angle_deg
-        )
-        if not 0.0 < self._beta_deg < 90.0:
-            raise ValueError(
-                f"robot {context.id!r}: shear-band angle {self._beta_deg}° from the scene "
-                "material is outside (0, 90)"
+            else arthur_angle(
+                math.radians(material.friction_angle_deg),
+                math.radians(material.dilation_angle_deg),
             )
+        )
+        self._rake_rad = math.radians(config.rake_angle_deg)
         # Bounding circles let far-away objects be skipped without sampling the sector:
         # (centre x, centre y, radius) in plain floats for the per-step test.
         self._bounds = [
@@ -198,17 +199,17 @@ class SandboxRobot(Robot):
         self._sector_geometry: tuple[NDArray[np.float64], ...] | None = None
         self._innovation = math.sqrt(1 - self._decay * self._decay)
         self._travelled = 0.0
-        self._rupture = F.rupture_distance_m(depth, cfg.rake_angle_deg, self._beta_deg)
+        self._rupture = rupture_distance(depth, self._rake_rad, self._beta_rad)
         # An object matters once the fingertip is within its bounding radius plus the
         # failure zone's reach and the plate: (x, y, that distance squared) per object.
         reach = self._rupture + cfg.plate_width_m
         self._near_limits = [
             (cx, cy, (radius + reach) ** 2, radius) for cx, cy, radius in self._bounds
         ]
-        self._eta_deg = (
-            cfg.side_crescent_angle_deg
+        self._eta_rad = (
+            math.radians(cfg.side_crescent_angle_deg)
             if cfg.side_crescent_angle_deg is not None
-            else F.side_crescent_angle_deg(self._interactions // 2)
+            else side_crescent_angle(self._interactions // 2)
         )
         self._steady_drag = F.free_drag_n(depth, cfg.drag_coefficient_n_per_m2)
         # A fresh shear-band cycle at a random phase, and a stationary drag fluctuation.
@@ -326,7 +327,7 @@ class SandboxRobot(Robot):
 
     @property
     def shear_band_angle_deg(self) -> float:
-        return float(self._beta_deg)
+        return math.degrees(self._beta_rad)
 
     # --- the world -----------------------------------------------------------------------
 
@@ -431,7 +432,7 @@ class SandboxRobot(Robot):
         :func:`F.plate_edge_points` would compute them.
         """
         cfg = self.config
-        eta = math.radians(self._eta_deg)
+        eta = self._eta_rad
         n_rays = cfg.sector_angular_samples
         offsets = np.zeros(1) if n_rays == 1 else np.linspace(-eta, eta, n_rays)
         angles = self._heading + offsets
@@ -472,7 +473,7 @@ class SandboxRobot(Robot):
             index=self._index,
             depth_m=self._depth,
             rupture_distance_m=self._rupture,
-            side_crescent_angle_deg=self._eta_deg,
+            side_crescent_angle_deg=math.degrees(self._eta_rad),
             start_time_s=self._em_start_time,
             end_time_s=self._time,
             jamming_onset_s=self._jam_onset,

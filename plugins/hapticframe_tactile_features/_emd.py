@@ -48,6 +48,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgbsv as _dgbsv
 
+from ._validation import as_count, as_real
+
 __all__ = [
     "EMDResult",
     "MIN_SAMPLES",
@@ -318,9 +320,17 @@ def emd(
         If ``backend="numba"`` and numba is not installed.
     """
     use_kernel = _use_kernel(backend)
-    x = np.asarray(signal, dtype=np.float64)
+    x = np.ascontiguousarray(signal, dtype=np.float64)
     if x.ndim != 1:
         raise ValueError(f"emd expects a one-dimensional signal, got shape {x.shape}")
+    # One type per argument before the compiled kernel sees them: numba compiles a fresh
+    # specialisation (11-70 s) for every new combination of argument types, so an int
+    # sd_threshold or a numpy int32 max_sifts would otherwise cost a compile.
+    max_imfs = as_count("max_imfs", max_imfs)
+    max_sifts = as_count("max_sifts", max_sifts)
+    n_mirror = as_count("n_mirror", n_mirror)
+    sd_threshold = as_real("sd_threshold", sd_threshold)
+    residue_ratio = as_real("residue_ratio", residue_ratio)
     if max_imfs < 1 or max_sifts < 1 or n_mirror < 1:
         raise ValueError("max_imfs, max_sifts and n_mirror must be at least 1")
     if not (sd_threshold >= 0.0 and residue_ratio >= 0.0):
@@ -340,7 +350,7 @@ def emd(
         from ._emd_kernel import STATUS_CONSTANT, STATUS_OK, emd_kernel
 
         found, status = emd_kernel(
-            np.ascontiguousarray(x), imfs, counts, sd_threshold, max_sifts, residue_ratio, n_mirror
+            x, imfs, counts, sd_threshold, max_sifts, residue_ratio, n_mirror
         )
         if status == STATUS_CONSTANT:
             return EMDResult(imfs, x.copy(), 0, counts)

@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ._validation import as_count, as_real
+
 __all__ = [
     "AMPLITUDE_FEATURES",
     "ENCODE_TOL",
@@ -206,13 +208,21 @@ def encode_rows(
     """
     d = np.ascontiguousarray(dictionary, dtype=np.float64)
     g = d @ d.T if gram is None else np.ascontiguousarray(gram, dtype=np.float64)
+    # One type per argument, so that the compiled kernel is never re-specialised (a compile).
+    alpha = as_real("alpha", alpha)
+    max_iter = as_count("max_iter", max_iter)
+    tol = as_real("tol", tol)
     if _use_numba(backend):
         from ._lasso_kernel import encode_batch
 
         rows = np.ascontiguousarray(z, dtype=np.float64)
-        skipped = np.zeros(rows.shape[0], dtype=bool) if skip is None else np.asarray(skip)
+        skipped = (
+            np.zeros(rows.shape[0], dtype=bool)
+            if skip is None
+            else np.ascontiguousarray(skip, dtype=bool)
+        )
         codes = np.empty((rows.shape[0], d.shape[0]))
-        unconverged = encode_batch(rows, d, g, float(alpha), skipped, max_iter, tol, codes)
+        unconverged = encode_batch(rows, d, g, alpha, skipped, max_iter, tol, codes)
         if unconverged:
             warnings.warn(
                 f"lasso encoding: {unconverged} of {rows.shape[0]} rows did not converge in "
@@ -263,13 +273,18 @@ def encode_tensors(
     dictionary, alpha, gram, max_iter, tol, backend
         As for :func:`encode_rows` (``gram`` is required here).
     """
+    alpha = as_real("alpha", alpha)
+    max_iter = as_count("max_iter", max_iter)
+    tol = as_real("tol", tol)
     if _use_numba(backend):
         from ._lasso_kernel import normalise_encode_batch
 
         x = np.ascontiguousarray(rows, dtype=np.float64)
-        codes = np.empty((x.shape[0], dictionary.shape[0]))
+        d = np.ascontiguousarray(dictionary, dtype=np.float64)
+        g = np.ascontiguousarray(gram, dtype=np.float64)
+        codes = np.empty((x.shape[0], d.shape[0]))
         unconverged = normalise_encode_batch(
-            x, np.asarray(ok, dtype=bool), dictionary, gram, float(alpha), max_iter, tol,
+            x, np.ascontiguousarray(ok, dtype=bool), d, g, alpha, max_iter, tol,
             _FLAT_ULPS, codes,
         )  # fmt: skip
         if unconverged:

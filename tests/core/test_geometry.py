@@ -71,4 +71,4 @@ def test_scene_shapes_contain_and_centroid():
     assert np.allclose(square.centroid_m, [0.5, 0.5], atol=1e-9)
     scene = Scene(objects=[ellipse, square])
     assert scene.occupied([[0.3, 0.2], [0.0, 0.0]]).tolist() == [True, False]
-    assert scene.material.shear_band_angle_deg == pytest.approx(31.5)
+    assert scene.material.friction_angle_deg == 42.0 and scene.material.dilation_angle_deg == 12.0

@@ -75,58 +75,12 @@ def result(index: int, halt_reason: str = "", final_class: str = "free") -> Move
 # --- formulas -------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(
-    ("depth_cm", "table_cm"), [(4.4, 7.1), (3.4, 5.5), (2.9, 4.7), (2.65, 4.3)]
-)
-def test_rupture_distance_matches_table_3_1(depth_cm: float, table_cm: float) -> None:
-    # Table 3.1 lists 7.1 cm for d = 4.4 cm where d(cot 90° + cot 31.5°) = 7.18 cm: the table
-    # truncates, so 0.1 cm is the tolerance.
-    r = fz.rupture_distance(depth_cm / 100, math.pi / 2, math.radians(31.5))
-    assert abs(float(r) * 100 - table_cm) <= 0.1
-
-
-def test_rupture_distance_grows_with_depth_and_rake() -> None:
-    beta = math.radians(31.5)
-    r = fz.rupture_distance([0.01, 0.02, 0.04], math.pi / 2, beta)
-    np.testing.assert_allclose(r, np.array([1, 2, 4]) * 0.01 / math.tan(beta))
-    # A plate inclined forward (α < 90°) pushes a longer wedge.
-    assert fz.rupture_distance(0.04, math.radians(60), beta) > r[-1]
-    with pytest.raises(ValueError):
-        fz.rupture_distance(np.nan, math.pi / 2, beta)
-    with pytest.raises(ValueError):
-        fz.rupture_distance(0.04, math.pi / 2, math.radians(95))
-
-
-def test_arthur_angle() -> None:
-    assert fz.arthur_angle_deg(42.0, 12.0) == pytest.approx(31.5)
-    assert Material().shear_band_angle_deg == pytest.approx(31.5)
-
-
 def test_empirical_gamma_at_zero_pairs() -> None:
     gamma = fz.empirical_gamma(0)
     assert gamma == pytest.approx(1 / 72 * 1e4)  # 1/72 cm^-2 in m^-2
     assert gamma == pytest.approx(math.log(2) / 0.071**2, rel=0.02)
     assert fz.empirical_gamma(2) == pytest.approx(1e4 / (72 * 0.82**2))
     assert fz.range_from_gamma(gamma) == pytest.approx(math.sqrt(math.log(2) * 72) / 100)
-
-
-def test_empirical_side_angle() -> None:
-    assert math.degrees(fz.empirical_side_angle(0)) == pytest.approx(50.0)
-    assert math.degrees(fz.empirical_side_angle(3)) == pytest.approx(71.0)
-    assert fz.empirical_side_angle(1000) == pytest.approx(math.pi)  # clipped, not wrapped
-    with pytest.raises(ValueError):
-        fz.empirical_side_angle(-1)
-
-
-def test_analytic_side_angle_is_clipped_and_finite() -> None:
-    eta, argument = fz.analytic_side_angle(0.071, math.pi / 2)
-    assert argument == pytest.approx((6.03 + 0.460 * 7.1 + 0.0904 * 90) / 7.1)
-    assert argument == pytest.approx(2.455, abs=1e-3)
-    assert eta == pytest.approx(math.pi / 2)
-    # Within the domain for a long wedge: r = 50 cm gives asin(0.743).
-    eta, argument = fz.analytic_side_angle(0.5, math.pi / 2)
-    assert argument < 1
-    assert eta == pytest.approx(math.asin((6.03 + 23.0 + 8.136) / 50))
 
 
 def test_analytic_side_angle_warns_once_per_instance() -> None:

@@ -1,4 +1,8 @@
-"""Plate-drag geometry and force pieces of the sandbox against the thesis's numbers."""
+"""Plate-drag geometry and force pieces of the sandbox against the thesis's numbers.
+
+The failure-zone mechanics the sandbox shares with the sensor model (Arthur angle, rupture
+distance, side-crescent angle) are tested in test_granular_mechanics.py.
+"""
 
 from __future__ import annotations
 
@@ -8,59 +12,7 @@ import numpy as np
 import pytest
 from hapticframe_sandbox import _functional as F
 
-from hapticframe import Circle, Material, Scene
-
-BETA_DEG = 31.5
-# Table 3.1: rupture distance for the reduced raking depths 4.4, 3.4, 2.9, 2.65 cm.
-THESIS_DEPTHS_CM = (4.4, 3.4, 2.9, 2.65)
-THESIS_RUPTURE_CM = (7.1, 5.5, 4.7, 4.3)
-
-
-def test_arthur_angle_of_the_thesis_sand_mixture():
-    assert F.arthur_angle_deg(42.0, 12.0) == pytest.approx(31.5, abs=1e-12)
-    assert Material().shear_band_angle_deg == pytest.approx(31.5, abs=1e-12)
-    # β falls as the material gets stronger or more dilatant.
-    assert F.arthur_angle_deg(30.0, 0.0) == pytest.approx(37.5)
-
-
-@pytest.mark.parametrize("depth_cm, rupture_cm", list(zip(THESIS_DEPTHS_CM, THESIS_RUPTURE_CM)))
-def test_rupture_distance_matches_table_3_1(depth_cm, rupture_cm):
-    r_cm = 100 * F.rupture_distance_m(depth_cm / 100, 90.0, BETA_DEG)
-    # The table truncates to millimetres (4.4 cot 31.5° = 7.18 is listed as 7.1).
-    assert math.floor(r_cm * 10 + 1e-9) / 10 == pytest.approx(rupture_cm)
-    tolerance = 0.1 if depth_cm == 4.4 else 0.05
-    assert abs(r_cm - rupture_cm) < tolerance
-
-
-def test_rupture_distance_of_an_inclined_plate_and_arrays():
-    d = np.array([0.0, 0.01, 0.044])
-    r = F.rupture_distance_m(d, 60.0, BETA_DEG)
-    expected = d * (1 / math.tan(math.radians(60)) + 1 / math.tan(math.radians(BETA_DEG)))
-    np.testing.assert_allclose(r, expected, rtol=1e-12)
-    assert r[0] == 0.0
-    # Vertical raking: cot 90° is exactly zero.
-    assert F.rupture_distance_m(0.044, 90.0, 45.0) == pytest.approx(0.044, rel=1e-12)
-
-
-@pytest.mark.parametrize(
-    "kwargs",
-    [
-        {"depth_m": -0.01, "rake_angle_deg": 90.0, "shear_band_angle_deg": 31.5},
-        {"depth_m": np.nan, "rake_angle_deg": 90.0, "shear_band_angle_deg": 31.5},
-        {"depth_m": 0.04, "rake_angle_deg": 0.0, "shear_band_angle_deg": 31.5},
-        {"depth_m": 0.04, "rake_angle_deg": 90.0, "shear_band_angle_deg": 90.0},
-    ],
-)
-def test_rupture_distance_rejects_bad_input(kwargs):
-    with pytest.raises(ValueError):
-        F.rupture_distance_m(**kwargs)
-
-
-def test_side_crescent_angle_table_3_1_and_cap():
-    assert [F.side_crescent_angle_deg(n) for n in range(4)] == [50.0, 57.0, 64.0, 71.0]
-    assert F.side_crescent_angle_deg(10) == 90.0
-    with pytest.raises(ValueError):
-        F.side_crescent_angle_deg(-1)
+from hapticframe import Circle, Scene
 
 
 def test_sector_points_span_radius_and_half_angle():
