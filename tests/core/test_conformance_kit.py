@@ -42,3 +42,11 @@ def test_declared_expected_failures_are_xfail_and_xpass_is_reported():
     if spec.name == "restarting-clock" else {}))
 def test_parametrize_with_checks_gives_one_test_per_check(spec, check):
     check(spec)
+
+
+def test_the_package_docstring_lists_every_check():
+    import hapticframe.testing
+
+    every = {func.__name__ for funcs in CHECKS.values() for func in funcs}
+    missing = sorted(name for name in every if f"``{name}``" not in hapticframe.testing.__doc__)
+    assert not missing, f"hapticframe.testing's docstring does not list {missing}"
