@@ -56,8 +56,8 @@ def drive_sensor(
     A ``finite`` sensor (its spec declares the capability) is read to its end: until
     ``exhausted``, bounded by :data:`MAX_FINITE_READS` reads and
     :data:`MAX_FINITE_DURATION_S` seconds of its own timestamps (a :class:`CheckFailure`
-    when it has not ended by then). Other sensors are read
-    :data:`LIVE_READS` times. ``reads`` overrides both: at most that many reads.
+    when it has not ended by then). Other sensors are read :data:`LIVE_READS` times.
+    ``reads`` overrides both: at most that many reads.
     """
     robots = [c for c in sensor.context.inputs.values() if isinstance(c, Robot)]
     robot = robots[0] if robots else None
@@ -119,10 +119,6 @@ def _fail_on_error(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
 
 def _drive(spec: PluginSpec, sensor: Sensor) -> list[SampleBatch]:
     return drive_sensor(sensor, finite="finite" in spec.capabilities)
-
-
-def _sampled(batches: list[SampleBatch]) -> str:
-    return f"{sum(len(b) for b in batches)} samples in {len(batches)} reads"
 
 
 @check(Kind.SENSOR)
@@ -211,6 +207,8 @@ def _batches_differ(first: SampleBatch, second: SampleBatch) -> str:
         other = second.channels[name]
         if array.shape != other.shape:
             return f"channel {name!r} of shape {array.shape} against {other.shape}"
+        if not np.array_equal(np.isnan(array), np.isnan(other)):
+            return f"channel {name!r} with NaN in other samples"
         if not np.allclose(array, other, rtol=1e-9, atol=1e-9, equal_nan=True):
             with np.errstate(invalid="ignore"):
                 worst = float(np.nanmax(np.abs(array - other)))
@@ -248,7 +246,7 @@ def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry 
         streamed.close()
     drained: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
     try:
-        whole = drained.read_all(max_reads=MAX_FINITE_READS)
+        whole = drained.read_all()
     except RuntimeError as exc:
         raise CheckFailure(f"read_all() did not end: {exc}") from exc
     finally:
