@@ -104,7 +104,11 @@ def _registration_module(spec: PluginSpec, registry: Registry | None) -> str | N
 
 @check()
 def check_lazy_import(spec: PluginSpec, *, registry: Registry | None = None) -> None:
-    """Registration and config modules import no heavy or device library."""
+    """Registration and config modules import no heavy or device library.
+
+    Each question is answered as a fresh interpreter would (see ``_import_probe``: a forked
+    child of one helper that imported the core once) and cached for the process.
+    """
     from .._manager import get_registry
 
     modules = [spec.config.__module__]
