@@ -274,15 +274,14 @@ class FreeSpaceCentroidPlanner(InsetLinesPlanner):
         if self._done >= 2:
             return None
         self._done += 1
-        if self._done == 1:
-            return self._line(self.region.center_m[1])
-        the_map = next(iter(self.context.inputs.values()))
-        ys = np.linspace(self.region.y_min_m, self.region.y_max_m, 11)
-        points = np.column_stack([np.full(11, self.region.center_m[0]), ys])
-        free = 1.0 - the_map.query(points).mean
-        with np.errstate(invalid="ignore", divide="ignore"):
-            y = float(np.sum(free * ys) / np.sum(free))
         r = self.region
+        y = float(r.center_m[1])
+        if self._done == 2:
+            the_map = next(iter(self.context.inputs.values()))
+            ys = np.linspace(r.y_min_m, r.y_max_m, 11)
+            free = 1.0 - the_map.query(np.column_stack([np.full(11, r.center_m[0]), ys])).mean
+            with np.errstate(invalid="ignore", divide="ignore"):
+                y = float(np.sum(free * ys) / np.sum(free))
         return ExploratoryMovement((r.x_min_m, y), (r.x_max_m, y))
 
 
@@ -291,8 +290,6 @@ class UntilSurePlanner(InsetLinesPlanner):
 
     A map that stays unknown everywhere never becomes sure: it proposes forever.
     """
-
-    max_movements = 10
 
     def propose(self) -> ExploratoryMovement | None:
         the_map = next(iter(self.context.inputs.values()))
