@@ -1,7 +1,4 @@
-"""The registration records of emd-features and sparse-coding, the chain, and the latency probe.
-
-The conformance kit runs on them in ``tests/test_bundled_conformance.py``.
-"""
+"""The conformance kit on emd-features and sparse-coding, the chain, and the latency probe."""
 
 from __future__ import annotations
 
