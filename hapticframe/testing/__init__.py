@@ -13,6 +13,30 @@ or without pytest: ``hapticframe check my-sensor``. Checks cover the interface c
 (shapes, dtypes, units, increasing timestamps), determinism under a fixed seed, streaming
 and batch agreeing, the config's JSON Schema round trip, lazy importing, and numerical
 extremes (zero, constant, huge, tiny and NaN input give finite output or a clear error).
+
+What each kind is held to, beyond the checks every plugin gets (``check_spec_record``,
+``check_config_round_trip``, ``check_lazy_import``, ``check_builds``,
+``check_deterministic``):
+
+- sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
+  times; a ``finite`` sensor is read to its end, bounded by reads and by seconds of its
+  own clock, a live one 30 times), ``check_sensor_valid_samples_finite`` (no NaN or
+  infinity in a sample the batch marks valid), ``check_sensor_read_all_matches_reads``
+  (a finite sensor's ``read_all()`` and joined ``iter_recordings()`` equal what successive
+  ``read()`` calls deliver), ``check_rewind``;
+- feature extractors and classifiers: ``check_stream_contract``,
+  ``check_streaming_matches_batch``, ``check_numerical_extremes``, ``check_rewind``;
+- sensor models: ``check_sensor_model_contract``, ``check_sensor_model_streaming``,
+  ``check_sensor_model_extremes``;
+- maps: ``check_map_contract``, ``check_map_streaming_matches_batch``,
+  ``check_map_extremes``;
+- planners: ``check_planner_contract``, ``check_planner_extremes`` (an all-unknown map, an
+  all-occupied map, a region smaller than one line spacing);
+- robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_extremes`` (a
+  zero-length movement, movements that leave the workspace), ``check_rewind``.
+
+Every loop the kit drives is bounded (reads, steps, ``max_movements``), so a plugin that
+never ends fails a check instead of hanging it; no check is timed.
 """
 
 from . import _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
@@ -33,7 +57,9 @@ from ._spatial import (
     check_map_extremes,
     check_map_streaming_matches_batch,
     check_planner_contract,
+    check_planner_extremes,
     check_robot_contract,
+    check_robot_extremes,
     check_robot_halt,
     check_sensor_model_contract,
     check_sensor_model_extremes,
@@ -45,6 +71,8 @@ from ._spatial import (
 from ._streams import (
     check_numerical_extremes,
     check_sensor_contract,
+    check_sensor_read_all_matches_reads,
+    check_sensor_valid_samples_finite,
     check_stream_contract,
     check_streaming_matches_batch,
     drive_sensor,
@@ -66,13 +94,17 @@ __all__ = [
     "check_map_streaming_matches_batch",
     "check_numerical_extremes",
     "check_planner_contract",
+    "check_planner_extremes",
     "check_rewind",
     "check_robot_contract",
+    "check_robot_extremes",
     "check_robot_halt",
     "check_sensor_contract",
     "check_sensor_model_contract",
     "check_sensor_model_extremes",
     "check_sensor_model_streaming",
+    "check_sensor_read_all_matches_reads",
+    "check_sensor_valid_samples_finite",
     "check_spec_record",
     "check_stream_contract",
     "check_streaming_matches_batch",

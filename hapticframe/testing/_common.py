@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -15,6 +13,7 @@ from .._registry import Registry
 from .._specs import PluginSpec
 from ..kinds import Component
 from ._harness import CheckFailure, make_component
+from ._import_probe import modules_loaded_by
 
 __all__ = ["CHECKS", "HEAVY_MODULES", "check"]
 
@@ -94,21 +93,6 @@ def check_config_round_trip(spec: PluginSpec, *, registry: Registry | None = Non
         raise CheckFailure(f"config model of {spec.name!r} accepts unknown keys")
 
 
-def _imported_after(modules: list[str]) -> set[str]:
-    code = (
-        "import importlib, json, sys\n"
-        f"for name in {modules!r}:\n"
-        "    importlib.import_module(name)\n"
-        "print(json.dumps(sorted(sys.modules)))\n"
-    )
-    proc = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
-    )
-    if proc.returncode != 0:
-        raise CheckFailure(f"importing {', '.join(modules)} failed: {proc.stderr.strip()[-500:]}")
-    return set(json.loads(proc.stdout.strip().splitlines()[-1]))
-
-
 def _registration_module(spec: PluginSpec, registry: Registry | None) -> str | None:
     if registry is None:
         return None
@@ -120,16 +104,22 @@ def _registration_module(spec: PluginSpec, registry: Registry | None) -> str | N
 
 @check()
 def check_lazy_import(spec: PluginSpec, *, registry: Registry | None = None) -> None:
-    """Registration and config modules import no heavy or device library."""
+    """Registration and config modules import no heavy or device library.
+
+    Each question is answered as a fresh interpreter would (see ``_import_probe``: a forked
+    child of one helper that imported the core once) and cached for the process.
+    """
     from .._manager import get_registry
 
     modules = [spec.config.__module__]
     registration = _registration_module(spec, registry or get_registry())
     if registration:
         modules.insert(0, registration)
-    loaded = _imported_after(modules)
     forbidden = set(HEAVY_MODULES) | set(spec.requires)
-    leaked = sorted(name for name in forbidden if name in loaded)
+    try:
+        leaked = sorted(modules_loaded_by(modules, forbidden))
+    except ImportError as exc:
+        raise CheckFailure(f"importing {', '.join(modules)} failed: {exc}") from exc
     if leaked:
         raise CheckFailure(
             f"importing {', '.join(modules)} also imports {', '.join(leaked)}: move those "

@@ -91,13 +91,15 @@ def make_component(
     seed: int = 0,
     scene: Scene | None = DEFAULT_SCENE,
     config: Mapping[str, Any] | None = None,
+    planner_map: Map | None = None,
     _depth: int = 0,
 ) -> Component:
     """Build ``spec`` the way the conformance kit does.
 
     The config is ``spec.check_config`` (or the model's defaults), the scene is
     :data:`DEFAULT_SCENE`, and the inputs are built from ``spec.check_inputs``; a planner
-    without ``check_inputs`` gets a :class:`KitMap` as input ``"map"``.
+    without ``check_inputs`` gets a :class:`KitMap` as input ``"map"``. ``planner_map``, for
+    a planner, replaces that stand-in and every map named in ``check_inputs``.
     """
     if _depth > 5:
         raise CheckFailure(f"check_inputs of {spec.name!r} nest too deeply (a cycle?)")
@@ -116,8 +118,14 @@ def make_component(
             registry.plugins[kind][name].spec, registry=registry, seed=seed + 1, scene=scene,
             _depth=_depth + 1,
         )
-    if spec.kind is Kind.PLANNER and not spec.check_inputs:
-        inputs["map"] = KitMap(scene.region.to_region() if scene else None)
+    if spec.kind is Kind.PLANNER:
+        if not spec.check_inputs:
+            inputs["map"] = planner_map or KitMap(scene.region.to_region() if scene else None)
+        elif planner_map is not None:
+            for key, component in inputs.items():
+                if isinstance(component, Map):
+                    component.close()
+                    inputs[key] = planner_map
     factory = spec.load_factory()
     context = BuildContext(
         id=f"kit-{spec.name}", rng=np.random.default_rng(seed), inputs=inputs, scene=scene

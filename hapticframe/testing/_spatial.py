@@ -5,18 +5,21 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._kind import Kind
 from .._registry import Registry
-from .._scene import Scene
+from .._scene import RegionConfig, Scene
 from .._specs import PluginSpec
 from ..kinds import (
     ExploratoryMovement,
     LocatedMeasurement,
     Map,
+    MapEstimate,
     MovementResult,
     Observations,
     Planner,
+    Region,
     Robot,
     RobotState,
     SensorModel,
@@ -32,7 +35,16 @@ from ._harness import (
 )
 from ._streams import exercise_stream, sensor_outputs
 
-__all__ = ["KitMap", "located_measurement", "map_observations", "planner_episode"]
+__all__ = [
+    "TINY_SCENE",
+    "FixedMap",
+    "KitMap",
+    "check_planner_extremes",
+    "check_robot_extremes",
+    "located_measurement",
+    "map_observations",
+    "planner_episode",
+]
 
 CLASSES = ("free", "jamming", "contact")
 
@@ -273,6 +285,22 @@ def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[Expl
     raise CheckFailure(f"the planner proposed more than max_movements={planner.max_movements} movements")
 
 
+def _outside(movements: list[ExploratoryMovement], region: Region, tolerance: float) -> str:
+    """The first movement end outside ``region`` (widened by ``tolerance``), described."""
+    for number, m in enumerate(movements, start=1):
+        for end in (m.start_m, m.end_m):
+            inside = (region.x_min_m - tolerance <= end[0] <= region.x_max_m + tolerance
+                      and region.y_min_m - tolerance <= end[1] <= region.y_max_m + tolerance)
+            if not inside:
+                name = f"{m.label!r}" if m.label else f"{number}"
+                return (
+                    f"movement {name} leaves the search region x {region.x_min_m:g}..."
+                    f"{region.x_max_m:g} m, y {region.y_min_m:g}...{region.y_max_m:g} m at "
+                    f"({end[0]:.4g}, {end[1]:.4g}) m"
+                )
+    return ""
+
+
 @check(Kind.PLANNER)
 def check_planner_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Movements lie in the search region and the search ends within ``max_movements``."""
@@ -283,14 +311,75 @@ def check_planner_contract(spec: PluginSpec, *, registry: Registry | None = None
         planner.close()
     if not movements:
         raise CheckFailure("the planner proposed no movement at all")
+    outside = _outside(movements, DEFAULT_SCENE.region.to_region(), 0.01)
+    if outside:
+        raise CheckFailure(outside)
+
+
+class FixedMap(KitMap):
+    """A stand-in map that reports one mean and std everywhere and ignores updates."""
+
+    def __init__(self, mean: float, std: float, region: Region | None = None) -> None:
+        super().__init__(region)
+        self.level = (mean, std)
+
+    def update(self, observations: Observations) -> None:
+        pass
+
+    def query(self, points_m: ArrayLike) -> MapEstimate:
+        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+        return MapEstimate(np.full(n, self.level[0]), np.full(n, self.level[1]))
+
+
+#: A search region smaller than any planner's line spacing: 1 cm by 0.8 cm, around the
+#: middle of the kit's object.
+TINY_SCENE = DEFAULT_SCENE.model_copy(update={"region": RegionConfig(
+    x_min_m=0.395, x_max_m=0.405, y_min_m=0.246, y_max_m=0.254)})
+
+
+def _planner_cases() -> dict[str, tuple[Scene, Map | None]]:
     region = DEFAULT_SCENE.region.to_region()
-    tolerance = 0.01
-    for m in movements:
-        for end in (m.start_m, m.end_m):
-            inside = (region.x_min_m - tolerance <= end[0] <= region.x_max_m + tolerance
-                      and region.y_min_m - tolerance <= end[1] <= region.y_max_m + tolerance)
-            if not inside:
-                raise CheckFailure(f"movement {m.label or m} leaves the search region at {end.tolist()}")
+    return {
+        "an all-unknown map (0.5 everywhere)": (DEFAULT_SCENE, FixedMap(0.5, 0.5, region)),
+        "an all-occupied map (1.0 everywhere)": (DEFAULT_SCENE, FixedMap(1.0, 0.0, region)),
+        "a 1 x 0.8 cm search region (smaller than one line spacing)": (TINY_SCENE, None),
+    }
+
+
+@check(Kind.PLANNER)
+def check_planner_extremes(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """All-unknown and all-occupied maps and a tiny region: a finite search or a clear error.
+
+    Each case runs an episode as :func:`planner_episode` does (at most ``max_movements``
+    proposals, so a planner that never stops fails instead of hanging the kit). Movements
+    must be finite and inside the region; a ``ValueError`` with a message (at build or
+    while proposing) is an acceptable answer. The region comes from the kit's scene and
+    stand-in map, so a ``check_config`` that sets its own region overrides the tiny one.
+    """
+    for what, (scene, the_map) in _planner_cases().items():
+        try:
+            planner: Planner = make_component(  # type: ignore[assignment]
+                spec, registry=registry, scene=scene, planner_map=the_map)
+        except ValueError as exc:
+            if str(exc) and not raised_by_record_validation(exc):
+                continue  # refused at build: a clear error
+            raise _invalid(spec, f"{what} (building)", exc) from exc
+        try:
+            movements = planner_episode(planner, scene)
+        except CheckFailure as exc:
+            raise CheckFailure(f"on {what}: {exc}") from exc
+        except ValueError as exc:
+            if str(exc) and not raised_by_record_validation(exc):
+                continue
+            raise _invalid(spec, what, exc) from exc
+        except Exception as exc:
+            raise _invalid(spec, what, exc) from exc
+        finally:
+            planner.close()
+        region = scene.region.to_region()
+        outside = _outside(movements, region, min(0.01, 0.1 * float(min(region.size_m))))
+        if outside:
+            raise CheckFailure(f"on {what}: {outside}")
 
 
 # --- robots ----------------------------------------------------------------------------------
@@ -334,7 +423,7 @@ def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) 
 
 @check(Kind.ROBOT)
 def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> None:
-    """``halt()`` ends the movement at once; a zero-length movement ends promptly."""
+    """``halt()`` ends the movement at once."""
     robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
     try:
         robot.begin(crossing_movement(DEFAULT_SCENE))
@@ -343,14 +432,73 @@ def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> N
         robot.halt("kit")
         if robot.step() is not None:
             raise CheckFailure("step() returned a state after halt(); it must return None")
-        point = DEFAULT_SCENE.region.to_region().center_m + np.array([0.2, 0.0])
-        states = robot.execute(ExploratoryMovement(point, point), max_steps=1000)
-        if len(states) > 10:
-            raise CheckFailure(f"a zero-length movement took {len(states)} steps")
-    except RuntimeError as exc:
-        raise CheckFailure(f"a zero-length movement did not end: {exc}") from exc
     finally:
         robot.close()
+
+
+def _robot_cases() -> dict[str, tuple[ExploratoryMovement, int]]:
+    """Extreme movements, each with how many steps it may take at most (beyond its length)."""
+    region = DEFAULT_SCENE.region.to_region()
+    inside = region.center_m + np.array([0.2, 0.0])
+    beyond = np.array([region.x_max_m + 0.25, region.y_max_m + 0.15])
+    far = beyond + 1.0
+    return {
+        "a zero-length movement": (ExploratoryMovement(inside, inside, 0.05, label="kit"), 10),
+        "a movement that leaves the workspace": (
+            ExploratoryMovement(inside, beyond, 0.1, label="kit"), 50),
+        "a movement wholly outside the workspace": (
+            ExploratoryMovement(far, far + np.array([0.05, 0.0]), 0.1, label="kit"), 50),
+    }
+
+
+@check(Kind.ROBOT)
+def check_robot_extremes(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Zero-length and out-of-workspace movements: a finite result or a clear error.
+
+    Each movement either raises a ``ValueError`` with a message or runs to its end within
+    its length's worth of steps (plus a margin) with finite states and increasing times;
+    afterwards the robot still runs an ordinary movement with times that keep increasing.
+    """
+    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    last_t = -np.inf
+    try:
+        for what, (movement, margin) in _robot_cases().items():
+            budget = int(movement.length_m / movement.speed_m_per_s * robot.control_rate_hz) + margin
+            try:
+                states = robot.execute(movement, max_steps=budget)
+            except ValueError as exc:
+                if str(exc) and not raised_by_record_validation(exc):
+                    continue  # refused: a clear error
+                raise _invalid(spec, what, exc) from exc
+            except RuntimeError as exc:
+                raise CheckFailure(
+                    f"{what} did not end within {budget} steps: {exc}") from exc
+            except Exception as exc:
+                raise _invalid(spec, what, exc) from exc
+            last_t = _check_states(states, robot, what, last_t)
+        ordinary = crossing_movement(DEFAULT_SCENE)
+        states = _robot_states(robot, ordinary)
+        if not states:
+            raise CheckFailure("after the extreme movements an ordinary movement gave no states")
+        _check_states(states, robot, "an ordinary movement after the extreme ones", last_t)
+    finally:
+        robot.close()
+
+
+def _check_states(states: list[RobotState], robot: Robot, what: str, last_t: float) -> float:
+    """Fail on NaN or non-increasing times in ``states``; returns the last time."""
+    if states:
+        t = np.array([s.timestamp_s for s in states])
+        pos = np.vstack([s.position_m for s in states])
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(pos))):
+            raise CheckFailure(f"{what} gave states with NaN or infinite times or positions")
+        if t[0] <= last_t or np.any(np.diff(t) <= 0):
+            raise CheckFailure(f"{what} gave state times that do not keep increasing")
+        last_t = float(t[-1])
+    final = robot.state
+    if not (np.isfinite(final.timestamp_s) and np.all(np.isfinite(final.position_m))):
+        raise CheckFailure(f"after {what} the robot's state is not finite: {final}")
+    return last_t
 
 
 # --- determinism -----------------------------------------------------------------------------
@@ -360,7 +508,7 @@ def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
     component = make_component(spec, registry=registry, seed=11)
     try:
         if spec.kind is Kind.SENSOR:
-            return sensor_outputs(component)  # type: ignore[arg-type]
+            return sensor_outputs(component, spec)  # type: ignore[arg-type]
         if spec.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
             return exercise_stream(component, spec)
         if spec.kind is Kind.SENSOR_MODEL:

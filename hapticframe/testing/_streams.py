@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import numpy as np
@@ -27,26 +28,70 @@ from ._harness import (
     synthetic_batch,
 )
 
-__all__ = ["drive_sensor", "exercise_stream"]
+__all__ = [
+    "LIVE_READS",
+    "MAX_FINITE_DURATION_S",
+    "MAX_FINITE_READS",
+    "check_sensor_read_all_matches_reads",
+    "check_sensor_valid_samples_finite",
+    "drive_sensor",
+    "exercise_stream",
+]
 
 _EXTREMES = ("zero", "constant", "huge", "tiny", "nan")
 
 
-def drive_sensor(sensor: Sensor, reads: int = 30) -> list[SampleBatch]:
-    """Read ``sensor`` repeatedly, stepping the robot it is mounted on (if any)."""
+#: Reads of a live (not ``finite``) sensor in one drive.
+LIVE_READS = 30
+#: Bounds on driving a finite sensor to its end: reads, and seconds of its own clock.
+MAX_FINITE_READS = 20_000
+MAX_FINITE_DURATION_S = 600.0
+
+
+def drive_sensor(
+    sensor: Sensor, reads: int | None = None, *, finite: bool = False
+) -> list[SampleBatch]:
+    """Read ``sensor`` repeatedly, stepping the robot it is mounted on (if any).
+
+    A ``finite`` sensor (its spec declares the capability) is read to its end: until
+    ``exhausted``, bounded by :data:`MAX_FINITE_READS` reads and
+    :data:`MAX_FINITE_DURATION_S` seconds of its own timestamps (a :class:`CheckFailure`
+    when it has not ended by then). Other sensors are read :data:`LIVE_READS` times.
+    ``reads`` overrides both: at most that many reads.
+    """
     robots = [c for c in sensor.context.inputs.values() if isinstance(c, Robot)]
     robot = robots[0] if robots else None
     if robot is not None:
         robot.begin(crossing_movement(sensor.context.scene))
-    batches = []
-    for _ in range(reads):
+    to_end = reads is None and finite
+    limit = reads if reads is not None else (MAX_FINITE_READS if to_end else LIVE_READS)
+    batches: list[SampleBatch] = []
+    first_t: float | None = None
+    for _ in range(limit):
         if robot is not None and robot.step() is None:
             robot.begin(crossing_movement(sensor.context.scene))
             robot.step()
         if sensor.exhausted:
-            break
-        batches.append(sensor.read())
+            return batches
+        batch = sensor.read()
+        batches.append(batch)
+        if to_end and len(batch):
+            first_t = float(batch.timestamps_s[0]) if first_t is None else first_t
+            if float(batch.timestamps_s[-1]) - first_t > MAX_FINITE_DURATION_S:
+                break
+    if to_end and not sensor.exhausted:
+        raise CheckFailure(
+            f"sensor {sensor.id!r} declares the 'finite' capability but was not exhausted "
+            f"after {len(batches)} reads ({_span_s(batches):.4g} s of samples; the kit reads "
+            f"at most {MAX_FINITE_READS} reads or {MAX_FINITE_DURATION_S:g} s): a finite "
+            "source must end, and its check_config should describe a short one"
+        )
     return batches
+
+
+def _span_s(batches: list[SampleBatch]) -> float:
+    times = [b.timestamps_s for b in batches if len(b)]
+    return float(times[-1][-1] - times[0][0]) if times else 0.0
 
 
 def _outputs(component: Any, batch: SampleBatch) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -72,16 +117,24 @@ def _fail_on_error(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
     return CheckFailure(f"{spec.kind} {spec.name!r} raised {type(exc).__name__} on {what}: {exc}")
 
 
+def _drive(spec: PluginSpec, sensor: Sensor) -> list[SampleBatch]:
+    return drive_sensor(sensor, finite="finite" in spec.capabilities)
+
+
 @check(Kind.SENSOR)
 def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
-    """Declared channels arrive as float64 ``(n, *shape)`` with strictly increasing times."""
+    """Declared channels arrive as float64 ``(n, *shape)`` with strictly increasing times.
+
+    A ``finite`` sensor is read to its end (bounded: see :func:`drive_sensor`), a live one
+    30 times.
+    """
     sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
     try:
         channels = dict(sensor.channels)
         for name, info in channels.items():
             if not info.unit or not info.rate_hz > 0:
                 raise CheckFailure(f"channel {name!r} needs a unit and a positive rate_hz, got {info}")
-        batches = drive_sensor(sensor)
+        batches = _drive(spec, sensor)
         last_t = -np.inf
         delivered = 0
         for i, batch in enumerate(batches):
@@ -105,11 +158,118 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
                 last_t = float(batch.timestamps_s[-1])
                 delivered += len(batch)
         if not delivered:
-            raise CheckFailure("30 reads delivered no samples")
-        if "finite" in spec.capabilities:
-            sensor.read_all()
+            raise CheckFailure(f"{len(batches)} reads delivered no samples")
     finally:
         sensor.close()
+
+
+@check(Kind.SENSOR)
+def check_sensor_valid_samples_finite(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Every sample a batch marks valid (``valid`` absent or True) is finite in every channel.
+
+    A sensor that cannot measure a sample (a corrupted word, a stale reading) marks it
+    invalid in ``batch.valid``; a NaN or infinity it calls valid would reach the models.
+    """
+    sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        batches = _drive(spec, sensor)
+    finally:
+        sensor.close()
+    for i, batch in enumerate(batches):
+        if not len(batch):
+            continue
+        for name, array in batch.channels.items():
+            per_sample = array.reshape(len(batch), -1)
+            bad = ~np.all(np.isfinite(per_sample), axis=1)
+            if name in batch.valid:
+                bad &= batch.valid[name]
+            if bad.any():
+                first = int(np.flatnonzero(bad)[0])
+                marked = "marks valid" if name in batch.valid else "gives no validity for"
+                raise CheckFailure(
+                    f"read {i} delivered NaN or infinity in channel {name!r} at "
+                    f"t = {batch.timestamps_s[first]:.6g} s ({int(bad.sum())} sample(s)), which "
+                    f"the batch {marked}: mark what the sensor could not measure invalid "
+                    f"(SampleBatch(..., valid={{{name!r}: mask}})) instead of passing a silent NaN"
+                )
+
+
+def _batches_differ(first: SampleBatch, second: SampleBatch) -> str:
+    """What differs between two batches ("" when they agree to 1e-9)."""
+    if first.timestamps_s.shape != second.timestamps_s.shape:
+        return f"{len(first)} samples against {len(second)}"
+    if not np.allclose(first.timestamps_s, second.timestamps_s, rtol=0, atol=1e-9):
+        worst = float(np.max(np.abs(first.timestamps_s - second.timestamps_s)))
+        return f"timestamps that differ by up to {worst:.3g} s"
+    if set(first.channels) != set(second.channels):
+        return f"channels {sorted(first.channels)} against {sorted(second.channels)}"
+    for name, array in first.channels.items():
+        other = second.channels[name]
+        if array.shape != other.shape:
+            return f"channel {name!r} of shape {array.shape} against {other.shape}"
+        if not np.array_equal(np.isnan(array), np.isnan(other)):
+            return f"channel {name!r} with NaN in other samples"
+        if not np.allclose(array, other, rtol=1e-9, atol=1e-9, equal_nan=True):
+            with np.errstate(invalid="ignore"):
+                worst = float(np.nanmax(np.abs(array - other)))
+            return f"channel {name!r} values that differ by up to {worst:.3g}"
+    everywhere = np.ones(len(first), dtype=bool)
+    for name in set(first.valid) | set(second.valid):
+        if not np.array_equal(first.valid.get(name, everywhere), second.valid.get(name, everywhere)):
+            return f"validity flags of channel {name!r} that differ"
+    return ""
+
+
+def _whole(batches: list[SampleBatch], sensor: Sensor, what: str) -> SampleBatch:
+    nonempty = [b for b in batches if len(b)]
+    if not nonempty:
+        return SampleBatch.empty(sensor.channels)
+    try:
+        return concatenate_batches(nonempty)
+    except ValueError as exc:
+        raise CheckFailure(f"{what} do not join into one batch: {exc}") from exc
+
+
+@check(Kind.SENSOR)
+def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """A finite sensor's ``read_all()`` and ``iter_recordings()`` give its successive ``read()``s.
+
+    Batch use (training, ``read_all``) and streaming use (the run loop's ``read``) must see
+    the same samples. Sensors without the ``finite`` capability pass without further checks.
+    """
+    if "finite" not in spec.capabilities:
+        return
+    streamed: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        reads = _whole(_drive(spec, streamed), streamed, "the successive read()s")
+    finally:
+        streamed.close()
+    drained: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        whole = drained.read_all()
+    except RuntimeError as exc:
+        raise CheckFailure(f"read_all() did not end: {exc}") from exc
+    finally:
+        drained.close()
+    difference = _batches_differ(reads, whole)
+    if difference:
+        raise CheckFailure(
+            f"read_all() and successive read()s of fresh sensors built with the same seed "
+            f"differ: {difference} ({len(reads)} samples read one batch at a time). Batch "
+            "and streaming use must deliver the same samples"
+        )
+    split: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    try:
+        recordings = list(itertools.islice(split.iter_recordings(), MAX_FINITE_READS))
+    finally:
+        split.close()
+    difference = _batches_differ(_whole(recordings, split, "the recordings"), whole)
+    if difference:
+        raise CheckFailure(
+            f"iter_recordings(), joined, and read_all() differ: {difference} "
+            f"({len(recordings)} recordings). The recordings must split the source, not "
+            "change it"
+        )
 
 
 def _stream_component(spec: PluginSpec, registry: Registry | None) -> Any:
@@ -218,8 +378,8 @@ def check_numerical_extremes(spec: PluginSpec, *, registry: Registry | None = No
         component.close()
 
 
-def sensor_outputs(sensor: Sensor) -> list[Any]:
-    batches = drive_sensor(sensor, reads=20)
+def sensor_outputs(sensor: Sensor, spec: PluginSpec) -> list[Any]:
+    batches = _drive(spec, sensor)
     nonempty = [b for b in batches if len(b)]
     if not nonempty:
         return []

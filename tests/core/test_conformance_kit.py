@@ -42,3 +42,29 @@ def test_declared_expected_failures_are_xfail_and_xpass_is_reported():
     if spec.name == "restarting-clock" else {}))
 def test_parametrize_with_checks_gives_one_test_per_check(spec, check):
     check(spec)
+
+
+def test_the_package_docstring_lists_every_check():
+    import hapticframe.testing
+
+    every = {func.__name__ for funcs in CHECKS.values() for func in funcs}
+    missing = sorted(name for name in every if f"``{name}``" not in hapticframe.testing.__doc__)
+    assert not missing, f"hapticframe.testing's docstring does not list {missing}"
+
+
+def test_the_import_probe_answers_as_a_fresh_interpreter_would():
+    from hapticframe.testing import _import_probe as probe
+
+    modules = ("hapticframe_coverage.plugin", "hapticframe_coverage._config")
+    fresh = probe._fresh_interpreter(modules)
+    helper = probe._shared_probe()
+    assert helper is not None and "numpy" in helper.base
+    assert not fresh - probe._probed(helper, modules)  # nothing a fresh start loads is missed
+    # Asked of the helper (not in its base), and of a fresh interpreter (in its base).
+    assert "xml.dom.minicompat" not in helper.base and "decimal" in helper.base
+    assert probe.modules_loaded_by(["xml.dom.minidom"], ["xml.dom.minicompat", "torch"]) == {
+        "xml.dom.minicompat"}
+    assert probe.modules_loaded_by(["json"], ["xml.dom.minicompat"]) == set()
+    assert probe.modules_loaded_by(["tests.support.heavy_config"], ["decimal"]) == {"decimal"}
+    with pytest.raises(ImportError, match="no_such_module_for_the_kit"):
+        probe.modules_loaded_by(["no_such_module_for_the_kit"], ["torch"])

@@ -8,7 +8,6 @@ from pydantic import ValidationError
 
 from hapticframe import Circle, RegionConfig, Scene
 from hapticframe.kinds import BuildContext, LocatedMeasurement, Observations, Region, RunOutcome
-from hapticframe.testing import parametrize_with_checks
 from hapticframe_belief_map import BeliefMap, BeliefMapConfig, ContactPoint, ContactPointConfig
 from hapticframe_belief_map import _functional as fn
 from hapticframe_belief_map import plugin as bm_plugin
@@ -335,11 +334,3 @@ def test_synthetic_biotac_trial_puts_the_object_on_the_contact_chord() -> None:
     assert the_map.query([[trial.position_m[0, 0], y], [trial.position_m[-1, 0], y]]).mean.max() < 0.3
     region = the_map.region  # extent of the rake plus 5 cm, not the 0.75 x 0.50 m default
     assert region.size_m[0] < 0.35
-
-
-# --- the conformance kit --------------------------------------------------------------------------
-
-
-@parametrize_with_checks(SPECS)
-def test_conformance(spec, check) -> None:
-    check(spec)

@@ -36,12 +36,9 @@ def assert_all_pass(spec, registry):
     assert len(results) >= 6
 
 
-def test_conformance_kit_passes_on_the_emulated_spi_stream(registry):
-    assert registry.plugins[hapticframe.Kind.SENSOR]["biotac"].spec == SPEC
-    assert_all_pass(SPEC, registry)
-
-
 def test_conformance_kit_passes_for_the_sp_and_for_a_replay(registry, tmp_path):
+    # The check config (the emulated SPI stream) runs in tests/test_bundled_conformance.py.
+    assert registry.plugins[hapticframe.Kind.SENSOR]["biotac"].spec == SPEC
     sp = dataclasses.replace(SPEC, check_config={**SPEC.check_config, "variant": "biotac_sp"})
     assert_all_pass(sp, registry)
     path = save_npz(tmp_path / "rec.npz", resting_frames(200))

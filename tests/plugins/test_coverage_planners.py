@@ -25,7 +25,6 @@ from hapticframe.kinds import (
     RobotState,
     RunOutcome,
 )
-from hapticframe.testing import parametrize_with_checks
 from hapticframe_coverage import (
     BoustrophedonCoverage,
     CoverageConfig,
@@ -401,14 +400,6 @@ def test_registration() -> None:
         assert all("description" in p for p in schema["properties"].values())
     with pytest.raises(ValueError):
         TwoPhaseCoverageConfig(min_phase2_movements=5, max_phase2_movements=2)
-
-
-# --- the conformance kit ------------------------------------------------------------------------
-
-
-@parametrize_with_checks(list(coverage_plugin.hapticframe_planners()))
-def test_conformance(spec, check) -> None:
-    check(spec)
 
 
 # --- the calibrated defaults ----------------------------------------------------------------------

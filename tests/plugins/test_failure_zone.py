@@ -16,10 +16,8 @@ from hapticframe.kinds import (
     MovementResult,
     Observations,
 )
-from hapticframe.testing import parametrize_with_checks
 from hapticframe_failure_zone import FailureZoneAngleWarning, FailureZoneConfig, FailureZoneKernel
 from hapticframe_failure_zone import _functional as fz
-from hapticframe_failure_zone import plugin as fz_plugin
 
 CLASSES = ("free", "jamming", "contact")
 #: The dissertation's sensor model exactly (Eqs. 3.2-3.4, Table 3.1); the defaults are calibrated.
@@ -486,11 +484,3 @@ def test_registration() -> None:
     assert spec.load_factory() is FailureZoneKernel
     schema = spec.config.model_json_schema()
     assert all("description" in p for p in schema["properties"].values())
-
-
-# --- the conformance kit ------------------------------------------------------------------------
-
-
-@parametrize_with_checks(list(fz_plugin.hapticframe_sensor_models()))
-def test_conformance(spec, check) -> None:
-    check(spec)

@@ -1,4 +1,7 @@
-"""The conformance kit on sf-rnn, fusion-rnn and linear-svm, and the registration records."""
+"""The registration records of sf-rnn, fusion-rnn and linear-svm.
+
+The conformance kit runs on them in ``tests/test_bundled_conformance.py``.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +12,6 @@ import pytest
 
 import hapticframe
 from hapticframe import Kind
-from hapticframe.testing import run_checks
 
 pytest.importorskip("torch")
 pytest.importorskip("sklearn")
@@ -21,20 +23,6 @@ CODES = {"pac_code": (200,), "pdc_code": (100,), "electrodes_code": (100,)}
 @pytest.fixture(scope="module")
 def registry() -> hapticframe.Registry:
     return hapticframe.make_plugin_manager(modules=["hapticframe_sfrnn.plugin"]).registry
-
-
-@pytest.mark.parametrize("name", NAMES)
-def test_conformance_kit_passes(registry: hapticframe.Registry, name: str) -> None:
-    spec = registry.plugins[Kind.CLASSIFIER][name].spec
-    results = run_checks(spec, registry=registry)
-    failed = [f"{r.check}: {r.message}" for r in results if r.status != "PASS"]
-    assert not failed, failed
-    assert {
-        "check_streaming_matches_batch",
-        "check_numerical_extremes",
-        "check_deterministic",
-        "check_lazy_import",
-    } <= {r.check for r in results}
 
 
 def test_specs_consume_what_the_default_configs_read(registry: hapticframe.Registry) -> None:

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 from pydantic import Field
@@ -70,6 +71,73 @@ class WrongShapeSensor(SweepSensor):
     @property
     def channels(self):  # type: ignore[no-untyped-def]
         return {**super().channels, "force_n": ChannelInfo((3,), "N", 100.0)}
+
+
+class NanDropoutSensor(SweepSensor):
+    """Every seventh force sample is lost; ``flag_dropouts`` says how the loss is reported."""
+
+    flag_dropouts: bool | None = None  # None: no validity at all; False: marked valid; True: invalid
+
+    def read(self) -> SampleBatch:
+        batch = super().read()
+        force = np.array(batch.channels["force_n"])
+        lost = np.round(batch.timestamps_s / 0.01).astype(int) % 7 == 0
+        force[lost] = np.nan
+        channels = {**batch.channels, "force_n": force}
+        if self.flag_dropouts is None:
+            return SampleBatch(batch.timestamps_s, channels)
+        valid = ~lost if self.flag_dropouts else np.ones(len(batch), dtype=bool)
+        return SampleBatch(batch.timestamps_s, channels, {"force_n": valid})
+
+
+class UnflaggedNanSensor(NanDropoutSensor):
+    flag_dropouts = None
+
+
+class NanMarkedValidSensor(NanDropoutSensor):
+    flag_dropouts = False
+
+
+class FlaggedDropoutSensor(NanDropoutSensor):
+    flag_dropouts = True
+
+
+class UntaredReadAllSensor(SweepSensor):
+    """read() refers the force to the first sample (a tare); read_all() forgets to."""
+
+    def read(self) -> SampleBatch:
+        batch = super().read()
+        force = batch.channels["force_n"] - self._force[0]
+        return SampleBatch(batch.timestamps_s, {**batch.channels, "force_n": force})
+
+    def read_all(self, max_reads: int = 1_000_000) -> SampleBatch:
+        self._next = len(self._t)
+        return SampleBatch(self._t, {"force_n": self._force, "position_m": self._pos,
+                                     "contact": self._contact})
+
+
+class BoundaryDroppingSensor(SweepSensor):
+    """Splits its recording into two trials and loses the sample at the boundary."""
+
+    def iter_recordings(self) -> Iterator[SampleBatch]:
+        whole = self.read_all()
+        half = len(whole) // 2
+        yield whole.select(slice(0, half))
+        yield whole.select(slice(half + 1, None))
+
+
+class LoopingReplaySensor(SweepSensor):
+    """Declared finite, but replays its recording over and over on an increasing clock."""
+
+    @property
+    def exhausted(self) -> bool:
+        return False
+
+    def read(self) -> SampleBatch:
+        if self._next >= len(self._t):
+            self._t = self._t + (self._t[-1] - self._t[0] + 0.01)
+            self._next = 0
+        return super().read()
 
 
 class UndeclaredFeature(ScaleExtractor):
@@ -166,10 +234,78 @@ class EndlessPlanner(Planner):
         return ExploratoryMovement((0.1, 0.1), (0.6, 0.1))
 
 
+class LinePlannerConfig(PluginConfig):
+    spacing_m: float = 0.1
+    max_lines: int = 12
+
+
+class InsetLinesPlanner(Planner):
+    """Horizontal lines, each inset half a spacing from the left and right edges.
+
+    On a region narrower than one spacing the inset lines start beyond its right edge.
+    """
+
+    def __init__(self, config, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        self.region = next(iter(context.inputs.values())).region
+        self.max_movements = config.max_lines
+        self._done = 0
+
+    def _line(self, y: float) -> ExploratoryMovement:
+        r, inset = self.region, self.config.spacing_m / 2
+        return ExploratoryMovement((r.x_min_m + inset, y), (r.x_max_m - inset, y))
+
+    def propose(self) -> ExploratoryMovement | None:
+        r = self.region
+        lines = max(1, int((r.y_max_m - r.y_min_m) / self.config.spacing_m))
+        if self._done >= min(lines, self.max_movements):
+            return None
+        self._done += 1
+        return self._line(r.y_min_m + (self._done - 0.5) * (r.y_max_m - r.y_min_m) / lines)
+
+
+class FreeSpaceCentroidPlanner(InsetLinesPlanner):
+    """After a first line, aims one line through the centroid of the map's free space.
+
+    On a map occupied everywhere the centroid is 0 / 0: a NaN line.
+    """
+
+    def propose(self) -> ExploratoryMovement | None:
+        if self._done >= 2:
+            return None
+        self._done += 1
+        r = self.region
+        y = float(r.center_m[1])
+        if self._done == 2:
+            the_map = next(iter(self.context.inputs.values()))
+            ys = np.linspace(r.y_min_m, r.y_max_m, 11)
+            free = 1.0 - the_map.query(np.column_stack([np.full(11, r.center_m[0]), ys])).mean
+            with np.errstate(invalid="ignore", divide="ignore"):
+                y = float(np.sum(free * ys) / np.sum(free))
+        return ExploratoryMovement((r.x_min_m, y), (r.x_max_m, y))
+
+
+class UntilSurePlanner(InsetLinesPlanner):
+    """Rakes the middle line again until the map is sure somewhere (a std below 0.3).
+
+    A map that stays unknown everywhere never becomes sure: it proposes forever.
+    """
+
+    def propose(self) -> ExploratoryMovement | None:
+        the_map = next(iter(self.context.inputs.values()))
+        if self._done and np.min(the_map.query(np.array([self.region.center_m])).std) < 0.3:
+            return None
+        self._done += 1
+        r = self.region
+        return ExploratoryMovement((r.x_min_m, r.center_m[1]), (r.x_max_m, r.center_m[1]))
+
+
 class LineRobotConfig(PluginConfig):
     restart_clock: bool = False
     ignore_halt: bool = False
     rewind_keeps_progress: bool = False
+    nan_on_zero_length: bool = False
+    wait_at_workspace_edge: bool = False
 
 
 class LineRobot(Robot):
@@ -200,9 +336,20 @@ class LineRobot(Robot):
         if m is None or self._s > m.length_m:
             self._movement = None
             return None
-        frac = self._s / m.length_m if m.length_m else 1.0
+        if self.config.nan_on_zero_length:  # the broken variant divides 0 by 0
+            with np.errstate(invalid="ignore"):
+                frac = np.float64(self._s) / m.length_m
+        else:
+            frac = self._s / m.length_m if m.length_m else 1.0
         self._t += 0.01
-        self._state = RobotState(self._t, m.start_m + frac * (m.end_m - m.start_m), m.heading_rad)
+        position = m.start_m + frac * (m.end_m - m.start_m)
+        if self.config.wait_at_workspace_edge:  # the broken variant holds at the edge,
+            r = self.context.scene.region  # waiting for a target it cannot reach
+            clamped = np.clip(position, (r.x_min_m, r.y_min_m), (r.x_max_m, r.y_max_m))
+            if not np.array_equal(clamped, position):
+                self._state = RobotState(self._t, clamped, m.heading_rad)
+                return self._state
+        self._state = RobotState(self._t, position, m.heading_rad)
         self._s += m.speed_m_per_s * 0.01
         if m.length_m == 0:
             self._s = math.inf
@@ -229,9 +376,15 @@ GOOD = [
     SensorModelSpec("lab-point", "ok", PointConfig, "tests.support.labplugin:PointSensorModel"),
     MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap", capabilities=frozenset({"exact-update"})),
     RobotSpec("lab-line", "ok", LineRobotConfig, f"{M}:LineRobot"),
+    # NaN in samples the batch marks invalid is how a sensor reports a loss: accepted.
+    SensorSpec("lab-flagged-dropouts", "ok", SweepConfig, f"{M}:FlaggedDropoutSensor",
+               capabilities=frozenset({"finite"})),
+    PlannerSpec("lab-inset-lines", "ok", LinePlannerConfig, f"{M}:InsetLinesPlanner",
+                check_config={"spacing_m": 0.005}),
 ]
 
 _FORCE = {"force_n": (2,)}
+_FINITE = frozenset({"finite"})
 
 #: (spec, check that must fail, fragment of its message)
 BROKEN = [
@@ -271,6 +424,27 @@ BROKEN = [
      "check_robot_halt", "after halt()"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
+    (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
+     "check_sensor_valid_samples_finite", "NaN or infinity in channel 'force_n' at t = 0.07 s"),
+    (SensorSpec("nan-marked-valid", "x", SweepConfig, f"{M}:NanMarkedValidSensor", capabilities=_FINITE),
+     "check_sensor_valid_samples_finite", "which the batch marks valid"),
+    (SensorSpec("untared-read-all", "x", SweepConfig, f"{M}:UntaredReadAllSensor", capabilities=_FINITE),
+     "check_sensor_read_all_matches_reads", "read_all() and successive read()s"),
+    (SensorSpec("boundary-dropping", "x", SweepConfig, f"{M}:BoundaryDroppingSensor", capabilities=_FINITE),
+     "check_sensor_read_all_matches_reads", "iter_recordings(), joined, and read_all() differ: 399 samples against 400"),
+    (SensorSpec("looping-replay", "x", SweepConfig, f"{M}:LoopingReplaySensor", capabilities=_FINITE),
+     "check_sensor_contract", "was not exhausted"),
+    (PlannerSpec("inset-lines", "x", LinePlannerConfig, f"{M}:InsetLinesPlanner"),
+     "check_planner_extremes", "smaller than one line spacing): movement"),
+    (PlannerSpec("free-space-centroid", "x", LinePlannerConfig, f"{M}:FreeSpaceCentroidPlanner"),
+     "check_planner_extremes", "invalid output on an all-occupied map"),
+    (PlannerSpec("until-sure", "x", LinePlannerConfig, f"{M}:UntilSurePlanner"),
+     "check_planner_extremes", "on an all-unknown map (0.5 everywhere): the planner proposed more"),
+    (RobotSpec("nan-on-zero-length", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"nan_on_zero_length": True}), "check_robot_extremes", "zero-length movement gave states with NaN"),
+    (RobotSpec("waits-at-workspace-edge", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"wait_at_workspace_edge": True}), "check_robot_extremes",
+     "a movement that leaves the workspace did not end within"),
 ]
 
 __all__ = ["BROKEN", "GOOD", "Region"]
