@@ -11,7 +11,7 @@ from ._errors import UsageError
 from ._manager import get_registry
 from ._specs import resolve_reference
 
-__all__ = ["BenchOptions", "run_bench"]
+__all__ = ["BenchOptions", "list_benches", "run_bench"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,16 @@ class BenchOptions:
     workers: int | None = None
     device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
+
+
+def list_benches() -> list[str]:
+    """One line per registered suite: its name and its summary (none installed: one line)."""
+    registry = get_registry()
+    if not registry.benchmarks:
+        return ["no benchmark suites installed"]
+    width = max(len(name) for name in registry.benchmarks)
+    return [f"{name:<{width}}  {registry.benchmarks[name][0].summary}"
+            for name in sorted(registry.benchmarks)]
 
 
 def run_bench(name: str, options: BenchOptions) -> Any:

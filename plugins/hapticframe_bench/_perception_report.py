@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["THESIS", "render_markdown", "save_figure"]
+__all__ = ["THESIS", "accuracy_axis_range", "render_markdown", "save_figure"]
 
 _COLUMNS = ("(b)+Linear SVM", "(c)+Linear SVM", "(d)+Linear SVM", "(b)+RNN", "(c)+RNN",
             "(d)+RNN (SF-RNN)")
@@ -204,6 +204,20 @@ def _ORDER(key: str) -> list[int]:
     return [list(_NAMES).index(m) for m in key.split("+")]
 
 
+def _targets_table(targets: dict[str, Any]) -> list[str]:
+    """The suite's targets as written to perception.json, one row each with its verdict."""
+    lines = ["| figure | measured | target | verdict |", "|---|---|---|---|"]
+    for record in targets.values():
+        unit = f" {record['unit']}" if record["unit"] else ""
+        value = "–" if record["value"] is None else f"{record['value']:.2f}{unit}"
+        sign = "≤" if record["comparison"] == "<=" else "≥"
+        verdict = ("not measured" if record["met"] is None
+                   else "met" if record["met"] else "missed")
+        lines.append(f"| {record['label']} | {value} | {sign} {record['limit']:g}{unit} | "
+                     f"{verdict} |")
+    return lines
+
+
 def _amplitude_note(plan: dict[str, Any]) -> str:
     if plan.get("coder_settings", {}).get("amplitude") != "channel":
         return ("- Stage (d) as in the thesis: unit-norm sparse codes only (the tensor's size "
@@ -285,6 +299,8 @@ def render_markdown(result: dict[str, Any]) -> str:
         + "; thesis: 2.96 ms per step for the SF-RNN.",
         "",
     ]
+    if "targets" in result:
+        lines += ["## Targets", "", *_targets_table(result["targets"]), ""]
     tables = result["tables"]
     lines += _ablation(tables["table_2_2"], "Table 2.2: unimodal models (cottonwood)")
     lines += _ablation(tables["table_2_3"], "Table 2.3: multimodal models (cottonwood)")
@@ -300,6 +316,22 @@ def render_markdown(result: dict[str, Any]) -> str:
                      f"{100 * d['test_balanced_accuracy']:.1f} | {d['epochs']} | {d['best_epoch']} |")
     lines += ["", "![accuracy](perception.png)", ""]
     return "\n".join(lines)
+
+
+def accuracy_axis_range(values: Any, step: float = 5.0) -> tuple[float, float]:
+    """The y range (%) that shows the differences between accuracies ``values`` (in %).
+
+    From a multiple of ``step`` at least 2 points below the lowest finite value (never
+    below 0) to 100, so that models at 90-99 % are not drawn as equal bars from 0.
+    """
+    import numpy as np
+
+    finite = np.asarray(values, dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return 0.0, 100.0
+    low = max(0.0, step * np.floor((float(finite.min()) - 2.0) / step))
+    return float(low), 100.0
 
 
 def save_figure(result: dict[str, Any], path: Path) -> Path | None:
@@ -322,18 +354,24 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
                 label="ours (synthetic)")
     axes[0].plot(x, THESIS["test"]["pac+pdc+electrodes"], "k_", markersize=18, label="thesis")
     axes[0].set_xticks(x, _COLUMNS, rotation=25, ha="right", fontsize=8)
+    left = ([100 * (full[c]["test"]["mean"] - full[c]["test"]["std"]) for c in _COLUMNS]
+            + list(THESIS["test"]["pac+pdc+electrodes"]))
     axes[0].set_ylabel("balanced accuracy (%)")
     axes[0].set_title("All modalities, cottonwood test split")
-    axes[0].set_ylim(0, 100)
+    axes[0].set_ylim(*accuracy_axis_range(left))
     axes[0].legend(fontsize=8, loc="lower right")
     media = list(_MEDIA)
     width = 0.8 / len(_COLUMNS)
+    right = []
     for j, label in enumerate(_COLUMNS):
-        values = [100 * robust[label][m]["mean"] if m in robust[label] else np.nan for m in media]
+        per = robust.get(label, {})
+        values = [100 * per[m]["mean"] if m in per else np.nan for m in media]
+        right += values
         axes[1].bar(np.arange(len(media)) + (j - 2.5) * width, values, width, label=label)
     axes[1].set_xticks(np.arange(len(media)), [_MEDIA[m] for m in media], rotation=20,
                        ha="right", fontsize=8)
-    axes[1].set_ylim(0, 100)
+    axes[1].set_ylim(*accuracy_axis_range(right))
+    axes[1].set_ylabel("balanced accuracy (%)")
     axes[1].set_title("Robustness set (2 cm/s, five media)")
     axes[1].legend(fontsize=7, ncol=2, loc="lower right")
     fig.tight_layout()
