@@ -311,7 +311,8 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
     through ``emd-features``, ``sparse-coding`` (dictionaries fitted on 400 frames) and an
     ``sf-rnn`` of the default size (untrained: a step costs the same), one thread, and
     compares :func:`hapticframe_tactile_features.emd` with PyEMD when PyEMD is installed.
-    ``--trials N`` sets the frames timed (default 2,000; ``--quick`` 300). Writes
+    ``--trials N`` sets the frames timed (default 2,000; ``--quick`` 300, with the
+    dictionaries fitted on 100 frames and 5 repeats of each EMD). Writes
     ``latency.json`` and ``latency.md``; prints each target beside its measurement with a
     verdict. The same chain with the trained SF-RNN on tared perception trials is timed by
     ``hapticframe bench perception``.
@@ -323,8 +324,10 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
                                  BuildContext("latency-sfrnn", np.random.default_rng(options.seed)))
     options.echo(f"latency: {frames} frames through emd-features -> sparse-coding -> sf-rnn, "
                  "one thread")
-    results: dict[str, Any] = {"chain": measure_chain_latency(frames, seed=options.seed,
-                                                              classifier=classifier)}
+    fit_frames = 100 if options.quick else 400
+    results: dict[str, Any] = {"chain": measure_chain_latency(
+        frames, seed=options.seed, fit_frames=fit_frames, classifier=classifier)}
+    results["chain"]["fit_frames"] = fit_frames
     try:
         import PyEMD  # noqa: F401
     except ImportError:
