@@ -24,7 +24,7 @@ from hapticframe import BenchOptions, Circle, Polygon, Scene
 from hapticframe.kinds import BuildContext, Observations
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 
-from ._targets import Target, check_targets, targets_markdown
+from ._targets import Target, check_targets, load_average, load_note
 
 __all__ = [
     "BHM_TARGETS",
@@ -181,7 +181,8 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
     repeats = 5 if options.quick else (options.trials or 31)
     results = benchmark_bhm(rng_seed=options.seed, repeats=repeats)
     results["repeats"] = repeats
-    results["machine"] = {"platform": platform.platform(), "numpy": np.__version__}
+    results["machine"] = {"platform": platform.platform(), "numpy": np.__version__,
+                          "load_average_1min": load_average()}
     checks = check_targets(BHM_TARGETS, results)
     results["targets"] = {c.target.name: c.as_dict() for c in checks}
     results["targets_met"] = all(c.met for c in checks)
@@ -191,7 +192,8 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
         "# Bayesian Hilbert Map timings",
         "",
         f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}; "
-        f"{results['machine']['platform']}, numpy {np.__version__}.",
+        f"{results['machine']['platform']}, numpy {np.__version__}; "
+        f"{load_note(results['machine']['load_average_1min'])}.",
         "",
         "| operation | target | median | fastest | verdict | with region-dependent smoothing |",
         "|---|---|---|---|---|---|",
@@ -204,10 +206,10 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
             f"| {results['rds_' + key + '_ms']:.1f} ms |"
         )
     lines += ["", f"AUC on 20,000 fresh points: {results['auc']:.4f} "
-              f"(region-dependent smoothing: {results['rds_auc']:.4f})", "",
-              "## Targets", "", *targets_markdown(checks), ""]
+              f"(region-dependent smoothing: {results['rds_auc']:.4f})", ""]
     (options.out_dir / "bhm.md").write_text("\n".join(lines), encoding="utf-8")
-    options.echo(f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}")
+    options.echo(f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}; "
+                 f"{load_note(results['machine']['load_average_1min'])}")
     for check in checks:
         options.echo(check.line())
     options.echo(f"AUC on 20,000 fresh points: {results['auc']:.4f}")

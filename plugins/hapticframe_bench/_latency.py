@@ -36,7 +36,7 @@ from hapticframe_tactile_features import (
     encoder_in_use,
 )
 
-from ._targets import Target, check_targets, targets_markdown
+from ._targets import Target, check_targets, load_average, load_note, targets_markdown
 
 __all__ = [
     "compare_emd_with_pyemd",
@@ -336,6 +336,7 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
     else:
         results["pyemd"] = compare_emd_with_pyemd(repeats=5 if options.quick else 20,
                                                   seed=options.seed)
+    results["load_average_1min"] = load_average()
     checks = check_targets(LATENCY_TARGETS, results["chain"])
     results["targets"] = {c.target.name: c.as_dict() for c in checks}
     results["targets_met"] = all(c.met for c in checks)
@@ -347,7 +348,8 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
              f"{chain['emd_backend']}, encoder {chain['encoder']}. Stage medians: EMD "
              f"{chain['emd_ms_median']:.2f} ms, coding {chain['coding_ms_median']:.2f} ms, "
              f"sf-rnn step {chain['classify_ms_median']:.2f} ms; CPU time per frame median "
-             f"{chain['cpu_ms_median']:.2f} ms, p99 {chain['cpu_ms_p99']:.2f} ms.", "",
+             f"{chain['cpu_ms_median']:.2f} ms, p99 {chain['cpu_ms_p99']:.2f} ms; "
+             f"{load_note(results['load_average_1min'])}.", "",
              *targets_markdown(checks), ""]
     if results["pyemd"] is not None:
         p = results["pyemd"]
@@ -357,6 +359,7 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
                   f"{p['pyemd_ms_fixed10']:.1f} ms ({p['speedup_fixed10']:.0f}x) at 10 sifts "
                   "each.", ""]
     (options.out_dir / "latency.md").write_text("\n".join(lines), encoding="utf-8")
+    options.echo(load_note(results["load_average_1min"]))
     for check in checks:
         options.echo(check.line())
     return results

@@ -10,6 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ._targets import record_rows
+
 __all__ = ["THESIS", "accuracy_axis_range", "render_markdown", "save_figure"]
 
 _COLUMNS = ("(b)+Linear SVM", "(c)+Linear SVM", "(d)+Linear SVM", "(b)+RNN", "(c)+RNN",
@@ -204,20 +206,6 @@ def _ORDER(key: str) -> list[int]:
     return [list(_NAMES).index(m) for m in key.split("+")]
 
 
-def _targets_table(targets: dict[str, Any]) -> list[str]:
-    """The suite's targets as written to perception.json, one row each with its verdict."""
-    lines = ["| figure | measured | target | verdict |", "|---|---|---|---|"]
-    for record in targets.values():
-        unit = f" {record['unit']}" if record["unit"] else ""
-        value = "–" if record["value"] is None else f"{record['value']:.2f}{unit}"
-        sign = "≤" if record["comparison"] == "<=" else "≥"
-        verdict = ("not measured" if record["met"] is None
-                   else "met" if record["met"] else "missed")
-        lines.append(f"| {record['label']} | {value} | {sign} {record['limit']:g}{unit} | "
-                     f"{verdict} |")
-    return lines
-
-
 def _amplitude_note(plan: dict[str, Any]) -> str:
     if plan.get("coder_settings", {}).get("amplitude") != "channel":
         return ("- Stage (d) as in the thesis: unit-norm sparse codes only (the tensor's size "
@@ -300,7 +288,7 @@ def render_markdown(result: dict[str, Any]) -> str:
         "",
     ]
     if "targets" in result:
-        lines += ["## Targets", "", *_targets_table(result["targets"]), ""]
+        lines += ["## Targets", "", *record_rows(result["targets"]), ""]
     tables = result["tables"]
     lines += _ablation(tables["table_2_2"], "Table 2.2: unimodal models (cottonwood)")
     lines += _ablation(tables["table_2_3"], "Table 2.3: multimodal models (cottonwood)")

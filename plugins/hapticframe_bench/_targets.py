@@ -9,11 +9,13 @@ each against the suite's results and gives the lines a suite prints
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Target", "TargetCheck", "check_targets", "targets_markdown"]
+__all__ = ["Target", "TargetCheck", "check_lines", "check_targets", "load_average",
+           "load_note", "record_rows", "targets_markdown"]
 
 
 @dataclass(frozen=True)
@@ -104,4 +106,51 @@ def targets_markdown(checks: Sequence[TargetCheck]) -> list[str]:
         measured = "–" if check.value is None else check._number(check.value)
         lines.append(f"| {target.label} | {measured} | {sign} {check._number(target.limit)} | "
                      f"{check.verdict} |")
+    return lines
+
+
+def load_average() -> float | None:
+    """The 1-minute load average (None where the platform has none)."""
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return None
+
+
+def load_note(load: float | None) -> str:
+    """How loaded the machine was, for the reader of a timing: the load beside the CPUs."""
+    cpus = os.cpu_count() or 1
+    if load is None:
+        return f"{cpus} CPUs, load average unknown"
+    note = f"load average {load:.1f} on {cpus} CPUs"
+    return note + (" (shared: timings are slower than on a quiet machine)" if load > 0.75 * cpus
+                   else "")
+
+
+def _record_text(record: Mapping[str, Any]) -> tuple[str, str, str, str]:
+    """Measured, target and verdict of a saved record (``TargetCheck.as_dict``)."""
+    unit = f" {record['unit']}" if record.get("unit") else ""
+    value = record.get("value")
+    measured = "–" if value is None else f"{value:.2f}{unit}"
+    met = record.get("met")
+    verdict = "not measured" if met is None else ("met" if met else "missed")
+    return measured, f"{record['limit']:g}{unit}", record["comparison"], verdict
+
+
+def check_lines(records: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """The printed lines of saved target records (``label: value  (target <= x)  verdict``)."""
+    lines = []
+    for record in records.values():
+        measured, limit, comparison, verdict = _record_text(record)
+        lines.append(f"{record['label']}: {measured}  (target {comparison} {limit})  {verdict}")
+    return lines
+
+
+def record_rows(records: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """A markdown table of saved target records: figure, measured, target, verdict."""
+    lines = ["| figure | measured | target | verdict |", "|---|---|---|---|"]
+    for record in records.values():
+        measured, limit, comparison, verdict = _record_text(record)
+        sign = "≤" if comparison == "<=" else "≥"
+        lines.append(f"| {record['label']} | {measured} | {sign} {limit} | {verdict} |")
     return lines

@@ -83,7 +83,7 @@ def test_bhm_suite_prints_and_writes_each_target_with_its_verdict(tmp_path, monk
     assert written["targets_met"] is False and result["targets_met"] is False
     md = (tmp_path / "bhm.md").read_text()
     assert "| add 200 points to that map | ≤ 2 ms | 2.4 ms | 2.4 ms | missed | 4.8 ms |" in md
-    assert "| add 200 points to that map | 2.4 ms | ≤ 2.0 ms | missed |" in md
+    assert "load average" in md
 
 
 # --- latency -------------------------------------------------------------------------------------
