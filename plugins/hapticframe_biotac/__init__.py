@@ -5,7 +5,8 @@ Registers the sensor ``biotac``. Public beyond the sensor: the frame layout
 recording's own first frames, :func:`tare_in_air` on frames taken in open air), and the
 synthetic granular-media generator of dissertation §2.6 (:class:`TrialSpec`,
 :func:`generate_trial`, :func:`training_specs`, :func:`robustness_specs`,
-:func:`open_air_frames`, :func:`frame_features`), which the perception benchmark
+:func:`open_air_frames`, :func:`frame_features`, :func:`generate_open_air_trial`,
+:func:`contact_interval_x_m`, :func:`granular_noise_ratios`), which the perception benchmark
 (``hapticframe_bench``) and the tests build their datasets from.
 A real SPI adapter is a separate package that registers a backend factory by name in the
 ``hapticframe.biotac_spi`` entry-point group (see ``_backends``). Importing this package is
@@ -31,10 +32,13 @@ __all__ = [
     "SpiBatchBackend",
     "Trial",
     "TrialSpec",
+    "contact_interval_x_m",
     "WordStreamDecoder",
     "encode_frames",
     "frame_features",
+    "generate_open_air_trial",
     "generate_trial",
+    "granular_noise_ratios",
     "layout_for",
     "load_csv",
     "load_npz",
@@ -75,6 +79,9 @@ _LAZY = {
     "robustness_specs": "._synthetic",
     "open_air_frames": "._synthetic",
     "frame_features": "._synthetic",
+    "generate_open_air_trial": "._synthetic",
+    "contact_interval_x_m": "._synthetic",
+    "granular_noise_ratios": "._synthetic",
 }
 
 
