@@ -15,9 +15,10 @@ Outputs in ``options.out_dir``: ``perception.json`` (everything, see :func:`run_
 
 A full run takes hours, so each finished job (one modality set and seed, six models) is
 kept in ``out_dir/jobs/`` as JSON, stamped with a fingerprint of the plan, the seed, the
-library versions, the code and the trials (:func:`._perception_jobs.job_fingerprint`). Run the same command
-again after an interruption and it keeps every job whose fingerprint matches and trains
-only the rest; a job left from other settings, code or data is ignored and replaced.
+library versions, the code and the trials (:func:`._perception_jobs.job_fingerprint`). Run
+the same command again after an interruption and it keeps every job whose fingerprint
+matches and trains only the rest; a job left from other settings, code or data is ignored
+and replaced.
 """
 
 from __future__ import annotations
@@ -313,7 +314,7 @@ def run_suite(
     echo: Callable[[str], None],
     model_dir: str | None = None,
     job_dir: str | Path | None = None,
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], Any]:
     """Run every table of a plan and return the results (json-ready) and the fitted coder.
 
     Keys: ``tables`` (``table_2_2``, ``table_2_3``: per modality set and architecture the

@@ -252,7 +252,7 @@ def render_markdown(result: dict[str, Any]) -> str:
         "contact when p(contact) exceeds the training contact rate, the balanced decision that "
         "the thesis's oversampling amounts to. Recurrent models keep the epoch with the best "
         "validation balanced accuracy (whole held-out trials).",
-        f"- Stage (b): the newest sample of each IMF / electrode; (c): the EMD feature "
+        "- Stage (b): the newest sample of each IMF / electrode; (c): the EMD feature "
         "tensors; (d): the sparse codes. RNN on (b)/(c) is the `fusion-rnn` component "
         "(one GRU stack per modality + fusion layer; F-RNN when multimodal), on (d) `sf-rnn`.",
         _amplitude_note(plan),

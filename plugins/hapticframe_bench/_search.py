@@ -276,7 +276,8 @@ def search_targets(summary: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
         if thesis is None or not isinstance(group, Mapping):
             continue
         phases = (mean(group, "ems_phase1"), mean(group, "ems_phase2"))
-        values[f"{shape}_total_ems"] = None if None in phases else sum(phases)  # type: ignore[arg-type]
+        p1, p2 = phases
+        values[f"{shape}_total_ems"] = None if p1 is None or p2 is None else p1 + p2
         rmse = group.get("centroid_rmse_m")
         values[f"{shape}_centroid_rmse_cm"] = None if rmse is None else 100 * rmse
         hausdorff = mean(group, "hausdorff_m")

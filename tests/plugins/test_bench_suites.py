@@ -140,7 +140,8 @@ def test_step_latency_probe_reports_its_figures() -> None:
     from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
 
     # Not a speed test: the figures only have to exist and be consistent.
-    clf = SFRNNClassifier(SFRNNConfig(progress=False), BuildContext("clf", np.random.default_rng(0)))
+    context = BuildContext("clf", np.random.default_rng(0))
+    clf = SFRNNClassifier(SFRNNConfig(progress=False), context)
     report = measure_step_latency(clf, frames=50)
     assert report["frames"] == 50
     assert 0 < report["latency_ms_median"] <= report["latency_ms_p99"] <= report["latency_ms_max"]
