@@ -310,16 +310,17 @@ def accuracy_axis_range(values: Any, step: float = 5.0) -> tuple[float, float]:
     """The y range (%) that shows the differences between accuracies ``values`` (in %).
 
     From a multiple of ``step`` at least 2 points below the lowest finite value (never
-    below 0) to 100, so that models at 90-99 % are not drawn as equal bars from 0.
+    below 0) to 101 (room for a marker at 100 %), so that models at 90-99 % are not drawn
+    as equal bars from 0.
     """
     import numpy as np
 
     finite = np.asarray(values, dtype=np.float64)
     finite = finite[np.isfinite(finite)]
     if finite.size == 0:
-        return 0.0, 100.0
+        return 0.0, 101.0
     low = max(0.0, step * np.floor((float(finite.min()) - 2.0) / step))
-    return float(low), 100.0
+    return float(low), 101.0
 
 
 def save_figure(result: dict[str, Any], path: Path) -> Path | None:
@@ -335,7 +336,8 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
 
     full = result["tables"]["table_2_3"]["pac+pdc+electrodes"]
     robust = result["tables"]["table_2_4"]
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.2))
+    # Constrained layout keeps the legends, placed beside the axes, clear of every bar.
+    fig, axes = plt.subplots(1, 2, figsize=(14, 4.4), layout="constrained")
     x = np.arange(len(_COLUMNS))
     axes[0].bar(x, [100 * full[c]["test"]["mean"] for c in _COLUMNS],
                 yerr=[100 * full[c]["test"]["std"] for c in _COLUMNS], color="tab:blue",
@@ -347,7 +349,7 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
     axes[0].set_ylabel("balanced accuracy (%)")
     axes[0].set_title("All modalities, cottonwood test split")
     axes[0].set_ylim(*accuracy_axis_range(left))
-    axes[0].legend(fontsize=8, loc="lower right")
+    axes[0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     media = list(_MEDIA)
     width = 0.8 / len(_COLUMNS)
     right = []
@@ -361,8 +363,7 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
     axes[1].set_ylim(*accuracy_axis_range(right))
     axes[1].set_ylabel("balanced accuracy (%)")
     axes[1].set_title("Robustness set (2 cm/s, five media)")
-    axes[1].legend(fontsize=7, ncol=2, loc="lower right")
-    fig.tight_layout()
+    axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

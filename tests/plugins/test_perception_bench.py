@@ -419,7 +419,7 @@ def test_robustness_breakdown_groups_each_trial_by_its_conditions():
 def test_accuracy_axes_start_just_below_the_lowest_value():
     from hapticframe_bench._perception_report import accuracy_axis_range
 
-    assert accuracy_axis_range([91.0, 99.5, float("nan")]) == (85.0, 100.0)
-    assert accuracy_axis_range([80.8, 97.0]) == (75.0, 100.0)
-    assert accuracy_axis_range([1.0, 50.0]) == (0.0, 100.0)
-    assert accuracy_axis_range([float("nan")]) == (0.0, 100.0)
+    assert accuracy_axis_range([91.0, 99.5, float("nan")]) == (85.0, 101.0)
+    assert accuracy_axis_range([80.8, 97.0]) == (75.0, 101.0)
+    assert accuracy_axis_range([1.0, 50.0]) == (0.0, 101.0)
+    assert accuracy_axis_range([float("nan")]) == (0.0, 101.0)
