@@ -12,7 +12,7 @@ from ._manager import get_registry
 from ._registry import BENCHMARK
 from ._specs import resolve_reference
 
-__all__ = ["BenchOptions", "run_bench"]
+__all__ = ["BenchOptions", "list_benches", "run_bench"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,16 @@ class BenchOptions:
     workers: int | None = None
     device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
+
+
+def list_benches() -> list[str]:
+    """One line per registered suite: its name and its summary (none installed: one line)."""
+    registry = get_registry()
+    if not registry.benchmarks:
+        return ["no benchmark suites installed"]
+    width = max(len(name) for name in registry.benchmarks)
+    return [f"{name:<{width}}  {registry.benchmarks[name][0].summary}"
+            for name in sorted(registry.benchmarks)]
 
 
 def run_bench(name: str, options: BenchOptions) -> Any:

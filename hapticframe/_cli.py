@@ -275,8 +275,12 @@ def _short(value: float) -> str:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from ._bench import BenchOptions, run_bench
+    from ._bench import BenchOptions, list_benches, run_bench
 
+    if args.name is None:
+        for line in list_benches():
+            _out(line)
+        return 0
     options = BenchOptions(
         out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
         workers=args.workers, device=args.device, echo=_out,
@@ -341,7 +345,7 @@ def _parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("bench", help="run a benchmark suite (see `hapticframe plugins`)")
-    p.add_argument("name", metavar="NAME")
+    p.add_argument("name", metavar="NAME", nargs="?", help="the suite to run; none: list them")
     p.add_argument("--trials", type=_positive_int, default=None, help="trials per case")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="bench-out", metavar="DIR")

@@ -15,7 +15,7 @@ import pytest
 
 from hapticframe import RunSettings, run_experiment, validate_mapping
 from hapticframe.kinds import BuildContext, SampleBatch
-from hapticframe_bench._template import search_experiment
+from hapticframe_bench import search_experiment
 from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_sandbox import SandboxRobot
 

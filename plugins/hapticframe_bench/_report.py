@@ -11,6 +11,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ._targets import record_rows
+
 __all__ = ["THESIS_TABLE_3_2", "format_mean_std", "render_markdown", "save_trial_figure"]
 
 #: Table 3.2 of the dissertation (25 simulated trials per shape): mean and std of the
@@ -140,6 +142,11 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
         "Standard deviations are population standard deviations. Lengths are summarised "
         "over the trials that found the object; movement counts over all completed trials.",
         "",
+    ]
+    if summary.get("targets"):
+        lines += ["## Targets (two-phase planner against Table 3.2)", "",
+                  *record_rows(summary["targets"]), ""]
+    lines += [
         "## Details",
         "",
     ]

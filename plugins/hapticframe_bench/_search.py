@@ -37,6 +37,7 @@ from hapticframe import BenchOptions, RunError, run_experiment, validate_mapping
 from ._aggregate import aggregate_trials, trial_figures
 from ._placements import SHAPES, Placement, draw_placements
 from ._report import THESIS_TABLE_3_2, render_markdown, save_trial_figure
+from ._targets import Target, check_lines, check_targets
 from ._template import REGION_HEIGHT_M, REGION_WIDTH_M, search_experiment
 
 __all__ = [
@@ -46,6 +47,7 @@ __all__ = [
     "SEARCH_PLANNER",
     "run_search",
     "run_suite",
+    "search_targets",
     "trial_seed",
     "trials_for",
 ]
@@ -56,6 +58,9 @@ QUICK_TRIALS = 5
 #: The planner under test and the baseline it is compared with.
 SEARCH_PLANNER = "two-phase-coverage"
 BASELINE_PLANNER = "coverage"
+
+#: The whole command's wall time at the thesis's 25 trials per shape, on 2 free cores.
+WALL_TIME_TARGET_S = 60.0
 
 ExperimentFactory = Callable[[Sequence[Mapping[str, Any]], str, int, str], dict[str, Any]]
 
@@ -250,6 +255,48 @@ def _json_ready(value: Any) -> Any:
     return value
 
 
+def search_targets(summary: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """Each target of the suite with its measurement and verdict (``search.json``'s ``targets``).
+
+    Per shape, the two-phase planner against Table 3.2: total movements (phase 1 + 2, mean)
+    at most the thesis's, centroid RMSE and mean Hausdorff distance at most the thesis's
+    means. At the thesis's 25 trials per shape, also the whole command's wall time
+    (at most 60 s, on 2 free cores).
+    """
+    values: dict[str, Any] = {}
+    targets: list[Target] = []
+
+    def mean(group: Mapping[str, Any], key: str) -> float | None:
+        stats = group.get(key)
+        return stats.get("mean") if isinstance(stats, Mapping) else None
+
+    for shape in summary.get("shapes", ()):
+        thesis = THESIS_TABLE_3_2.get(shape)
+        group = summary.get(shape)
+        if thesis is None or not isinstance(group, Mapping):
+            continue
+        phases = (mean(group, "ems_phase1"), mean(group, "ems_phase2"))
+        p1, p2 = phases
+        values[f"{shape}_total_ems"] = None if p1 is None or p2 is None else p1 + p2
+        rmse = group.get("centroid_rmse_m")
+        values[f"{shape}_centroid_rmse_cm"] = None if rmse is None else 100 * rmse
+        hausdorff = mean(group, "hausdorff_m")
+        values[f"{shape}_hausdorff_cm"] = None if hausdorff is None else 100 * hausdorff
+        targets += [
+            Target(f"{shape}_total_ems", f"{shape}: movements, phase 1 + 2",
+                   thesis["ems_phase1"][0] + thesis["ems_phase2"][0], digits=2),
+            Target(f"{shape}_centroid_rmse_cm", f"{shape}: centroid RMSE",
+                   100 * thesis["centroid_rmse_m"][0], "cm", digits=2),
+            Target(f"{shape}_hausdorff_cm", f"{shape}: Hausdorff distance",
+                   100 * thesis["hausdorff_m"][0], "cm", digits=2),
+        ]
+    if summary.get("trials") == DEFAULT_TRIALS:
+        values["wall_time_s"] = summary.get("wall_time_s")
+        targets.append(Target("wall_time_s", "whole command, wall time", WALL_TIME_TARGET_S,
+                              "s"))
+    return {c.target.name: c.as_dict() for c in check_targets(targets, values)}
+
+
 def run_suite(
     options: BenchOptions,
     *,
@@ -278,7 +325,8 @@ def run_suite(
         :func:`~hapticframe_bench._aggregate.aggregate_trials`) per shape for the two-phase
         planner at the top level, the same under ``"baseline"`` for the coverage planner,
         ``wall_time_s``, ``trials``, ``seed``, ``versions``, ``machine``, ``command``,
-        ``planners``, ``thesis`` (Table 3.2) and ``runs`` (every run's record).
+        ``planners``, ``thesis`` (Table 3.2), ``targets`` (:func:`search_targets`) and
+        ``runs`` (every run's record).
     """
     trials = trials_for(options)
     shapes = tuple(shapes)
@@ -336,12 +384,15 @@ def run_suite(
                    for shape, row in THESIS_TABLE_3_2.items()},
         "runs": records,
     })
+    summary["targets"] = search_targets(summary)
     summary = _json_ready(summary)
     text = json.dumps(summary, indent=2, sort_keys=False, allow_nan=False)
     (out_dir / "search.json").write_text(text + "\n", encoding="utf-8")
     (out_dir / "search.md").write_text(render_markdown(summary), encoding="utf-8")
     if not save_trial_figure(out_dir / "search.png", summary):
         options.echo("search.png skipped: matplotlib is not installed")
+    for check in check_lines(summary["targets"]):
+        options.echo(check)
     options.echo(f"search benchmark done in {wall_time_s:.1f} s: {out_dir / 'search.md'}")
     return summary
 

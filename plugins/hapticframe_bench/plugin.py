@@ -1,4 +1,8 @@
-"""Registration of the ``search`` benchmark suite (import-light: no runner imports)."""
+"""Registration of the benchmark suites (import-light: no runner imports).
+
+``hapticframe bench`` with no name lists them, one line each; ``hapticframe bench NAME``
+runs one.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +12,35 @@ from hapticframe import BenchSpec, hookimpl
 
 __all__ = ["hapticframe_benchmarks"]
 
+_LEARN_HINT = "pip install 'hapticframe[learn]'"
+
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the ``search`` suite: the simulated haptic-search study of Table 3.2."""
+    """Yield the suites: ``search``, ``perception``, ``bhm`` and ``latency``."""
     yield BenchSpec(
         name="search",
         summary="Haptic search, Table 3.2: two-phase planner vs coverage baseline, circle "
         "and ellipse at random placements.",
         factory="hapticframe_bench._search:run_search",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="perception",
+        summary="Dissertation Tables 2.2, 2.3, 2.4 and A.1 on the synthetic BioTac dataset, "
+        "plus the streaming chain's latency per frame.",
+        factory="hapticframe_bench._perception:run_perception",
+        install_hint=_LEARN_HINT,
+    )
+    yield BenchSpec(
+        name="bhm",
+        summary="Bayesian Hilbert Map: fit 3,000 points, add 200, mean and std on 15,000.",
+        factory="hapticframe_bench._bhm:run_bhm_bench",
+    )
+    yield BenchSpec(
+        name="latency",
+        summary="Streaming BioTac chain per 10 ms frame: emd-features, sparse-coding and an "
+        "sf-rnn step, one thread; our EMD against PyEMD.",
+        factory="hapticframe_bench._latency:run_latency_bench",
+        install_hint=_LEARN_HINT,
     )

@@ -1,7 +1,8 @@
 """Bayesian Hilbert map plugin for hapticframe (map type ``bayesian-hilbert-map``).
 
 The implementation modules load lazily so that importing the package (for example to read
-its config model) does not import scipy.
+its config model) does not import scipy. Its timing benchmark is ``hapticframe bench bhm``
+(``hapticframe_bench``).
 """
 
 from __future__ import annotations
@@ -11,10 +12,9 @@ from typing import TYPE_CHECKING, Any
 from ._config import BayesianHilbertMapConfig
 
 if TYPE_CHECKING:
-    from ._bench import benchmark_bhm
     from ._map import BayesianHilbertMap
 
-__all__ = ["BayesianHilbertMap", "BayesianHilbertMapConfig", "benchmark_bhm"]
+__all__ = ["BayesianHilbertMap", "BayesianHilbertMapConfig"]
 
 
 def __getattr__(name: str) -> Any:
@@ -22,8 +22,4 @@ def __getattr__(name: str) -> Any:
         from ._map import BayesianHilbertMap
 
         return BayesianHilbertMap
-    if name == "benchmark_bhm":
-        from ._bench import benchmark_bhm
-
-        return benchmark_bhm
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import BenchSpec, MapSpec, hookimpl
+from hapticframe import MapSpec, hookimpl
 
 from ._config import BayesianHilbertMapConfig
 
-__all__ = ["hapticframe_benchmarks", "hapticframe_maps"]
+__all__ = ["hapticframe_maps"]
 
 
 @hookimpl
@@ -24,12 +24,3 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         install_hint="pip install hapticframe  (numpy and scipy); figures need matplotlib",
     )
 
-
-@hookimpl
-def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the map's timing benchmark (`hapticframe bench bhm`)."""
-    yield BenchSpec(
-        name="bhm",
-        summary="Bayesian Hilbert Map: fit 3,000 points, add 200, mean and std on 15,000.",
-        factory="hapticframe_bhm._bench_suite:run_bhm_bench",
-    )

@@ -1,6 +1,13 @@
 """SynTouch BioTac fingertip: frame layout, SPI wire decoding, an emulator, replay, and the sensor.
 
-Registers the sensor ``biotac``; the synthetic granular-media generator lives in ``_synthetic``.
+Registers the sensor ``biotac``. Public beyond the sensor: the frame layout
+(:class:`BioTacFrames`, :func:`layout_for`), the tares (:func:`tare_frames` on a
+recording's own first frames, :func:`tare_in_air` on frames taken in open air), and the
+synthetic granular-media generator of dissertation §2.6 (:class:`TrialSpec`,
+:func:`generate_trial`, :func:`training_specs`, :func:`robustness_specs`,
+:func:`open_air_frames`, :func:`frame_features`, :func:`generate_open_air_trial`,
+:func:`contact_interval_x_m`, :func:`granular_noise_ratios`), which the perception benchmark
+(``hapticframe_bench``) and the tests build their datasets from.
 A real SPI adapter is a separate package that registers a backend factory by name in the
 ``hapticframe.biotac_spi`` entry-point group (see ``_backends``). Importing this package is
 cheap; the implementation modules load on first attribute access.
@@ -25,22 +32,33 @@ __all__ = [
     "SpiBatchBackend",
     "Trial",
     "TrialSpec",
+    "contact_interval_x_m",
     "WordStreamDecoder",
     "encode_frames",
+    "frame_features",
+    "generate_open_air_trial",
     "generate_trial",
+    "granular_noise_ratios",
+    "layout_for",
     "load_csv",
     "load_npz",
     "load_recording",
+    "open_air_frames",
     "robustness_specs",
     "save_npz",
     "schedule_for",
+    "tare_frames",
+    "tare_in_air",
     "training_specs",
 ]
 
 _LAZY = {
     "BioTacFrames": "._frame",
     "FrameLayout": "._frame",
+    "layout_for": "._frame",
     "BioTacSensor": "._sensor",
+    "tare_frames": "._sensor",
+    "tare_in_air": "._sensor",
     "EmulatedBioTac": "._emulator",
     "FaultPlan": "._emulator",
     "SpiBatchBackend": "._emulator",
@@ -59,6 +77,11 @@ _LAZY = {
     "generate_trial": "._synthetic",
     "training_specs": "._synthetic",
     "robustness_specs": "._synthetic",
+    "open_air_frames": "._synthetic",
+    "frame_features": "._synthetic",
+    "generate_open_air_trial": "._synthetic",
+    "contact_interval_x_m": "._synthetic",
+    "granular_noise_ratios": "._synthetic",
 }
 
 

@@ -11,7 +11,6 @@ nominal placement; the axis is parallel to y at ``x = object_offset_m``.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,14 +38,12 @@ __all__ = [
     "PAC_PER_FRAME",
     "Trial",
     "TrialSpec",
-    "benchmark_generation",
     "contact_interval_x_m",
     "frame_features",
     "generate_open_air_trial",
     "generate_trial",
     "granular_noise_ratios",
     "open_air_frames",
-    "linear_svm_separability",
     "robustness_specs",
     "training_specs",
 ]
@@ -486,58 +483,6 @@ def frame_features(trial: Trial) -> FloatArray:
     return np.column_stack([trial.pac, trial.pdc, trial.tac, trial.tdc, trial.electrodes])
 
 
-def linear_svm_separability(
-    trials: list[Trial], rng: np.random.Generator, test_fraction: float = 0.3
-) -> dict[str, float]:
-    """Frame-wise linear SVM on raw features, split by trial (scikit-learn imported here).
-
-    Trials with and without the object are split separately so both sides hold both kinds.
-    Features are standardised with the training frames' mean and spread; the SVM weights
-    classes by their frequency (the thesis oversampled the minority class instead).
-
-    Returns
-    -------
-    dict with ``accuracy``, ``balanced_accuracy``, ``majority_accuracy`` (of always answering
-    "free" on the test frames) and the numbers of trials and frames on each side.
-    """
-    from sklearn.svm import LinearSVC
-
-    if not 0.0 < test_fraction < 1.0:
-        raise ValueError("test_fraction must lie in (0, 1)")
-    test_ids: list[int] = []
-    for kind in (True, False):
-        ids = [i for i, tr in enumerate(trials) if tr.spec.has_object is kind]
-        ids = [ids[j] for j in rng.permutation(len(ids))]
-        test_ids += ids[: max(1, int(round(test_fraction * len(ids))))] if ids else []
-    test_set = set(test_ids)
-    train = [tr for i, tr in enumerate(trials) if i not in test_set]
-    test = [trials[i] for i in sorted(test_set)]
-    if not train or not test:
-        raise ValueError("need at least one trial on each side of the split")
-    x_train = np.vstack([frame_features(tr) for tr in train])
-    y_train = np.concatenate([tr.contact for tr in train])
-    x_test = np.vstack([frame_features(tr) for tr in test])
-    y_test = np.concatenate([tr.contact for tr in test])
-    if np.unique(y_train).size < 2:
-        raise ValueError("the training trials hold only one class")
-    mean = x_train.mean(axis=0)
-    spread = x_train.std(axis=0)
-    spread[spread == 0.0] = 1.0
-    model = LinearSVC(C=1.0, class_weight="balanced", dual=False, max_iter=5000)
-    model.fit((x_train - mean) / spread, y_train)
-    predicted = model.predict((x_test - mean) / spread)
-    recalls = [np.mean(predicted[y_test == c] == c) for c in (0, 1) if np.any(y_test == c)]
-    return {
-        "accuracy": float(np.mean(predicted == y_test)),
-        "balanced_accuracy": float(np.mean(recalls)),
-        "majority_accuracy": float(np.mean(y_test == 0)),
-        "n_train_trials": float(len(train)),
-        "n_test_trials": float(len(test)),
-        "n_train_frames": float(y_train.size),
-        "n_test_frames": float(y_test.size),
-    }
-
-
 def _iqr(values: FloatArray) -> float:
     q1, q3 = np.percentile(values, [25.0, 75.0])
     return float(q3 - q1)
@@ -576,13 +521,3 @@ def granular_noise_ratios(
         "electrodes": float(np.median(ratio[2:])),
     }
 
-
-def benchmark_generation(n_trials: int = 750, seed: int = 0) -> dict[str, float]:
-    """Wall time to generate the training set (or its first ``n_trials``), single thread."""
-    rng = np.random.default_rng(seed)
-    specs = training_specs(rng)[:n_trials]
-    start = time.perf_counter()
-    frames = sum(generate_trial(spec, rng).n_frames for spec in specs)
-    seconds = time.perf_counter() - start
-    return {"trials": float(len(specs)), "frames": float(frames), "seconds": seconds,
-            "ms_per_trial": 1000.0 * seconds / max(len(specs), 1)}

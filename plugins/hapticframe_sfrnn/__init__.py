@@ -4,6 +4,10 @@ Registers ``sf-rnn`` (sparse codes → fusion layer → stacked GRU), ``fusion-r
 per modality joined by a fully connected layer) and ``linear-svm`` (Platt-calibrated
 linear SVM on any flattened channels). Importing this package is cheap: torch and
 scikit-learn load on first attribute access of the classes that need them.
+
+Besides the components, the package offers the scores its classifiers are judged by
+(:func:`balanced_accuracy`, :func:`contact_figures`); the perception benchmark
+(``hapticframe bench perception``, in ``hapticframe_bench``) uses them.
 """
 
 from __future__ import annotations
@@ -21,14 +25,16 @@ __all__ = [
     "LinearSVMConfig",
     "SFRNNClassifier",
     "SFRNNConfig",
-    "measure_step_latency",
+    "balanced_accuracy",
+    "contact_figures",
 ]
 
 _LAZY = {
     "SFRNNClassifier": "._recurrent",
     "FusionRNNClassifier": "._recurrent",
-    "measure_step_latency": "._recurrent",
     "LinearSVMClassifier": "._linear_svm",
+    "balanced_accuracy": "._functional",
+    "contact_figures": "._functional",
 }
 
 
@@ -36,3 +42,7 @@ def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name], __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -370,37 +370,3 @@ class FusionRNNClassifier(RecurrentClassifier):
             config.dropout,
             len(CLASSES),
         )
-
-
-def measure_step_latency(
-    classifier: RecurrentClassifier, frames: int = 2000, seed: int = 0
-) -> dict[str, float]:
-    """Per-frame latency of :meth:`RecurrentClassifier.update` on one thread (benchmark).
-
-    Feeds ``frames`` single-frame batches of sparse code-like input (about 10 % non-zeros)
-    and reports the median, 99th percentile and maximum in milliseconds.
-    """
-    rng = np.random.default_rng(seed)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        classifier.reset()
-        times = np.empty(frames)
-        for i in range(frames):
-            channels = {}
-            for name, size in classifier.groups.items():
-                code = rng.standard_normal(size) * (rng.random(size) < 0.1)
-                channels[name] = code[None, :]
-            batch = SampleBatch(np.array([0.01 * (i + 1)]), channels)
-            start = time.perf_counter()
-            classifier.update(batch)
-            times[i] = (time.perf_counter() - start) * 1e3
-    finally:
-        torch.set_num_threads(threads)
-        classifier.reset()
-    return {
-        "frames": float(frames),
-        "latency_ms_median": float(np.median(times)),
-        "latency_ms_p99": float(np.percentile(times, 99)),
-        "latency_ms_max": float(times.max()),
-    }

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import BenchSpec, ClassifierSpec, hookimpl
+from hapticframe import ClassifierSpec, hookimpl
 
 from ._config import DEFAULT_CODE_SIZES, FusionRNNConfig, LinearSVMConfig, SFRNNConfig
 
@@ -60,14 +60,3 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         sample_rate_hz=100.0,
     )
 
-
-@hookimpl
-def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the perception benchmark (`hapticframe bench perception`)."""
-    yield BenchSpec(
-        name="perception",
-        summary="Dissertation Tables 2.2, 2.3, 2.4 and A.1 on the synthetic BioTac dataset, "
-        "plus the streaming chain's latency per frame.",
-        factory="hapticframe_sfrnn._bench_suite:run_perception",
-        install_hint=_LEARN_HINT,
-    )

@@ -317,7 +317,7 @@ def test_reset_forgets_everything() -> None:
 
 
 def test_synthetic_biotac_trial_puts_the_object_on_the_contact_chord() -> None:
-    synthetic = pytest.importorskip("hapticframe_biotac._synthetic")
+    synthetic = pytest.importorskip("hapticframe_biotac")
     spec = synthetic.TrialSpec(medium="cottonwood_beads", speed_m_per_s=0.04, orientation_deg=0.0,
                                object_offset_m=0.0, has_object=True)
     trial = synthetic.generate_trial(spec, np.random.default_rng(0))

@@ -363,6 +363,12 @@ def test_tiny_run_writes_complete_search_json(tiny_run: Any) -> None:
             assert group["centroid_error_m"]["mean"] == pytest.approx(group["centroid_rmse_m"])
     assert saved["baseline"]["circle"]["ems_phase2"]["mean"] == 0
     assert len([ln for ln in lines if ln.startswith("[")]) == 4
+    # Each target beside its measurement with a verdict (no wall-time target at 1 trial).
+    assert set(saved["targets"]) == {f"{shape}_{k}" for shape in ("circle", "ellipse")
+                                     for k in ("total_ems", "centroid_rmse_cm", "hausdorff_cm")}
+    for record in saved["targets"].values():
+        assert sum(ln.startswith(record["label"] + ": ") and "(target <= " in ln
+                   and ln.endswith(("met", "missed", "not measured")) for ln in lines) == 1
     assert sorted(p.name for p in (out / "trials").iterdir()) == [
         "circle-0-coverage", "circle-0-two-phase-coverage",
         "ellipse-0-coverage", "ellipse-0-two-phase-coverage",
@@ -379,6 +385,9 @@ def test_tiny_run_writes_the_table_and_figure(tiny_run: Any) -> None:
     assert "| Ellipse | coverage (baseline) |" in report
     assert summary["command"] in report and "Total wall time" in report
     assert render_markdown(summary) == report
+    assert "## Targets" in report
+    for record in summary["targets"].values():
+        assert f"| {record['label']} |" in report
     assert (out / "search.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -387,3 +396,28 @@ def test_search_suite_is_registered() -> None:
     assert "search" in registry.benchmarks
     spec, _source = registry.benchmarks["search"]
     assert spec.factory == "hapticframe_bench._search:run_search"
+
+
+def test_search_targets_compare_the_two_phase_planner_with_table_3_2() -> None:
+    from hapticframe_bench._search import search_targets
+
+    def group(p1: float, p2: float, rmse: float | None, hausdorff: float | None) -> dict:
+        return {"ems_phase1": {"mean": p1}, "ems_phase2": {"mean": p2},
+                "centroid_rmse_m": rmse, "hausdorff_m": {"mean": hausdorff}}
+
+    summary = {"shapes": ["circle", "ellipse"], "trials": 25, "wall_time_s": 34.7,
+               "circle": group(3.72, 2.68, 0.0102, 0.0135),
+               "ellipse": group(4.0, 3.5, 0.025, None)}
+    targets = search_targets(summary)
+    assert targets["circle_total_ems"]["value"] == pytest.approx(6.40)
+    assert targets["circle_total_ems"]["limit"] == pytest.approx(7.2)
+    assert all(targets[f"circle_{k}"]["met"] for k in ("total_ems", "centroid_rmse_cm",
+                                                        "hausdorff_cm"))
+    assert targets["ellipse_total_ems"]["met"] is False  # 7.5 > 7.0
+    assert targets["ellipse_centroid_rmse_cm"]["met"] is False  # 2.5 > 2.0 cm
+    assert targets["ellipse_hausdorff_cm"]["met"] is None  # never found: not measured
+    assert targets["wall_time_s"] == {"label": "whole command, wall time", "value": 34.7,
+                                      "limit": 60.0, "unit": "s", "comparison": "<=",
+                                      "met": True}
+    # The 60 s target is for the thesis's 25 trials per shape only.
+    assert "wall_time_s" not in search_targets({**summary, "trials": 3})

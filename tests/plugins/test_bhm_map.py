@@ -13,10 +13,10 @@ from pydantic import ValidationError
 
 from hapticframe import MapSpec, RegionConfig, Scene
 from hapticframe.kinds import BuildContext, Map, Observations, Region, RunOutcome
-from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig, benchmark_bhm
+from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 from hapticframe_bhm import plugin as bhm_plugin
-from hapticframe_bhm._bench import labelled_points, roc_auc, two_object_scene
 from hapticframe_bhm._config import length_scale_from_bandwidth_per_cm2
+from hapticframe_bench import labelled_points, roc_auc, two_object_scene
 
 
 #: Table 3.1's map: 2.24 / 3.54 cm length scales switched per region, a zero-mean prior of
@@ -390,11 +390,3 @@ def test_finalize_writes_the_two_figures(tmp_path: Path, scene, data) -> None:
     bare = tmp_path / "bare"
     assert dict(build().finalize(RunOutcome(bare, None, (), {}, 0.0))) == {}
     assert (bare / "bhm_mean.png").exists() and (bare / "bhm_std.png").exists()
-
-
-def test_benchmark_reports_its_figures() -> None:
-    result = benchmark_bhm(rng_seed=0, repeats=1)
-    for key in ("fit_3000_ms", "update_200_ms", "grid_15000_mean_std_ms", "rds_fit_3000_ms"):
-        assert result[key] > 0
-    assert result["grid_points"] == 15000
-    assert result["auc"] >= 0.99 and result["rds_auc"] >= 0.99

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,12 +15,25 @@ pytest.importorskip("sklearn")
 import hapticframe
 from hapticframe import BenchOptions
 
-from hapticframe_sfrnn._bench_suite import ARCHITECTURES, SuitePlan, plan_for, run_perception
-from hapticframe_sfrnn._perception_data import split_cottonwood, stage_inputs
+from hapticframe_bench._perception import (
+    ALL,
+    ARCHITECTURES,
+    PERCEPTION_TARGETS,
+    SuitePlan,
+    _key,
+    plan_for,
+    run_perception,
+)
+from hapticframe_bench._perception_data import split_cottonwood, stage_inputs
+from hapticframe_bench._perception_jobs import model_digest
 
-# Everything small: 12 cottonwood trials, one trial per medium, a cheap EMD, tiny networks.
+SFRNN = "(d)+RNN (SF-RNN)"
+ALL_KEY = "pac+pdc+electrodes"
+
+# Everything small: 12 cottonwood trials, one trial per medium, a cheap EMD, tiny networks,
+# one seed (averaging over seeds and resuming are tested on their own, below).
 TINY = SuitePlan(
-    cottonwood_trials=12, robustness_per_medium=1, seeds=2, max_epochs=1, patience=1,
+    cottonwood_trials=12, robustness_per_medium=1, seeds=1, max_epochs=1, patience=1,
     latency_frames=40, coder_fit_frames=600, quick=True,
     rnn_settings={"batch_size": 64, "free_stride_frames": 60, "contact_stride_frames": 30,
                   "window_frames": 20, "gru_layers": 1, "gru_units": 8, "fusion_units": 8,
@@ -131,45 +145,99 @@ def test_tiny_run_writes_json_markdown_figure_and_model(tiny_run):
     assert (out / "perception.png").stat().st_size > 1000
     assert (out / "sfrnn-model" / "model.json").is_file()
     assert any("SF-RNN test" in line for line in lines)
+    # Each target beside its measurement with a verdict, in the JSON, the report and the lines.
+    assert set(result["targets"]) == {t.name for t in PERCEPTION_TARGETS}
+    assert result["table_2_4_media_sfrnn_ahead"] == sum(result["table_2_4_sfrnn_ahead"].values())
+    for name, record in result["targets"].items():
+        assert record["value"] == pytest.approx(result[name])
+        above = record["value"] >= record["limit"]
+        assert record["met"] is (above if record["comparison"] == ">=" else
+                                 record["value"] <= record["limit"])
+        verdict = "met" if record["met"] else "missed"
+        assert sum(line.startswith(record["label"] + ": ") and line.endswith(f"  {verdict}")
+                   for line in lines) == 1, lines
+        assert f"| {record['label']} |" in md
+    assert result["targets_met"] is all(r["met"] for r in result["targets"].values())
 
 
-def test_a_repeated_run_resumes_from_its_kept_jobs_and_retrains_stale_ones(tiny_run):
+def test_the_tiny_run_keeps_each_job_with_its_fingerprint(tiny_run):
     out, _, _ = tiny_run
     first = json.loads((out / "perception.json").read_text())
     assert first["dataset"]["tare_source"] == "air"
     jobs = sorted((out / "jobs").glob("*.json"))
-    assert [p.name for p in jobs] == ["seed0-electrodes.json", "seed0-pac+pdc+electrodes.json",
-                                      "seed1-electrodes.json", "seed1-pac+pdc+electrodes.json"]
-    # A job kept from other settings (its fingerprint differs) is trained again.
-    stale = json.loads(jobs[2].read_text())
-    stale["fingerprint"] = "0" * 64
-    jobs[2].write_text(json.dumps(stale))
+    assert [p.name for p in jobs] == ["seed0-electrodes.json", "seed0-pac+pdc+electrodes.json"]
+    kept = json.loads(jobs[1].read_text())
+    assert len(kept["fingerprint"]) == 64
+    assert kept["result"]["model_sha256"] == model_digest(out / "sfrnn-model")
+
+
+def _fake_job(calls):
+    """A job runner that records its calls and saves a 'model' as the real one does."""
+    def run(job):
+        s, mods, seed, _rnn, _svm, save_dir = job
+        calls.append((s, _key(mods)))
+        result = {"seed_index": s, "modalities": mods, "score": 10 * s + len(mods) + seed,
+                  "cells": {SFRNN: {"validation": 0.5, "test": 0.25 * len(mods)}}}
+        if save_dir is not None and s == 0 and mods == ALL:
+            Path(save_dir).mkdir(parents=True, exist_ok=True)
+            (Path(save_dir) / "model.json").write_text("{}")
+            (Path(save_dir) / "weights.pt").write_bytes(bytes([s, len(mods)]))
+            result["model_sha256"] = model_digest(save_dir)
+        return result
+    return run
+
+
+def test_a_repeated_run_resumes_from_its_kept_jobs_and_retrains_stale_ones(tmp_path, monkeypatch):
+    import hapticframe_bench._perception as suite
+
+    calls: list[tuple[int, str]] = []
+    monkeypatch.setattr(suite, "_run_job", _fake_job(calls))
+    model_dir, job_dir = tmp_path / "model", tmp_path / "jobs"
+    jobs = [(s, mods, 1, {}, {}, str(model_dir)) for s in range(2)
+            for mods in (("electrodes",), ALL)]
     lines: list[str] = []
-    run_perception(BenchOptions(out_dir=out, seed=1, quick=True, workers=1, echo=lines.append),
-                   plan=TINY)
-    assert any(line.startswith("resuming: 3 of 4 jobs") for line in lines), lines
-    assert sum(line.startswith("[") and "seed 1 electrodes" in line for line in lines) == 1
-    again = json.loads((out / "perception.json").read_text())
-    # Training is seeded, so the retrained job and the kept ones give the same tables.
-    assert again["tables"] == first["tables"]
-    assert json.loads(jobs[2].read_text())["fingerprint"] != "0" * 64
-    # The job that saved the model reruns when the model is gone (the latency needs it).
-    (out / "sfrnn-model" / "weights.pt").unlink()
-    lines.clear()
-    run_perception(BenchOptions(out_dir=out, seed=1, quick=True, workers=1, echo=lines.append),
-                   plan=TINY)
-    assert any(line.startswith("resuming: 3 of 4 jobs") for line in lines), lines
-    assert (out / "sfrnn-model" / "weights.pt").is_file()
-    # Accuracies as before; only the step times, measured anew, may differ.
-    assert _scores(json.loads((out / "perception.json").read_text())) == _scores(first)
+
+    def run(fingerprint):
+        calls.clear()
+        lines.clear()
+        return suite._map_jobs(jobs, 1, None, lines.append, job_dir, fingerprint)
+
+    first = run("a" * 64)
+    assert calls == [(0, "electrodes"), (0, ALL_KEY), (1, "electrodes"), (1, ALL_KEY)]
+    assert sum(line.startswith("[") for line in lines) == 4
+    # The same fingerprint: every job is kept, none trained, the results are the same.
+    assert run("a" * 64) == first and calls == []
+    assert lines[0].startswith("resuming: 4 of 4 jobs")
+    # A job kept from other settings (its fingerprint differs) is trained again.
+    stale_path = job_dir / "seed1-electrodes.json"
+    stale = json.loads(stale_path.read_text())
+    stale["fingerprint"] = "0" * 64
+    stale_path.write_text(json.dumps(stale))
+    assert run("a" * 64) == first and calls == [(1, "electrodes")]
+    assert lines[0].startswith("resuming: 3 of 4 jobs")
+    assert json.loads(stale_path.read_text())["fingerprint"] == "a" * 64
+    # A half-written or foreign file is not a kept job either.
+    stale_path.write_text("{not json")
+    assert run("a" * 64) == first and calls == [(1, "electrodes")]
+    # The job that saved the model reruns when the model is gone or changed.
+    (model_dir / "weights.pt").unlink()
+    assert run("a" * 64) == first and calls == [(0, ALL_KEY)]
+    (model_dir / "weights.pt").write_bytes(b"other")
+    assert run("a" * 64) == first and calls == [(0, ALL_KEY)]
+    # Other settings: nothing is kept.
+    run("b" * 64)
+    assert len(calls) == 4
 
 
-def _scores(result):
-    def strip(node):
-        if isinstance(node, dict):
-            return {k: strip(v) for k, v in node.items() if k != "step_ms"}
-        return node
-    return strip(result["tables"])
+def test_figures_over_seeds_are_mean_and_sample_std():
+    from hapticframe_bench._perception import _mean_std, _merge_seeds
+
+    assert _mean_std([0.5, 0.7]) == pytest.approx({"mean": 0.6, "std": 0.1414213562, "n": 2})
+    assert _mean_std([0.5]) == {"mean": 0.5, "std": 0.0, "n": 1}
+    merged = _merge_seeds([{"a": {"x": 1.0, "y": None}, "b": 2.0},
+                           {"a": {"x": 3.0, "y": None}, "b": 4.0}])
+    assert merged["a"]["x"] == pytest.approx({"mean": 2.0, "std": 2 ** 0.5, "n": 2})
+    assert merged["a"]["y"] is None and merged["b"]["mean"] == 3.0
 
 
 def test_split_is_by_whole_trials_stratified_and_stage_inputs_have_thesis_sizes(tiny_run):
@@ -178,7 +246,7 @@ def test_split_is_by_whole_trials_stratified_and_stage_inputs_have_thesis_sizes(
     for kind, n in ((True, 10), (False, 20)):
         got = [s for s, f in zip(splits, flags, strict=True) if f is kind]
         assert got.count("train") == round(0.6 * n) and got.count("validation") == round(0.2 * n)
-    from hapticframe_sfrnn._perception_data import TrialFeatures
+    from hapticframe_bench._perception_data import TrialFeatures
 
     trial = TrialFeatures(0, "bbs", True, "train", np.zeros(4, dtype=np.int64),
                           {"pac": np.ones((4, 8, 22)), "pdc": np.ones((4, 5, 5)),
@@ -196,7 +264,7 @@ def test_bench_is_registered_and_plans_follow_the_options(tmp_path):
     registry = hapticframe.get_registry()
     assert "perception" in registry.benchmarks
     spec, _source = registry.benchmarks["perception"]
-    assert spec.factory == "hapticframe_sfrnn._bench_suite:run_perception"
+    assert spec.factory == "hapticframe_bench._perception:run_perception"
     quick = plan_for(BenchOptions(out_dir=tmp_path, quick=True))
     full = plan_for(BenchOptions(out_dir=tmp_path))
     assert quick.quick and not full.quick and full.cottonwood_trials == 750
@@ -231,7 +299,7 @@ def test_bench_device_is_checked_before_any_work(tmp_path, monkeypatch, capsys):
 
 
 def _coded_trial(index, split, rng, n=60):
-    from hapticframe_sfrnn._perception_data import TrialFeatures
+    from hapticframe_bench._perception_data import TrialFeatures
 
     labels = np.zeros(n, dtype=np.int64)
     if index % 2 == 0:
@@ -246,8 +314,8 @@ def _coded_trial(index, split, rng, n=60):
 
 
 def test_amplitude_modalities_narrow_the_sfrnn_but_not_the_svm():
-    from hapticframe_sfrnn._perception_data import PerceptionData
-    from hapticframe_sfrnn._perception_models import Architecture, score, train_architecture
+    from hapticframe_bench._perception_data import PerceptionData
+    from hapticframe_bench._perception_models import Architecture, score, train_architecture
 
     rng = np.random.default_rng(3)
     splits = ["train"] * 6 + ["validation"] * 2 + ["test"] * 2
@@ -287,8 +355,8 @@ def test_plans_keep_the_untared_vibration_amplitude_out_of_the_sfrnn(tmp_path):
 def test_job_fingerprint_follows_plan_seed_and_trials():
     from types import SimpleNamespace
 
-    from hapticframe_sfrnn._bench_jobs import job_fingerprint
-    from hapticframe_sfrnn._perception_data import TrialFeatures
+    from hapticframe_bench._perception_jobs import job_fingerprint
+    from hapticframe_bench._perception_data import TrialFeatures
 
     def data(labels):
         trial = TrialFeatures(0, "bbs", True, "train", np.asarray(labels, dtype=np.int64), {})
@@ -307,7 +375,7 @@ def test_job_fingerprint_follows_plan_seed_and_trials():
 def test_a_job_worker_runs_its_blas_pools_on_one_thread(monkeypatch):
     from threadpoolctl import threadpool_info
 
-    import hapticframe_sfrnn._bench_suite as suite
+    import hapticframe_bench._perception as suite
 
     seen = {}
 
@@ -321,8 +389,8 @@ def test_a_job_worker_runs_its_blas_pools_on_one_thread(monkeypatch):
 
 
 def test_robustness_breakdown_groups_each_trial_by_its_conditions():
-    from hapticframe_sfrnn._perception_data import TrialFeatures
-    from hapticframe_sfrnn._perception_models import robustness_breakdown
+    from hapticframe_bench._perception_data import TrialFeatures
+    from hapticframe_bench._perception_models import robustness_breakdown
 
     def trial(i, medium, pose, offset, labels):
         return TrialFeatures(index=i, medium=medium, has_object=True, split="robustness",
@@ -346,3 +414,12 @@ def test_robustness_breakdown_groups_each_trial_by_its_conditions():
     assert out["medium_orientation_deg"]["bbs"]["20"]["missed_contacts"] == 1
     with pytest.raises(ValueError):
         robustness_breakdown(trials, predicted[:2])
+
+
+def test_accuracy_axes_start_just_below_the_lowest_value():
+    from hapticframe_bench._perception_report import accuracy_axis_range
+
+    assert accuracy_axis_range([91.0, 99.5, float("nan")]) == (85.0, 101.0)
+    assert accuracy_axis_range([80.8, 97.0]) == (75.0, 101.0)
+    assert accuracy_axis_range([1.0, 50.0]) == (0.0, 101.0)
+    assert accuracy_axis_range([float("nan")]) == (0.0, 101.0)

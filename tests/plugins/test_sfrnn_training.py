@@ -1,6 +1,6 @@
 """Training, streaming, artifacts and missing modalities of sf-rnn, fusion-rnn and linear-svm.
 
-The end-to-end runs train on synthetic BioTac trials (``hapticframe_biotac._synthetic``)
+The end-to-end runs train on synthetic BioTac trials (``hapticframe_biotac.generate_trial``)
 turned into *code-like* features directly, not through ``emd-features`` + ``sparse-coding``
 (that chain costs about 1-2 s per 300-frame trial here, too slow for a unit test): per
 frame, ``pac_code`` is the 22 pac samples minus their mean, ``pdc_code`` the pdc minus the
@@ -23,7 +23,7 @@ from hapticframe.kinds import BuildContext, RunOutcome, SampleBatch
 torch = pytest.importorskip("torch")
 pytest.importorskip("sklearn")
 
-from hapticframe_biotac._synthetic import TrialSpec, generate_trial  # noqa: E402
+from hapticframe_biotac import TrialSpec, generate_trial  # noqa: E402
 from hapticframe_sfrnn._config import (  # noqa: E402
     FusionRNNConfig,
     LinearSVMConfig,
@@ -31,11 +31,7 @@ from hapticframe_sfrnn._config import (  # noqa: E402
 )
 from hapticframe_sfrnn._functional import balanced_accuracy  # noqa: E402
 from hapticframe_sfrnn._linear_svm import LinearSVMClassifier  # noqa: E402
-from hapticframe_sfrnn._recurrent import (  # noqa: E402
-    FusionRNNClassifier,
-    SFRNNClassifier,
-    measure_step_latency,
-)
+from hapticframe_sfrnn._recurrent import FusionRNNClassifier, SFRNNClassifier  # noqa: E402
 
 SIZES = {"pac_code_size": 22, "pdc_code_size": 1, "electrodes_code_size": 19}
 SVM_INPUTS = {"pac_code": 22, "pdc_code": 1, "electrodes_code": 19}
@@ -292,14 +288,6 @@ def test_linear_svm_on_raw_frames_and_bad_input(trials: tuple[Labelled, Labelled
     assert probs.shape == (len(raw[0][0]), 2) and np.isfinite(probs).all()
     with pytest.raises(ValueError, match="one class"):
         svm.fit([raw[1][0]], [np.zeros(len(raw[1][0]), dtype=int)])
-
-
-def test_step_latency_probe_reports_its_figures() -> None:
-    # Not a speed test: the figures only have to exist and be consistent.
-    clf = SFRNNClassifier(SFRNNConfig(progress=False), context())
-    report = measure_step_latency(clf, frames=50)
-    assert report["frames"] == 50
-    assert 0 < report["latency_ms_median"] <= report["latency_ms_p99"] <= report["latency_ms_max"]
 
 
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")

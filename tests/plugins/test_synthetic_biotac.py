@@ -16,11 +16,9 @@ from hapticframe_biotac._synthetic import (
     PAC_PER_FRAME,
     TrialSpec,
     contact_interval_x_m,
-    frame_features,
     generate_open_air_trial,
     generate_trial,
     granular_noise_ratios,
-    linear_svm_separability,
     robustness_specs,
     training_specs,
 )
@@ -268,19 +266,7 @@ def test_noise_primitives() -> None:
     assert np.abs(highpass_fft(constant, 10.0, 2200.0)[-1000:]).max() < 0.1  # DC is removed
 
 
-# --- separability and imports ------------------------------------------------------------------
-
-
-def test_linear_svm_on_raw_frames_is_not_trivially_separable() -> None:
-    specs = training_specs(np.random.default_rng(12))[:90]
-    rng = np.random.default_rng(13)
-    trials = [generate_trial(spec, rng) for spec in specs]
-    assert frame_features(trials[0]).shape == (trials[0].n_frames, 44)
-    report = linear_svm_separability(trials, np.random.default_rng(14))
-    assert report["accuracy"] <= 0.90
-    assert report["balanced_accuracy"] <= 0.90
-    assert report["balanced_accuracy"] >= 0.60  # yet the contact is there to be learnt
-    assert report["n_test_trials"] + report["n_train_trials"] == 90
+# --- imports ------------------------------------------------------------------
 
 
 def test_module_import_does_not_load_scikit_learn() -> None:

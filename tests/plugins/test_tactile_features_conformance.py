@@ -1,4 +1,4 @@
-"""The conformance kit on emd-features and sparse-coding, the chain, and the latency probe."""
+"""The conformance kit on emd-features and sparse-coding, and the chain."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
 from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
-from hapticframe_tactile_features._latency import measure_chain_latency, synthetic_biotac_frames
 from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
+from hapticframe_bench import synthetic_biotac_frames
 
 import hapticframe
 from hapticframe import Kind
@@ -53,33 +53,3 @@ def test_chain_from_biotac_frames_to_codes() -> None:
     }
     assert np.array_equal(codes.timestamps_s, frames.timestamps_s[:-2])
     assert all(np.isfinite(v).all() and np.count_nonzero(v) > 0 for v in codes.channels.values())
-
-
-def test_latency_probe_reports_its_figures() -> None:
-    # Not a speed test: the figures only have to exist and be consistent.
-    report = measure_chain_latency(40, fit_frames=0)
-    assert report["frames"] == 40 and report["threads"] == 1
-    assert 0 < report["latency_ms_median"] <= report["latency_ms_p99"] <= report["latency_ms_max"]
-    assert report["emd_ms_median"] > 0 and report["coding_ms_median"] >= 0
-    assert 0 < report["cpu_ms_median"] <= report["cpu_ms_p99"]
-    assert report["emd_ms_median"] <= report["emd_ms_p99"]
-    assert report["coding_ms_median"] <= report["coding_ms_p99"]
-    assert report["emd_backend"] in {"numba", "numpy"}
-    assert report["encoder"] in {"numba", "sklearn"}
-    reference = measure_chain_latency(
-        20,
-        fit_frames=0,
-        emd_config=EMDFeaturesConfig(emd_backend="numpy"),
-        coding_config=SparseCodingConfig(encoder="sklearn"),
-    )
-    assert (reference["emd_backend"], reference["encoder"]) == ("numpy", "sklearn")
-
-
-def test_pyemd_comparison_reports_both_pairings() -> None:
-    pytest.importorskip("PyEMD")
-    from hapticframe_tactile_features._latency import compare_emd_with_pyemd
-
-    report = compare_emd_with_pyemd(300, repeats=1)
-    assert report["samples"] == 300
-    for key in ("emd_ms_default", "pyemd_ms_default", "emd_ms_fixed10", "pyemd_ms_fixed10"):
-        assert report[key] > 0

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from hapticframe_tactile_features._config import SparseCodingConfig
 from hapticframe_tactile_features._emd import numba_available
-from hapticframe_tactile_features._latency import synthetic_biotac_frames
 from hapticframe_tactile_features._sparse import (
     encode_rows,
     encode_tensors,
@@ -22,6 +21,7 @@ from hapticframe_tactile_features._sparse import (
     sparsity_penalty,
 )
 from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
+from hapticframe_bench import synthetic_biotac_frames
 
 from hapticframe.kinds import BuildContext, SampleBatch
 

@@ -1,16 +1,20 @@
-"""Latency of the streaming feature chain per 10 ms frame (a benchmark, not a test).
+"""Latency of the streaming perception chain per 10 ms frame (a benchmark, not a test).
 
 :func:`measure_chain_latency` streams synthetic BioTac-like frames one at a time through
 ``emd-features`` (all three modalities) and ``sparse-coding`` and times each frame from
 the sensor values' arrival to the three sparse codes, on one thread (BLAS and OpenMP pools
-limited with threadpoolctl), with the split per stage. The classifier step is not
-included. Passing ``EMDFeaturesConfig(emd_backend="numpy")`` and
+limited with threadpoolctl), with the split per stage; given a classifier, its step too.
+Passing ``EMDFeaturesConfig(emd_backend="numpy")`` and
 ``SparseCodingConfig(encoder="sklearn")`` times the reference implementations in the
-same way, for side-by-side figures.
+same way, for side-by-side figures. :func:`measure_step_latency` times one classifier
+step alone, :func:`compare_emd_with_pyemd` our EMD against PyEMD. The whole chain with the
+trained SF-RNN on the perception data is timed by ``hapticframe bench perception``
+(:func:`._perception.measure_streaming_latency`).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import time
@@ -19,15 +23,34 @@ from typing import Any
 
 import numpy as np
 
+from hapticframe import BenchOptions
 from hapticframe.kinds import BuildContext, SampleBatch
 
-from ._config import EMDFeaturesConfig, SparseCodingConfig
-from ._emd import _use_kernel, emd
-from ._emd_features import EMDFeatureExtractor
-from ._sparse import _use_numba
-from ._sparse_coding import SparseCodingExtractor
+from hapticframe_tactile_features import (
+    EMDFeatureExtractor,
+    EMDFeaturesConfig,
+    SparseCodingConfig,
+    SparseCodingExtractor,
+    emd,
+    emd_backend_in_use,
+    encoder_in_use,
+)
 
-__all__ = ["compare_emd_with_pyemd", "measure_chain_latency", "synthetic_biotac_frames"]
+from ._targets import Target, check_targets, load_average, load_note, targets_markdown
+
+__all__ = [
+    "compare_emd_with_pyemd",
+    "measure_chain_latency",
+    "measure_step_latency",
+    "run_latency_bench",
+    "synthetic_biotac_frames",
+]
+
+#: The chain's targets per 10 ms frame on one thread (the thesis's SF-RNN step: 2.96 ms).
+LATENCY_TARGETS = (
+    Target("latency_ms_median", "chain per frame, median", 2.0, "ms", digits=2),
+    Target("latency_ms_p99", "chain per frame, p99", 4.0, "ms", digits=2),
+)
 
 
 def synthetic_biotac_frames(
@@ -84,6 +107,7 @@ def measure_chain_latency(
     fit_frames: int = 400,
     emd_config: EMDFeaturesConfig | None = None,
     coding_config: SparseCodingConfig | None = None,
+    classifier: Any = None,
 ) -> dict[str, Any]:
     """Median and p99 time per frame of the streaming ``emd-features`` → ``sparse-coding`` chain.
 
@@ -98,6 +122,9 @@ def measure_chain_latency(
         lasso cost depends on how well the dictionary fits the data.
     emd_config, coding_config : optional
         Defaults: the thesis's settings.
+    classifier : optional
+        A classifier that reads the three codes (``sf-rnn``); when given, each frame's codes
+        go through its ``update`` too, timed as a third stage and part of the total.
 
     Returns
     -------
@@ -109,7 +136,8 @@ def measure_chain_latency(
         ``emd_ms_median`` / ``emd_ms_p99`` (``emd-features.update``: ring buffers and the
         pac and pdc EMDs) and ``coding_ms_median`` / ``coding_ms_p99``
         (``sparse-coding.update``: three normalised lasso encodes); ``emd_backend`` and
-        ``encoder`` (what ``"auto"`` resolved to), ``frames``, ``threads`` and ``machine``.
+        ``encoder`` (what ``"auto"`` resolved to), ``frames``, ``threads`` and ``machine``;
+        with a ``classifier``, also ``classify_ms_median`` / ``classify_ms_p99``.
 
     Notes
     -----
@@ -133,7 +161,10 @@ def measure_chain_latency(
         # Load (or compile) the numba kernels outside the timed loop.
         coder.update(extractor.transform(synthetic_biotac_frames(emd_cfg.delay_frames + 1, rng)))
         extractor.reset()
+        if classifier is not None:
+            classifier.reset()
         emd_ms = np.zeros(n_frames)
+        classify_ms = np.zeros(n_frames)
         total_ms = np.zeros(n_frames)
         cpu_ms = np.zeros(n_frames)
         for i in range(n_frames):
@@ -142,12 +173,19 @@ def measure_chain_latency(
             start = time.perf_counter()
             features = extractor.update(frame)
             middle = time.perf_counter()
-            coder.update(features)
+            codes = coder.update(features)
+            coded = time.perf_counter()
+            if classifier is not None:
+                classifier.update(codes)
             end = time.perf_counter()
             cpu_ms[i] = 1e3 * (time.thread_time() - cpu_start)
             emd_ms[i] = 1e3 * (middle - start)
+            classify_ms[i] = 1e3 * (end - coded)
             total_ms[i] = 1e3 * (end - start)
-    coding_ms = total_ms - emd_ms
+    coding_ms = total_ms - emd_ms - classify_ms
+    classify = ({"classify_ms_median": float(np.median(classify_ms)),
+                 "classify_ms_p99": float(np.percentile(classify_ms, 99))}
+                if classifier is not None else {})
     return {
         "latency_ms_median": float(np.median(total_ms)),
         "latency_ms_p99": float(np.percentile(total_ms, 99)),
@@ -158,8 +196,9 @@ def measure_chain_latency(
         "emd_ms_p99": float(np.percentile(emd_ms, 99)),
         "coding_ms_median": float(np.median(coding_ms)),
         "coding_ms_p99": float(np.percentile(coding_ms, 99)),
-        "emd_backend": "numba" if _use_kernel(emd_cfg.emd_backend) else "numpy",
-        "encoder": "numba" if _use_numba(code_cfg.encoder) else "sklearn",
+        "emd_backend": emd_backend_in_use(emd_cfg.emd_backend),
+        "encoder": encoder_in_use(code_cfg.encoder),
+        **classify,
         "frames": n_frames,
         "threads": 1,
         "machine": f"{platform.machine()} {platform.system()}, {os.cpu_count()} CPUs, "
@@ -211,9 +250,116 @@ def compare_emd_with_pyemd(
         "emd_ms_default": ours_default,
         "pyemd_ms_default": theirs_default,
         "speedup_default": theirs_default / ours_default,
-        "emd_backend": "numba" if _use_kernel("auto") else "numpy",
+        "emd_backend": emd_backend_in_use("auto"),
         "emd_numpy_ms_default": ours_numpy,
         "emd_ms_fixed10": ours_fixed,
         "pyemd_ms_fixed10": theirs_fixed,
         "speedup_fixed10": theirs_fixed / ours_fixed,
     }
+
+
+def measure_step_latency(classifier: Any, frames: int = 2000, seed: int = 0) -> dict[str, float]:
+    """Per-frame latency of a recurrent classifier's ``update`` on one thread.
+
+    Parameters
+    ----------
+    classifier : hapticframe_sfrnn.SFRNNClassifier or hapticframe_sfrnn.FusionRNNClassifier
+        A built (fitted or not) recurrent classifier; it is reset before and after.
+    frames : int
+        Single-frame batches of sparse-code-like input (about 10 % non-zeros) fed to it.
+    seed : int
+        Seeds the inputs.
+
+    Returns
+    -------
+    dict
+        ``frames``, and the median, 99th percentile and maximum in milliseconds
+        (``latency_ms_median``, ``latency_ms_p99``, ``latency_ms_max``).
+    """
+    import torch
+
+    rng = np.random.default_rng(seed)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        classifier.reset()
+        times = np.empty(frames)
+        for i in range(frames):
+            channels = {}
+            for name, size in classifier.groups.items():
+                code = rng.standard_normal(size) * (rng.random(size) < 0.1)
+                channels[name] = code[None, :]
+            batch = SampleBatch(np.array([0.01 * (i + 1)]), channels)
+            start = time.perf_counter()
+            classifier.update(batch)
+            times[i] = (time.perf_counter() - start) * 1e3
+    finally:
+        torch.set_num_threads(threads)
+        classifier.reset()
+    return {
+        "frames": float(frames),
+        "latency_ms_median": float(np.median(times)),
+        "latency_ms_p99": float(np.percentile(times, 99)),
+        "latency_ms_max": float(times.max()),
+    }
+
+
+def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
+    """``hapticframe bench latency``: the streaming chain per frame, and EMD against PyEMD.
+
+    Streams synthetic BioTac-shaped frames (:func:`synthetic_biotac_frames`) one at a time
+    through ``emd-features``, ``sparse-coding`` (dictionaries fitted on 400 frames) and an
+    ``sf-rnn`` of the default size (untrained: a step costs the same), one thread, and
+    compares :func:`hapticframe_tactile_features.emd` with PyEMD when PyEMD is installed.
+    ``--trials N`` sets the frames timed (default 2,000; ``--quick`` 300, with the
+    dictionaries fitted on 100 frames and 5 repeats of each EMD). Writes
+    ``latency.json`` and ``latency.md``; prints each target beside its measurement with a
+    verdict. The same chain with the trained SF-RNN on tared perception trials is timed by
+    ``hapticframe bench perception``.
+    """
+    from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
+
+    frames = int(options.trials or (300 if options.quick else 2000))
+    classifier = SFRNNClassifier(SFRNNConfig(progress=False),
+                                 BuildContext("latency-sfrnn", np.random.default_rng(options.seed)))
+    options.echo(f"latency: {frames} frames through emd-features -> sparse-coding -> sf-rnn, "
+                 "one thread")
+    fit_frames = 100 if options.quick else 400
+    results: dict[str, Any] = {"chain": measure_chain_latency(
+        frames, seed=options.seed, fit_frames=fit_frames, classifier=classifier)}
+    results["chain"]["fit_frames"] = fit_frames
+    try:
+        import PyEMD  # noqa: F401
+    except ImportError:
+        results["pyemd"] = None
+        options.echo("EMD vs PyEMD skipped: PyEMD (pip install EMD-signal) is not installed")
+    else:
+        results["pyemd"] = compare_emd_with_pyemd(repeats=5 if options.quick else 20,
+                                                  seed=options.seed)
+    results["load_average_1min"] = load_average()
+    checks = check_targets(LATENCY_TARGETS, results["chain"])
+    results["targets"] = {c.target.name: c.as_dict() for c in checks}
+    results["targets_met"] = all(c.met for c in checks)
+    (options.out_dir / "latency.json").write_text(
+        json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    chain = results["chain"]
+    lines = ["# Streaming chain latency per 10 ms frame", "",
+             f"{chain['frames']} frames, one thread, {chain['machine']}; EMD backend "
+             f"{chain['emd_backend']}, encoder {chain['encoder']}. Stage medians: EMD "
+             f"{chain['emd_ms_median']:.2f} ms, coding {chain['coding_ms_median']:.2f} ms, "
+             f"sf-rnn step {chain['classify_ms_median']:.2f} ms; CPU time per frame median "
+             f"{chain['cpu_ms_median']:.2f} ms, p99 {chain['cpu_ms_p99']:.2f} ms; "
+             f"{load_note(results['load_average_1min'])}.", "",
+             *targets_markdown(checks), ""]
+    if results["pyemd"] is not None:
+        p = results["pyemd"]
+        lines += [f"EMD of {p['samples']} samples into 8 IMFs: ours {p['emd_ms_default']:.2f} ms, "
+                  f"PyEMD {p['pyemd_ms_default']:.1f} ms ({p['speedup_default']:.0f}x) with each "
+                  f"library's defaults; {p['emd_ms_fixed10']:.2f} ms vs "
+                  f"{p['pyemd_ms_fixed10']:.1f} ms ({p['speedup_fixed10']:.0f}x) at 10 sifts "
+                  "each.", ""]
+    (options.out_dir / "latency.md").write_text("\n".join(lines), encoding="utf-8")
+    options.echo(load_note(results["load_average_1min"]))
+    for check in checks:
+        options.echo(check.line())
+    return results

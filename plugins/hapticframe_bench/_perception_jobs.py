@@ -75,8 +75,8 @@ def keep_job(job_dir: Path | None, job: tuple[Any, ...], fingerprint: str,
 
 
 #: Packages whose code decides a job's result; an edit to any of them retires kept jobs.
-_FINGERPRINT_PACKAGES = ("hapticframe", "hapticframe_biotac", "hapticframe_tactile_features",
-                         "hapticframe_sfrnn")
+_FINGERPRINT_PACKAGES = ("hapticframe", "hapticframe_bench", "hapticframe_biotac",
+                         "hapticframe_tactile_features", "hapticframe_sfrnn")
 
 
 def job_fingerprint(plan: Any, seed: int, data: Any) -> str:

@@ -31,8 +31,17 @@ import numpy as np
 
 from hapticframe.kinds import BuildContext, SampleBatch
 
-from ._config import FusionRNNConfig, LinearSVMConfig, SFRNNConfig
-from ._functional import balanced_accuracy, contact_figures
+from hapticframe_sfrnn import (
+    FusionRNNClassifier,
+    FusionRNNConfig,
+    LinearSVMClassifier,
+    LinearSVMConfig,
+    SFRNNClassifier,
+    SFRNNConfig,
+    balanced_accuracy,
+    contact_figures,
+)
+
 from ._perception_data import PerceptionData, TrialFeatures, stage_amplitudes, stage_inputs
 
 ALL_MODALITIES = ("pac", "pdc", "electrodes")
@@ -151,8 +160,6 @@ def train_architecture(
             },
             **(svm_settings or {}),
         )
-        from ._linear_svm import LinearSVMClassifier
-
         component: Any = LinearSVMClassifier(config, context)
         trials = data.by_split("train")
     else:
@@ -162,8 +169,6 @@ def train_architecture(
         common = {"modalities": mods, **sizes, "progress": False,
                   "amplitude_inputs": with_amplitude, **rnn_settings,
                   "amplitude_modalities": amp_mods}
-        from ._recurrent import FusionRNNClassifier, SFRNNClassifier
-
         # One settings dict serves both networks: each config takes the keys it knows
         # (gru_* for the SF-RNN, branch_* for the fusion RNN).
         cls, config_cls = ((SFRNNClassifier, SFRNNConfig) if arch.stage == "d"
@@ -180,11 +185,25 @@ def train_architecture(
         component.fit(batches, [t.labels for t in trials], val_batches or None,
                       [t.labels for t in validation] if validation else None)
     elapsed = time.perf_counter() - started
-    metrics = dict(getattr(component, "training_metrics", {}) or {})
+    metrics = _training_report(component)
     threshold = 0.5
     if arch.classifier == "svm":
         threshold = float(np.mean(np.concatenate([t.labels for t in trials])))
     return TrainedModel(arch, mods, component, elapsed, metrics, threshold, amp_mods)
+
+
+def _training_report(component: Any) -> dict[str, Any]:
+    """What a fitted component reports of its training (epochs, losses, trials), or {}.
+
+    Read from ``training_report`` (a method or a mapping), else from the older
+    ``training_metrics`` attribute.
+    """
+    report = getattr(component, "training_report", None)
+    if callable(report):
+        report = report()
+    if report is None:
+        report = getattr(component, "training_metrics", None)
+    return dict(report or {})
 
 
 def predict_frames(
@@ -232,7 +251,7 @@ def score(
 def robustness_breakdown(
     trials: Sequence[TrialFeatures], predicted: Sequence[np.ndarray]
 ) -> dict[str, dict[str, Any]]:
-    """:func:`._functional.contact_figures` of scored trials grouped by their conditions.
+    """:func:`hapticframe_sfrnn.contact_figures` of scored trials grouped by their conditions.
 
     Keys: ``orientation_deg`` and ``object_offset_m`` (each condition's value as a string,
     over every medium), and ``medium_orientation_deg`` (per medium, then per orientation):

@@ -10,7 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-__all__ = ["THESIS", "render_markdown", "save_figure"]
+from ._targets import record_rows
+
+__all__ = ["THESIS", "accuracy_axis_range", "render_markdown", "save_figure"]
 
 _COLUMNS = ("(b)+Linear SVM", "(c)+Linear SVM", "(d)+Linear SVM", "(b)+RNN", "(c)+RNN",
             "(d)+RNN (SF-RNN)")
@@ -250,7 +252,7 @@ def render_markdown(result: dict[str, Any]) -> str:
         "contact when p(contact) exceeds the training contact rate, the balanced decision that "
         "the thesis's oversampling amounts to. Recurrent models keep the epoch with the best "
         "validation balanced accuracy (whole held-out trials).",
-        f"- Stage (b): the newest sample of each IMF / electrode; (c): the EMD feature "
+        "- Stage (b): the newest sample of each IMF / electrode; (c): the EMD feature "
         "tensors; (d): the sparse codes. RNN on (b)/(c) is the `fusion-rnn` component "
         "(one GRU stack per modality + fusion layer; F-RNN when multimodal), on (d) `sf-rnn`.",
         _amplitude_note(plan),
@@ -285,6 +287,8 @@ def render_markdown(result: dict[str, Any]) -> str:
         + "; thesis: 2.96 ms per step for the SF-RNN.",
         "",
     ]
+    if "targets" in result:
+        lines += ["## Targets", "", *record_rows(result["targets"]), ""]
     tables = result["tables"]
     lines += _ablation(tables["table_2_2"], "Table 2.2: unimodal models (cottonwood)")
     lines += _ablation(tables["table_2_3"], "Table 2.3: multimodal models (cottonwood)")
@@ -302,6 +306,23 @@ def render_markdown(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def accuracy_axis_range(values: Any, step: float = 5.0) -> tuple[float, float]:
+    """The y range (%) that shows the differences between accuracies ``values`` (in %).
+
+    From a multiple of ``step`` at least 2 points below the lowest finite value (never
+    below 0) to 101 (room for a marker at 100 %), so that models at 90-99 % are not drawn
+    as equal bars from 0.
+    """
+    import numpy as np
+
+    finite = np.asarray(values, dtype=np.float64)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return 0.0, 101.0
+    low = max(0.0, step * np.floor((float(finite.min()) - 2.0) / step))
+    return float(low), 101.0
+
+
 def save_figure(result: dict[str, Any], path: Path) -> Path | None:
     """Bars of test accuracy (all modalities, Table 2.3) and robustness per medium (Table 2.4)."""
     try:
@@ -315,28 +336,34 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
 
     full = result["tables"]["table_2_3"]["pac+pdc+electrodes"]
     robust = result["tables"]["table_2_4"]
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.2))
+    # Constrained layout keeps the legends, placed beside the axes, clear of every bar.
+    fig, axes = plt.subplots(1, 2, figsize=(14, 4.4), layout="constrained")
     x = np.arange(len(_COLUMNS))
     axes[0].bar(x, [100 * full[c]["test"]["mean"] for c in _COLUMNS],
                 yerr=[100 * full[c]["test"]["std"] for c in _COLUMNS], color="tab:blue",
                 label="ours (synthetic)")
     axes[0].plot(x, THESIS["test"]["pac+pdc+electrodes"], "k_", markersize=18, label="thesis")
     axes[0].set_xticks(x, _COLUMNS, rotation=25, ha="right", fontsize=8)
+    left = ([100 * (full[c]["test"]["mean"] - full[c]["test"]["std"]) for c in _COLUMNS]
+            + list(THESIS["test"]["pac+pdc+electrodes"]))
     axes[0].set_ylabel("balanced accuracy (%)")
     axes[0].set_title("All modalities, cottonwood test split")
-    axes[0].set_ylim(0, 100)
-    axes[0].legend(fontsize=8, loc="lower right")
+    axes[0].set_ylim(*accuracy_axis_range(left))
+    axes[0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     media = list(_MEDIA)
     width = 0.8 / len(_COLUMNS)
+    right = []
     for j, label in enumerate(_COLUMNS):
-        values = [100 * robust[label][m]["mean"] if m in robust[label] else np.nan for m in media]
+        per = robust.get(label, {})
+        values = [100 * per[m]["mean"] if m in per else np.nan for m in media]
+        right += values
         axes[1].bar(np.arange(len(media)) + (j - 2.5) * width, values, width, label=label)
     axes[1].set_xticks(np.arange(len(media)), [_MEDIA[m] for m in media], rotation=20,
                        ha="right", fontsize=8)
-    axes[1].set_ylim(0, 100)
+    axes[1].set_ylim(*accuracy_axis_range(right))
+    axes[1].set_ylabel("balanced accuracy (%)")
     axes[1].set_title("Robustness set (2 cm/s, five media)")
-    axes[1].legend(fontsize=7, ncol=2, loc="lower right")
-    fig.tight_layout()
+    axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

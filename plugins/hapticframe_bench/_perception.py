@@ -5,7 +5,7 @@ contact) split 60/20/20 by whole trials for training, validation (early stopping
 the robustness set (§2.6.3) rakes all five media at 2 cm/s with the fingertip at 0° or 20°
 and the object at 0 or +3.5 cm. Every trial is tared on 10 frames (100 ms) of the fingertip
 at rest in open air before it, as BioTac users zero the sensor before lowering it into the
-media (``hapticframe_biotac._synthetic.open_air_frames``), and turned into EMD tensors and
+media (``hapticframe_biotac.open_air_frames``), and turned into EMD tensors and
 sparse codes once (:mod:`._perception_data`); the six architectures of
 :mod:`._perception_models` are then trained per modality set and seed.
 
@@ -15,9 +15,10 @@ Outputs in ``options.out_dir``: ``perception.json`` (everything, see :func:`run_
 
 A full run takes hours, so each finished job (one modality set and seed, six models) is
 kept in ``out_dir/jobs/`` as JSON, stamped with a fingerprint of the plan, the seed, the
-library versions, the code and the trials (:func:`._bench_jobs.job_fingerprint`). Run the same command
-again after an interruption and it keeps every job whose fingerprint matches and trains
-only the rest; a job left from other settings, code or data is ignored and replaced.
+library versions, the code and the trials (:func:`._perception_jobs.job_fingerprint`). Run
+the same command again after an interruption and it keeps every job whose fingerprint
+matches and trains only the rest; a job left from other settings, code or data is ignored
+and replaced.
 """
 
 from __future__ import annotations
@@ -37,9 +38,10 @@ import numpy as np
 
 from hapticframe import BenchOptions, UsageError
 
-from ._bench_jobs import job_fingerprint, keep_job, kept_job, model_digest
+from hapticframe_sfrnn import balanced_accuracy
+
 from ._perception_data import build_perception_data
-from ._functional import balanced_accuracy
+from ._perception_jobs import job_fingerprint, keep_job, kept_job, model_digest
 from ._perception_models import (
     Architecture,
     TrainedModel,
@@ -50,11 +52,13 @@ from ._perception_models import (
     train_architecture,
 )
 from ._perception_report import render_markdown, save_figure
+from ._targets import Target, check_targets
 
 __all__ = [
     "ARCHITECTURES",
     "FULL_PLAN",
     "MODALITY_SETS",
+    "PERCEPTION_TARGETS",
     "QUICK_PLAN",
     "SuitePlan",
     "measure_streaming_latency",
@@ -74,6 +78,18 @@ MODALITY_SETS: tuple[tuple[str, ...], ...] = (
     ("pac", "pdc"), ("pac", "electrodes"), ("pdc", "electrodes"), ("pac", "pdc", "electrodes"),
 )
 ALL = ("pac", "pdc", "electrodes")
+#: What the suite is judged by: Table 2.4's comparison in the thesis's form (the SF-RNN
+#: ahead of the (d)+Linear SVM, on the mean over media and on every medium) and the
+#: streaming chain's latency per 10 ms frame on one thread.
+PERCEPTION_TARGETS = (
+    Target("table_2_4_sfrnn_margin_points",
+           "Table 2.4: SF-RNN minus (d)+Linear SVM, robustness mean (points)", 0.0, digits=1,
+           at_most=False),
+    Target("table_2_4_media_sfrnn_ahead", "Table 2.4: media with the SF-RNN ahead of the "
+           "(d)+Linear SVM", 5.0, digits=0, at_most=False),
+    Target("latency_ms_median", "streaming chain per frame, median", 2.0, "ms", digits=2),
+    Target("latency_ms_p99", "streaming chain per frame, p99", 4.0, "ms", digits=2),
+)
 MEDIA = ("poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads")
 
 
@@ -164,7 +180,7 @@ def _check_device(device: str) -> None:
     """Raise UsageError unless torch can train on ``device`` here."""
     import torch
 
-    from ._config import SFRNNConfig
+    from hapticframe_sfrnn import SFRNNConfig
 
     try:
         SFRNNConfig(train_device=device)
@@ -298,7 +314,7 @@ def run_suite(
     echo: Callable[[str], None],
     model_dir: str | None = None,
     job_dir: str | Path | None = None,
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], Any]:
     """Run every table of a plan and return the results (json-ready) and the fitted coder.
 
     Keys: ``tables`` (``table_2_2``, ``table_2_3``: per modality set and architecture the
@@ -395,6 +411,9 @@ def run_suite(
         "robustness_mean_by_architecture": mean_over_media,
         "sfrnn_ahead_on_every_medium": per_medium_wins,
         "table_2_4_sfrnn_ahead": table_2_4_wins,
+        "table_2_4_media_sfrnn_ahead": sum(table_2_4_wins.values()),
+        "table_2_4_sfrnn_margin_points": 100 * (mean_over_media[sfrnn_label]
+                                                - mean_over_media[svm_d]),
         "tables": tables,
         "training": {"sfrnn_all_modalities": diagnostics,
                      "train_time_s": {k: {a: _mean_std(v) for a, v in per.items()}
@@ -490,13 +509,16 @@ def measure_streaming_latency(
     from threadpoolctl import threadpool_limits
 
     from hapticframe.kinds import BuildContext, SampleBatch
-    from hapticframe_biotac._frame import BioTacFrames, layout_for
-    from hapticframe_biotac._sensor import tare_in_air
-    from hapticframe_biotac._synthetic import generate_trial, open_air_frames, robustness_specs
+    from hapticframe_biotac import (
+        BioTacFrames,
+        generate_trial,
+        layout_for,
+        open_air_frames,
+        robustness_specs,
+        tare_in_air,
+    )
+    from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
     from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig
-
-    from ._config import SFRNNConfig
-    from ._recurrent import SFRNNClassifier
 
     model = SFRNNClassifier(SFRNNConfig(model_dir=str(model_dir), progress=False),
                             BuildContext("sf-rnn", np.random.default_rng(seed)))
@@ -581,6 +603,9 @@ def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict
     result["command"] = ("hapticframe bench perception" + (" --quick" if plan.quick else "")
                          + f" --seed {options.seed}"
                          + (f" --device {device}" if device != "cpu" else ""))
+    checks = check_targets(PERCEPTION_TARGETS, result)
+    result["targets"] = {c.target.name: c.as_dict() for c in checks}
+    result["targets_met"] = all(c.met for c in checks)
     (out / "perception.json").write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
                                          encoding="utf-8")
     save_figure(result, out / "perception.png")
@@ -592,4 +617,6 @@ def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict
                  f"latency median "
                  f"{result['latency_ms_median']:.2f} ms, p99 {result['latency_ms_p99']:.2f} ms; "
                  f"{result['timing_s']['total_wall']:.0f} s")
+    for check in checks:
+        options.echo(check.line())
     return {k: result[k] for k in ("sfrnn_test_accuracy", "latency_ms_median", "latency_ms_p99")}
