@@ -315,7 +315,7 @@ class Session:
         out.update(self._label_metrics())
         outcome = RunOutcome(
             self.out_dir, scene, tuple(self.movements), self.components, wall_time_s,
-            figures=self.settings.figures,
+            figures=self.settings.figures, outline_level=self.settings.outline_level,
         )
         for cid, component in self.components.items():
             for key, value in dict(component.finalize(outcome)).items():
