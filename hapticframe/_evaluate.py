@@ -251,8 +251,8 @@ def draw_label_figure(
     lv = np.asarray(labels, dtype=np.float64).reshape(lt.size)
     origin = float(min(t[0] if t.size else np.inf, lt[0] if lt.size else np.inf))
     origin = 0.0 if not np.isfinite(origin) else origin
-    figure = plotting.new_figure(9.0, 3.4)
-    figure.subplots_adjust(left=0.08, right=0.69, bottom=0.15, top=0.95)
+    figure = plotting.new_figure(8.2, 3.4)
+    figure.subplots_adjust(left=0.09, right=0.71, bottom=0.15, top=0.95)
     axes = figure.add_subplot()
     truth = np.where(np.isfinite(lv), np.rint(lv) != 0, False).astype(float)
     if truth.any():

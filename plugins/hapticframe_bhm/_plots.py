@@ -49,7 +49,8 @@ def draw_map(
     if outline_level is not None:
         plotting.draw_level_outline(axes, xs, ys, values, outline_level,
                                     label=f"estimated outline (p = {outline_level:g})")
-    plotting.draw_outlines(axes, outlines)
+    # Green would vanish into viridis: the truth is magenta on these maps.
+    plotting.draw_outlines(axes, outlines, colour="magenta")
     plotting.draw_movements(axes, movements, colour="white")
     if interaction_hinges is not None and len(interaction_hinges):
         axes.plot(interaction_hinges[:, 0], interaction_hinges[:, 1], ls="none", marker="+",
