@@ -41,13 +41,16 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
                            top=0.92, wspace=0.22)
     ax_all, ax_aligned = figure.subplots(1, 2)
     magnitude = log.force_magnitude_n
+    # Ten colours repeat after ten movements; twenty keep up to twenty apart.
+    palette = [f"C{i}" for i in range(10)] if len(movements) <= 10 else [
+        _hex(c) for c in _tab20()]
     onsets: dict[str, tuple[list[float], list[float], list[str]]] = {
         "jamming onset": ([], [], []), "contact onset": ([], [], [])}
     for number, truth in enumerate(movements):
         rows = log.movement_index == truth.index
         if not rows.any():
             continue
-        colour = f"C{number % 10}"
+        colour = palette[number % len(palette)]
         t = log.timestamps_s[rows]
         f = magnitude[rows]
         label = f"EM {truth.index + 1} (d={100 * truth.depth_m:.2f} cm)"
@@ -79,6 +82,18 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
         figure.legend(handles, labels, loc="upper left", fontsize=7, ncols=columns,
                       bbox_to_anchor=(_PANELS_IN[0] / width, 0.92), frameon=False)
     return figure
+
+
+def _tab20() -> list[tuple[float, ...]]:
+    from matplotlib import colormaps
+
+    return list(colormaps["tab20"].colors)
+
+
+def _hex(rgb: tuple[float, ...]) -> str:
+    from matplotlib.colors import to_hex
+
+    return str(to_hex(rgb))
 
 
 def plot_movement_forces(
