@@ -13,7 +13,6 @@ module costs nothing and pyplot's global backend is left alone.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -53,7 +52,6 @@ _BOTTOM_IN = 0.55
 _TITLE_IN = 0.4
 _COLORBAR_IN = (0.18, 0.15, 0.8)  # gap, bar, tick and axis labels
 _RIGHT_IN = 0.3
-_LEGEND_ROW_IN = 0.2
 _LEGEND_PAD_IN = 0.2
 _LEGEND_FONT = 8
 
@@ -101,13 +99,21 @@ def layout_map(
     if h > max_height_in:
         w, h = max_height_in / aspect, max_height_in
     handles, labels = axes.get_legend_handles_labels()
-    columns = max(1, min(legend_columns, len(labels)))
-    rows = math.ceil(len(labels) / columns) if labels else 0
-    legend_in = rows * _LEGEND_ROW_IN + _LEGEND_PAD_IN if rows else 0.0
+    legend = None
+    legend_w = legend_h = 0.0
+    if labels:
+        legend = figure.legend(handles, labels, loc="lower center",
+                               ncols=max(1, min(legend_columns, len(labels))),
+                               fontsize=_LEGEND_FONT, frameon=legend_background is not None)
+        if legend_background is not None:
+            legend.get_frame().set(facecolor=legend_background, edgecolor="none", alpha=1.0)
+        # Measured, not guessed: its size in inches does not depend on the figure's.
+        extent = legend.get_window_extent(figure.canvas.get_renderer())
+        legend_w, legend_h = extent.width / figure.dpi, extent.height / figure.dpi
     right = sum(_COLORBAR_IN) if colorbar_axes is not None else _RIGHT_IN
-    width = max(_LEFT_IN + w + right, min_width_in)
+    width = max(_LEFT_IN + w + right, min_width_in, legend_w + 2 * _LEGEND_PAD_IN)
     left = _LEFT_IN + (width - (_LEFT_IN + w + right)) / 2  # centre a narrow map
-    bottom = _BOTTOM_IN + legend_in
+    bottom = _BOTTOM_IN + (legend_h + _LEGEND_PAD_IN if legend is not None else 0.0)
     title_in = _TITLE_IN if axes.get_title() else 0.15
     height = bottom + h + title_in
     figure.set_size_inches(width, height)
@@ -120,12 +126,8 @@ def layout_map(
         colorbar_axes.set_position(
             ((left + w + gap) / width, bottom / height, bar / width, h / height)
         )
-    if labels:
-        legend = figure.legend(handles, labels, loc="lower center", ncols=columns,
-                               fontsize=_LEGEND_FONT, bbox_to_anchor=(0.5, 0.02 / height),
-                               frameon=legend_background is not None)
-        if legend_background is not None:
-            legend.get_frame().set(facecolor=legend_background, edgecolor="none", alpha=1.0)
+    if legend is not None:
+        legend.set_bbox_to_anchor((0.5, 0.05 / height), transform=figure.transFigure)
 
 
 def save_figure(figure: Figure, path: Path) -> Path:

@@ -226,3 +226,28 @@ def test_search_png_marks_not_found_trials_apart_from_the_errors() -> None:
                 assert line.get_transform() is not axes.transData
                 assert np.all(np.asarray(line.get_ydata()) > 0.5)
                 assert axes.get_ylim()[0] == 0.0
+
+
+def test_layout_map_fits_a_long_legend_under_a_tall_narrow_map() -> None:
+    figure, axes, colorbar_axes = plotting.map_figure()
+    image = axes.imshow(np.eye(3), extent=(0.0, 0.1, 0.0, 0.5))
+    figure.colorbar(image, cax=colorbar_axes, label="value")
+    for number in range(7):
+        axes.plot([0.01, 0.09], [0.05 * number] * 2,
+                  label=f"a rather long legend entry number {number}")
+    axes.set_title("A tall and narrow region")
+    plotting.layout_map(figure, axes, colorbar_axes, (0.0, 0.1, 0.0, 0.5))
+    assert len(check_figure(figure, "tall map")) == 7
+
+
+def test_the_check_catches_a_proxy_entry_and_a_clipped_title() -> None:
+    figure, axes, _ = plotting.map_figure(colorbar=False)
+    axes.plot([0.1, 0.2], [0.1, 0.2], label="drawn")
+    axes.plot([], [], "x", label="promised, never drawn")
+    plotting.layout_map(figure, axes, None, (0.0, 1.0, 0.0, 1.0))
+    with pytest.raises(AssertionError, match="promised, never drawn"):
+        check_figure(figure, "proxy")
+    figure = plotting.new_figure(3.0, 2.0)
+    figure.add_subplot().set_title("a title far wider than a three-inch figure can hold")
+    with pytest.raises(AssertionError, match="clipped"):
+        check_figure(figure, "clipped")
