@@ -122,7 +122,7 @@ def draw_outline_figure(
             start, end = np.asarray(result.movement.start_m), _stop(result)
             xs += [start[0], end[0], np.nan]
             ys += [start[1], end[1], np.nan]
-            ax.annotate("", xy=end, xytext=start,
+            ax.annotate("", xy=(end[0], end[1]), xytext=(start[0], start[1]),
                         arrowprops={"arrowstyle": "->", "color": colours[phase], "lw": 1.2})
         ax.plot(xs, ys, color=colours[phase], lw=1.2, label=f"{phase} movement")
     hits = [_stop(r) for r in movements if r.interacted]

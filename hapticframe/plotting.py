@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,12 +56,12 @@ _LEGEND_PAD_IN = 0.2
 _LEGEND_FONT = 8
 
 
-def new_figure(width_in: float = 7.0, height_in: float = 5.0, *, layout: str | None = None) -> Figure:
+def new_figure(width_in: float = 7.0, height_in: float = 5.0) -> Figure:
     """A matplotlib Figure on its own Agg canvas (pyplot's global state is not touched)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    figure = Figure(figsize=(width_in, height_in), dpi=DPI, layout=layout)
+    figure = Figure(figsize=(width_in, height_in), dpi=DPI)
     FigureCanvasAgg(figure)
     return figure
 
@@ -108,7 +108,7 @@ def layout_map(
         if legend_background is not None:
             legend.get_frame().set(facecolor=legend_background, edgecolor="none", alpha=1.0)
         # Measured, not guessed: its size in inches does not depend on the figure's.
-        extent = legend.get_window_extent(figure.canvas.get_renderer())
+        extent = legend.get_window_extent()
         legend_w, legend_h = extent.width / figure.dpi, extent.height / figure.dpi
     right = sum(_COLORBAR_IN) if colorbar_axes is not None else _RIGHT_IN
     width = max(_LEFT_IN + w + right, min_width_in, legend_w + 2 * _LEGEND_PAD_IN)

@@ -15,14 +15,14 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from matplotlib.collections import Collection  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.collections import Collection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
-from hapticframe import Circle, Scene, plotting, run_experiment, validate_file  # noqa: E402
-from hapticframe._evaluate import draw_label_figure  # noqa: E402
-from hapticframe.kinds import BuildContext, Observations, RunOutcome  # noqa: E402
+from hapticframe import Circle, Scene, plotting, run_experiment, validate_file
+from hapticframe._evaluate import draw_label_figure
+from hapticframe.kinds import BuildContext, Observations, RunOutcome
 
 ROOT = Path(__file__).resolve().parents[1]
 SEARCH_FIGURES = {"bhm_mean.png", "bhm_std.png", "forces.png", "logodds_phase1.png",
@@ -108,7 +108,9 @@ def test_a_search_run_draws_every_figure_through_the_shared_helpers(search_figur
 
 
 @pytest.mark.parametrize("name", sorted(SEARCH_FIGURES))
-def test_search_figure_legend_entries_are_drawn_and_nothing_is_clipped(search_figures, name) -> None:
+def test_search_figure_legend_entries_are_drawn_and_nothing_is_clipped(
+    search_figures, name
+) -> None:
     labels = check_figure(search_figures[name], name)
     if name != "forces.png":
         # Every map shows the true object and where the fingertip went.
@@ -187,7 +189,8 @@ def test_belief_snapshots_show_the_truth_and_the_fingertip_path(tmp_path) -> Non
         belief.finalize(RunOutcome(tmp_path, scene, (), {}, 0.0))
     finally:
         monkeypatch.undo()
-    assert {"belief_first_contact.png", "belief_last_contact.png", "belief_final.png"} <= set(captured)
+    expected = {"belief_first_contact.png", "belief_last_contact.png", "belief_final.png"}
+    assert expected <= set(captured)
     for name, figure in captured.items():
         labels = check_figure(figure, name)
         assert {"true object", "fingertip path", "fingertip"} <= set(labels), (name, labels)

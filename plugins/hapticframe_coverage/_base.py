@@ -175,7 +175,7 @@ def draw_paths(
         stop = LinePlanner.stop_point(result)
         ax.plot([mv.start_m[0], stop[0]], [mv.start_m[1], stop[1]], color=colour, lw=1.6,
                 label=_once(labelled, f"{mv.phase or 'movement'} (raked)"))
-        ax.annotate(str(number), mv.start_m, fontsize=7, color=colour,
+        ax.annotate(str(number), (mv.start_m[0], mv.start_m[1]), fontsize=7, color=colour,
                     xytext=(2, 2), textcoords="offset points")
         if is_interaction(result):
             ax.plot(stop[0], stop[1], marker="x", color="tab:red", ms=8, mew=2, ls="none",

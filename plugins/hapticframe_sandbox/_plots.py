@@ -42,8 +42,7 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
     ax_all, ax_aligned = figure.subplots(1, 2)
     magnitude = log.force_magnitude_n
     # Ten colours repeat after ten movements; twenty keep up to twenty apart.
-    palette = [f"C{i}" for i in range(10)] if len(movements) <= 10 else [
-        _hex(c) for c in _tab20()]
+    palette = [f"C{i}" for i in range(10)] if len(movements) <= 10 else _tab20()
     onsets: dict[str, tuple[list[float], list[float], list[str]]] = {
         "jamming onset": ([], [], []), "contact onset": ([], [], [])}
     for number, truth in enumerate(movements):
@@ -84,16 +83,11 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
     return figure
 
 
-def _tab20() -> list[tuple[float, ...]]:
+def _tab20() -> list[str]:
     from matplotlib import colormaps
-
-    return list(colormaps["tab20"].colors)
-
-
-def _hex(rgb: tuple[float, ...]) -> str:
     from matplotlib.colors import to_hex
 
-    return str(to_hex(rgb))
+    return [str(to_hex(colormaps["tab20"](i))) for i in range(20)]
 
 
 def plot_movement_forces(
