@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import plotting
 from ._errors import RunError
 from ._kind import Kind
 from ._scene import Scene
@@ -24,6 +25,8 @@ from .geometry import blob_centroid, directed_hausdorff_both, main_outline, samp
 from .kinds import Map, MovementResult, Region, RunOutcome
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from ._session import Session
 
 __all__ = [
@@ -98,36 +101,68 @@ def save_outline_figure(
     Returns False when matplotlib is not installed (figures are optional).
     """
     try:
-        from matplotlib.figure import Figure
+        figure = draw_outline_figure(region, scene, movements, outline, centroid, level)
     except ImportError:
         return False
-    fig = Figure(figsize=(7.5, 5.2))
-    ax = fig.add_subplot()
+    plotting.save_figure(figure, path)
+    return True
+
+
+_PHASE_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown")
+
+
+def draw_outline_figure(
+    region: Region,
+    scene: Scene,
+    movements: Sequence[MovementResult],
+    outline: NDArray[np.float64] | None,
+    centroid: Sequence[float] | None,
+    level: float,
+) -> Figure:
+    """The Figure of :func:`save_outline_figure`: movements as arrows coloured by phase
+    (start to where the fingertip stopped), crosses where one halted on an interaction."""
+    figure, ax, _ = plotting.map_figure(colorbar=False)
     ax.add_patch(_rectangle(region))
-    for index, obj in enumerate(scene.objects):
-        ring = np.vstack([obj.outline(256), obj.outline(256)[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], color="tab:green", lw=2, label="true outline" if not index else None)
-    for result in movements:
-        m = result.movement
-        end = result.final_state.position_m if result.final_state is not None else m.end_m
-        colour = "tab:blue" if m.phase == "phase1" else "tab:orange"
-        ax.annotate("", xy=end, xytext=m.start_m,
-                    arrowprops={"arrowstyle": "->", "color": colour, "lw": 1.2})
-        if result.interacted:
-            ax.plot(*end, "x", color="tab:red", ms=8, mew=2)
+    plotting.draw_outlines(ax, [obj.outline(256) for obj in scene.objects],
+                           label="true outline")
+    phases = list(dict.fromkeys(r.movement.phase or "movement" for r in movements))
+    colours = {p: _PHASE_COLOURS[i % len(_PHASE_COLOURS)] for i, p in enumerate(phases)}
+    for phase in phases:
+        xs: list[float] = []
+        ys: list[float] = []
+        for result in movements:
+            if (result.movement.phase or "movement") != phase:
+                continue
+            start, end = np.asarray(result.movement.start_m), _stop(result)
+            xs += [start[0], end[0], np.nan]
+            ys += [start[1], end[1], np.nan]
+            ax.annotate("", xy=(end[0], end[1]), xytext=(start[0], start[1]),
+                        arrowprops={"arrowstyle": "->", "color": colours[phase], "lw": 1.2})
+        ax.plot(xs, ys, color=colours[phase], lw=1.2, label=f"{phase} movement")
+    hits = [_stop(r) for r in movements if r.interacted]
+    if hits:
+        h = np.vstack(hits)
+        ax.plot(h[:, 0], h[:, 1], "x", color="tab:red", ms=8, mew=2,
+                label="interaction (movement halted)")
     if outline is not None:
         ring = np.vstack([outline, outline[:1]])
         ax.plot(ring[:, 0], ring[:, 1], "k--", lw=1.5, label=f"estimated outline (p = {level:g})")
     if centroid is not None:
         ax.plot(*centroid, "k+", ms=12, mew=2, label="estimated centroid")
-    ax.plot([], [], "x", color="tab:red", label="interaction (movement halted)")
-    ax.set(xlim=(region.x_min_m - 0.02, region.x_max_m + 0.02),
-           ylim=(region.y_min_m - 0.02, region.y_max_m + 0.02), aspect="equal",
-           xlabel="x (m)", ylabel="y (m)",
+    ax.set(xlabel="x (m)", ylabel="y (m)",
            title=f"{len(movements)} exploratory movements and the estimated outline")
-    ax.legend(loc="upper right", fontsize=7)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
-    return True
+    margin = 0.02
+    plotting.layout_map(figure, ax, None, (region.x_min_m - margin, region.x_max_m + margin,
+                                           region.y_min_m - margin, region.y_max_m + margin))
+    return figure
+
+
+def _stop(result: MovementResult) -> NDArray[np.float64]:
+    """Where the fingertip stopped (the planned end when the robot reports no position)."""
+    state = result.final_state
+    if state is not None and np.all(np.isfinite(state.position_m)):
+        return np.asarray(state.position_m, dtype=np.float64)
+    return np.asarray(result.movement.end_m, dtype=np.float64)
 
 
 def _rectangle(region: Region) -> Any:
@@ -205,39 +240,54 @@ def save_label_figure(
     events: dict[str, tuple[float | None, float | None]],
     name: str = "contact",
 ) -> None:
-    """The classifier's interaction probability over the labelled truth, with the true first
-    and last interaction as orange dotted lines (the form of dissertation Figure 2.5d)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    """Write :func:`draw_label_figure` as PNG at ``path``."""
+    figure = draw_label_figure(times_s, probabilities, classes, label_times_s, labels, events,
+                               name)
+    plotting.save_figure(figure, path)
 
+
+def draw_label_figure(
+    times_s: ArrayLike,
+    probabilities: ArrayLike,
+    classes: Sequence[str],
+    label_times_s: ArrayLike,
+    labels: ArrayLike,
+    events: dict[str, tuple[float | None, float | None]],
+    name: str = "contact",
+) -> Figure:
+    """The classifier's interaction probability over the labelled truth (the form of
+    dissertation Figure 2.5d): the labelled first and last interaction as orange dotted
+    lines, the decided ones (first and last frame decided as interaction) as red dashed
+    lines, each named as such in the legend."""
     t = np.asarray(times_s, dtype=np.float64).reshape(-1)
     p = np.asarray(probabilities, dtype=np.float64).reshape(t.size, -1)
     lt = np.asarray(label_times_s, dtype=np.float64).reshape(-1)
     lv = np.asarray(labels, dtype=np.float64).reshape(lt.size)
     origin = float(min(t[0] if t.size else np.inf, lt[0] if lt.size else np.inf))
     origin = 0.0 if not np.isfinite(origin) else origin
-    figure = Figure(figsize=(7.5, 3.2), dpi=120)
-    FigureCanvasAgg(figure)
-    axes = figure.subplots()
+    figure = plotting.new_figure(8.2, 3.4)
+    figure.subplots_adjust(left=0.09, right=0.71, bottom=0.15, top=0.95)
+    axes = figure.add_subplot()
     truth = np.where(np.isfinite(lv), np.rint(lv) != 0, False).astype(float)
-    axes.fill_between(lt - origin, 0.0, truth, step="post", color="tab:green", alpha=0.2,
-                      linewidth=0, label=f"labelled {name}")
+    if truth.any():
+        axes.fill_between(lt - origin, 0.0, truth, step="post", color="tab:green", alpha=0.2,
+                          linewidth=0, label=f"labelled {name}")
     background = classes[0] if classes else "background"
     axes.plot(t - origin, 1.0 - p[:, 0], color="tab:blue", linewidth=1.1,
               label=f"P(not {background})")
     axes.step(t - origin, (np.argmax(p, axis=1) != 0).astype(float), where="post",
-              color="tab:red", linewidth=0.9, label="decision")
-    for when, text in zip(events["true"], (f"first {name}", f"last {name}")):
-        if when is not None:
-            axes.axvline(when - origin, color="tab:orange", linestyle=":", linewidth=1.3)
-            axes.annotate(text, (when - origin, 1.06), ha="center", fontsize=8,
-                          color="tab:orange", annotation_clip=False)
-    axes.set_ylim(-0.05, 1.12)
+              color="tab:red", linewidth=0.9, label=f"decided {name}")
+    for key, colour, style in (("true", "tab:orange", ":"), ("decided", "tab:red", "--")):
+        when = [w - origin for w in events.get(key, (None, None)) if w is not None]
+        prefix = "labelled" if key == "true" else "decided"
+        for index, x in enumerate(when):
+            axes.axvline(x, color=colour, linestyle=style, linewidth=1.3,
+                         label=f"{prefix} first & last {name}" if index == 0 else None)
+    axes.set_ylim(-0.05, 1.08)
     axes.set_xlabel("time (s)")
     axes.set_ylabel("probability / state")
-    axes.legend(loc="center left", fontsize=8)
-    figure.tight_layout()
-    figure.savefig(path)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    return figure
 
 
 # --- scoring a finished run -------------------------------------------------------------
@@ -279,6 +329,7 @@ def score_run(session: Session) -> dict[str, Any]:
     outcome = RunOutcome(
         session.out_dir, scene, tuple(session.movements), session.components,
         time.perf_counter() - session.started, figures=settings.figures,
+        outline_level=settings.outline_level,
     )
     for cid, component in session.components.items():
         for key, value in dict(component.finalize(outcome)).items():

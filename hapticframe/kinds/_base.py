@@ -67,6 +67,9 @@ class RunOutcome:
         Wall time of the run so far.
     figures : bool
         Whether to draw figures (``run.figures``; benchmarks switch them off).
+    outline_level : float
+        The occupancy level of an estimated outline (``run.outline_level``, thesis: 0.6);
+        a figure that draws a map's outline draws it at this level.
     """
 
     out_dir: Path
@@ -75,6 +78,7 @@ class RunOutcome:
     components: Mapping[str, Component]
     wall_time_s: float
     figures: bool = True
+    outline_level: float = 0.6
 
 
 class Component(ABC):

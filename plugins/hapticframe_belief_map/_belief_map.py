@@ -57,6 +57,10 @@ __all__ = ["BeliefMap", "BeliefSnapshot", "fit_calibrated_svc"]
 FloatArray = NDArray[np.float64]
 
 _THESIS_REGION = Region(0.0, 0.75, 0.0, 0.50)
+#: Grid cells along the long side of a figure's map (a finer grid looks the same).
+_FIGURE_CELLS = 120
+#: Most fingertip positions kept for the figures' path; beyond it every other one is dropped.
+_PATH_POINTS = 20_000
 
 
 def fit_calibrated_svc(
@@ -198,6 +202,9 @@ class BeliefMap(Map):
         self._lower: FloatArray | None = None
         self._upper: FloatArray | None = None
         self._latest_point = np.full(2, np.nan)
+        # The fingertip's path for the figures: (arrival index, x, y) of every stride-th point.
+        self._path = np.empty((0, 3))
+        self._path_stride = 1
         self._current: BeliefSnapshot | None = None
         self._first_contact: int | None = None
         self._last_contact: int | None = None
@@ -261,6 +268,7 @@ class BeliefMap(Map):
         self._lower = low if self._lower is None else np.minimum(self._lower, low)
         self._upper = high if self._upper is None else np.maximum(self._upper, high)
         self._latest_point = points[-1].copy()
+        self._keep_path(points)
         self._total_weight += float(weights.sum())
         self._contact_weight += float(weights[targets > 0.5].sum())
         new_bins = fn.bin_observations(points, targets, weights, self.cell_size_m)
@@ -271,6 +279,23 @@ class BeliefMap(Map):
         self._pending += n
         if self._pending >= self.config.update_every:
             self.refit()
+
+    def _keep_path(self, points: FloatArray) -> None:
+        """Append the stride-th positions of this batch to the path, halving it when full."""
+        index = self._seen + np.arange(len(points))
+        keep = index % self._path_stride == 0
+        self._path = np.vstack([self._path, np.column_stack([index[keep], points[keep]])])
+        while len(self._path) > _PATH_POINTS:
+            self._path_stride *= 2
+            self._path = self._path[self._path[:, 0] % self._path_stride == 0]
+
+    def fingertip_path(self, observations_seen: int | None = None) -> FloatArray:
+        """``(n, 2)`` fingertip positions in arrival order (thinned on long runs), those
+        before the ``observations_seen``-th observation when given."""
+        rows = self._path
+        if observations_seen is not None:
+            rows = rows[rows[:, 0] < observations_seen]
+        return rows[:, 1:3].copy()
 
     def refit(self) -> None:
         """Fit the classifier on the current bins now (a no-op for the prior's state)."""
@@ -395,22 +420,25 @@ class BeliefMap(Map):
 
             out_dir = Path(outcome.out_dir)
             outlines = [] if outcome.scene is None else [o.outline() for o in outcome.scene.objects]
+            # "Contact" here is the decided contact: an observation with P(contact) > 0.5.
             titles = {
-                "first_contact": "(a) first contact",
+                "first_contact": "(a) first decided contact",
                 "mid_contact": "(b) mid-contact",
-                "last_contact": "(c) last contact",
+                "last_contact": "(c) last decided contact",
             }
             for moment, snapshot in snapshots.items():
-                xs, ys, mean = self.probability_grid(snapshot)
+                xs, ys, mean = self.probability_grid(snapshot, _FIGURE_CELLS)
                 save_belief_figure(
                     out_dir / f"belief_{moment}.png", xs, ys, mean,
                     title=f"Belief map at {titles[moment]}",
-                    fingertip_m=snapshot.fingertip_m, outlines=outlines,
+                    path_m=self.fingertip_path(snapshot.observations_seen), outlines=outlines,
+                    outline_level=outcome.outline_level,
                 )
-            xs, ys, mean = self.probability_grid()
+            xs, ys, mean = self.probability_grid(None, _FIGURE_CELLS)
             save_belief_figure(
                 out_dir / "belief_final.png", xs, ys, mean, title="Belief map at the end of the run",
-                fingertip_m=self._latest_point, outlines=outlines,
+                path_m=self.fingertip_path(), outlines=outlines,
+                outline_level=outcome.outline_level,
             )
         return {
             "belief_map_refits": int(self.refits),

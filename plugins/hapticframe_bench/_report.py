@@ -13,7 +13,13 @@ from typing import Any
 
 from ._targets import record_rows
 
-__all__ = ["THESIS_TABLE_3_2", "format_mean_std", "render_markdown", "save_trial_figure"]
+__all__ = [
+    "THESIS_TABLE_3_2",
+    "draw_trial_figure",
+    "format_mean_std",
+    "render_markdown",
+    "save_trial_figure",
+]
 
 #: Table 3.2 of the dissertation (25 simulated trials per shape): mean and std of the
 #: number of phase-1 and phase-2 movements, the centroid RMSE and the Hausdorff distance
@@ -190,24 +196,35 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
 
 
 def save_trial_figure(path: Path, summary: Mapping[str, Any]) -> bool:
-    """Plot per-trial centroid error and Hausdorff distance for both planners.
-
-    Trials where the object was not found (or the run failed) are marked with crosses on
-    the x axis; the dashed line is the thesis's figure (centroid RMSE, Hausdorff mean).
-    Returns False when matplotlib is not installed.
-    """
+    """Write :func:`draw_trial_figure` as ``path``; False when matplotlib is not installed."""
     try:
-        # A bare Figure renders PNGs with Agg without touching pyplot's global backend.
-        from matplotlib.figure import Figure
-        from matplotlib.ticker import MaxNLocator
+        figure = draw_trial_figure(summary)
     except ImportError:
         return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110)
+    return True
+
+
+def draw_trial_figure(summary: Mapping[str, Any]) -> Any:
+    """Per-trial centroid error and Hausdorff distance for both planners (a Figure).
+
+    A trial where the object was not found (or the run failed) has no error to plot: it
+    is marked by a hollow triangle at the top of the panel, its own legend entry, never as
+    a zero error. The dashed line is the thesis's figure (centroid RMSE, Hausdorff mean).
+    """
+    # A Figure on its own Agg canvas leaves pyplot's global backend alone.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
+
     shapes = list(summary.get("shapes", ("circle", "ellipse")))
     planners = summary.get("planners", {})
     labels = {"search": planners.get("search", "two-phase"),
               "baseline": f"{planners.get('baseline', 'coverage')} (baseline)"}
     styles = {"search": ("tab:blue", "o"), "baseline": ("tab:orange", "s")}
-    fig = Figure(figsize=(4.5 * len(shapes), 6.0), layout="constrained")
+    fig = Figure(figsize=(max(4.5 * len(shapes), 7.5), 6.0), layout="constrained")
+    FigureCanvasAgg(fig)
     axes = fig.subplots(2, len(shapes), squeeze=False)
     figures = (
         ("centroid_error_m", "centroid error (cm)", "centroid_rmse_m"),
@@ -219,6 +236,7 @@ def save_trial_figure(path: Path, summary: Mapping[str, Any]) -> bool:
             if shape in THESIS_TABLE_3_2:
                 ax.axhline(THESIS_TABLE_3_2[shape][thesis_key][0] * 100.0, color="grey", ls="--",
                            lw=1.0, label="thesis (Table 3.2)")
+            any_missing = False
             for role, (colour, marker) in styles.items():
                 runs = [r for r in summary.get("runs", [])
                         if r["shape"] == shape and r["role"] == role]
@@ -230,14 +248,19 @@ def save_trial_figure(path: Path, summary: Mapping[str, Any]) -> bool:
                     else:
                         xs.append(run["index"])
                         ys.append(value * 100.0)
-                ax.plot(xs, ys, ls="none", marker=marker, color=colour, label=labels[role])
+                if xs:
+                    ax.plot(xs, ys, ls="none", marker=marker, color=colour, label=labels[role])
                 if missing:
-                    ax.plot(missing, [0.0] * len(missing), ls="none", marker="x", color=colour,
+                    any_missing = True
+                    # x in data, y in axes coordinates: at the top whatever the error range.
+                    ax.plot(missing, [0.95] * len(missing), ls="none", marker="v", ms=8,
+                            mfc="none", mec=colour, mew=1.5, transform=ax.get_xaxis_transform(),
                             label=f"{labels[role]}: not found / failed")
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             ax.set_xlabel("trial")
             ax.set_ylabel(ylabel)
-            ax.set_ylim(bottom=-0.3)
+            # Headroom above the errors for the not-found markers at 95 % of the height.
+            ax.set_ylim(0.0, ax.get_ylim()[1] * (1.15 if any_missing else 1.0))
             ax.set_title(shape)
             ax.grid(alpha=0.3)
     # One legend for all panels: "not found" entries may appear in any of them.
@@ -245,8 +268,7 @@ def save_trial_figure(path: Path, summary: Mapping[str, Any]) -> bool:
     for ax in fig.axes:
         for handle, label in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(label, handle)
-    fig.legend(list(handles.values()), list(handles), loc="outside lower center",
-               ncols=min(3, max(1, len(handles))), fontsize=8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return True
+    if handles:
+        fig.legend(list(handles.values()), list(handles), loc="outside lower center",
+                   ncols=min(3, max(1, len(handles))), fontsize=8)
+    return fig

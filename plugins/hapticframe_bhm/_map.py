@@ -416,6 +416,8 @@ class BayesianHilbertMap(Map):
             mean,
             std,
             outlines=[] if outcome.scene is None else [o.outline() for o in outcome.scene.objects],
+            movements=outcome.movements,
             interaction_hinges=self._hinges[self._interaction.ravel()],
+            outline_level=outcome.outline_level,
         )
         return {}

@@ -1,22 +1,31 @@
-"""Figures of the BHM (matplotlib's Agg canvas; imported only when a run finalizes)."""
+"""Figures of the BHM: occupancy mean and standard deviation (matplotlib, imported on use).
+
+Both maps show the true object (when the scene has one) and the fingertip's movements; the
+mean also shows the estimated outline at the run's outline level and, when the map uses
+region-dependent smoothing, the hinges switched to the interaction length scale.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import Region
+from hapticframe import plotting
+from hapticframe.kinds import MovementResult, Region
 
-__all__ = ["save_map_figures"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["draw_map", "save_map_figures"]
 
 FloatArray = NDArray[np.float64]
 
 
-def _draw(
-    path: Path,
+def draw_map(
     region: Region,
     xs: FloatArray,
     ys: FloatArray,
@@ -24,44 +33,34 @@ def _draw(
     *,
     title: str,
     label: str,
-    vmax: float | None,
+    vmax: float,
     outlines: Sequence[FloatArray] = (),
+    movements: Sequence[MovementResult] = (),
     interaction_hinges: FloatArray | None = None,
-    contour_level: float | None = None,
-) -> None:
-    # The object-oriented API with an explicit Agg canvas leaves pyplot's global backend
-    # (and any interactive session) untouched.
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    figure = Figure(figsize=(7.0, 5.0), dpi=120)
-    FigureCanvasAgg(figure)
-    axes = figure.add_subplot(1, 1, 1)
-    extent = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
-    image = axes.imshow(
-        values, origin="lower", extent=extent, vmin=0.0, vmax=vmax, cmap="viridis", aspect="equal"
-    )
-    figure.colorbar(image, ax=axes, label=label, shrink=0.85)
-    if contour_level is not None and values.min() < contour_level < values.max():
-        axes.contour(xs, ys, values, levels=[contour_level], colors="white", linewidths=1.0)
-    for outline in outlines:
-        closed = np.vstack([outline, outline[:1]])
-        axes.plot(closed[:, 0], closed[:, 1], color="red", linewidth=1.2)
+    outline_level: float | None = None,
+) -> Figure:
+    """One map ``values`` (``(len(ys), len(xs))``) with truth, path and, optionally, the
+    ``outline_level`` curve and the interaction hinges; returns the laid-out Figure."""
+    figure, axes, colorbar_axes = plotting.map_figure()
+    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+    image = axes.imshow(values, origin="lower", extent=bounds, vmin=0.0, vmax=vmax,
+                        cmap="viridis", interpolation="nearest")
+    figure.colorbar(image, cax=colorbar_axes, label=label)
+    if outline_level is not None:
+        plotting.draw_level_outline(axes, xs, ys, values, outline_level,
+                                    label=f"estimated outline (p = {outline_level:g})")
+    # Green would vanish into viridis: the truth is magenta on these maps.
+    plotting.draw_outlines(axes, outlines, colour="magenta")
+    plotting.draw_movements(axes, movements, colour="white")
     if interaction_hinges is not None and len(interaction_hinges):
-        axes.plot(
-            interaction_hinges[:, 0],
-            interaction_hinges[:, 1],
-            linestyle="none",
-            marker="+",
-            markersize=4,
-            color="orange",
-        )
-    axes.set_xlim(region.x_min_m, region.x_max_m)
-    axes.set_ylim(region.y_min_m, region.y_max_m)
+        axes.plot(interaction_hinges[:, 0], interaction_hinges[:, 1], ls="none", marker="+",
+                  ms=4, color="orange", label="interaction hinge")
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title)
-    figure.savefig(path)
+    # White lines on the dark map need a grey legend to show.
+    plotting.layout_map(figure, axes, colorbar_axes, bounds, legend_background="0.6")
+    return figure
 
 
 def save_map_figures(
@@ -73,33 +72,16 @@ def save_map_figures(
     std: FloatArray,
     *,
     outlines: Sequence[FloatArray] = (),
+    movements: Sequence[MovementResult] = (),
     interaction_hinges: FloatArray | None = None,
+    outline_level: float = 0.6,
 ) -> list[Path]:
-    """Write ``bhm_mean.png`` (with true outlines, red) and ``bhm_std.png``; return the paths."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    mean_path = out_dir / "bhm_mean.png"
-    std_path = out_dir / "bhm_std.png"
-    _draw(
-        mean_path,
-        region,
-        xs,
-        ys,
-        mean,
-        title="BHM occupancy (red: truth, white: p = 0.5, +: interaction hinges)",
-        label="p(occupied)",
-        vmax=1.0,
-        outlines=outlines,
-        interaction_hinges=interaction_hinges,
-        contour_level=0.5,
-    )
-    _draw(
-        std_path,
-        region,
-        xs,
-        ys,
-        std,
-        title="BHM occupancy standard deviation",
-        label="std of p(occupied)",
-        vmax=max(float(std.max()), 1e-12),
-    )
-    return [mean_path, std_path]
+    """Write ``bhm_mean.png`` and ``bhm_std.png``; return the paths."""
+    common: dict[str, Any] = {"outlines": outlines, "movements": movements}
+    mean_figure = draw_map(region, xs, ys, mean, title="BHM occupancy mean",
+                           label="p(occupied)", vmax=1.0, interaction_hinges=interaction_hinges,
+                           outline_level=outline_level, **common)
+    std_figure = draw_map(region, xs, ys, std, title="BHM occupancy standard deviation",
+                          label="std of p(occupied)", vmax=max(float(std.max()), 1e-12), **common)
+    return [plotting.save_figure(mean_figure, out_dir / "bhm_mean.png"),
+            plotting.save_figure(std_figure, out_dir / "bhm_std.png")]

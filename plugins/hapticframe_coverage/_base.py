@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe import Kind, Scene
+from hapticframe import Kind, Scene, plotting
 from hapticframe.kinds import (
     BuildContext,
     ExploratoryMovement,
@@ -22,7 +22,7 @@ from hapticframe.kinds import (
 from ._config import CoverageConfig
 from ._functional import Bounds, longer_side_angle_deg
 
-__all__ = ["LinePlanner", "plot_paths"]
+__all__ = ["LinePlanner", "draw_paths", "plot_paths"]
 
 FloatArray = NDArray[np.float64]
 
@@ -133,50 +133,60 @@ def plot_paths(
     regions: list[Bounds],
     is_interaction: Any,
 ) -> bool:
-    """Draw the movements over the search region; returns False when matplotlib is missing.
-
-    Planned lines are dashed, the part actually raked solid (to where the fingertip stopped),
-    interactions are crosses; phase-2 search regions are dotted, true objects green.
-    """
+    """Draw :func:`draw_paths` and save it; returns False when matplotlib is missing."""
     try:
-        from matplotlib.figure import Figure
+        figure = draw_paths(search_bounds, results, scene, regions, is_interaction)
     except ImportError:  # plotting is an optional extra
         return False
-    fig = Figure(figsize=(8.5, 5.0), layout="constrained")
-    ax = fig.add_subplot()
+    plotting.save_figure(figure, path)
+    return True
+
+
+def draw_paths(
+    search_bounds: Bounds,
+    results: list[MovementResult],
+    scene: Scene | None,
+    regions: list[Bounds],
+    is_interaction: Any,
+) -> Any:
+    """The movements over the search region, as a matplotlib Figure.
+
+    Planned lines are dashed, the part actually raked solid (to where the fingertip stopped),
+    interactions are crosses, true objects green. Of the phase-2 search regions (one per
+    phase-2 movement, each refined from the last) only the latest is drawn, dotted.
+    """
+    figure, ax, _ = plotting.map_figure(colorbar=False)
     x0, x1, y0, y1 = search_bounds
     ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="black", lw=1.0)
     labelled: set[str] = set()
-    for b in regions:
+    if regions:
+        b = regions[-1]
         ax.plot([b[0], b[1], b[1], b[0], b[0]], [b[2], b[2], b[3], b[3], b[2]],
-                color="tab:orange", lw=0.8, ls=":", label=_once(labelled, "phase-2 region"))
+                color="tab:orange", lw=1.0, ls=":", label="latest phase-2 region")
     if scene is not None:
-        for obj in scene.objects:
-            outline = obj.outline()
-            closed = np.vstack([outline, outline[:1]])
-            ax.plot(closed[:, 0], closed[:, 1], color="tab:green", lw=1.5,
-                    label=_once(labelled, "buried object"))
+        plotting.draw_outlines(ax, [obj.outline() for obj in scene.objects],
+                               label="buried object")
     for number, result in enumerate(results, start=1):
         mv = result.movement
         colour = _PHASE_COLOURS.get(mv.phase, "tab:purple")
         ax.plot([mv.start_m[0], mv.end_m[0]], [mv.start_m[1], mv.end_m[1]],
-                color=colour, lw=0.6, ls="--", alpha=0.5)
+                color=colour, lw=0.6, ls="--", alpha=0.5,
+                label=_once(labelled, "planned line"))
         stop = LinePlanner.stop_point(result)
         ax.plot([mv.start_m[0], stop[0]], [mv.start_m[1], stop[1]], color=colour, lw=1.6,
-                label=_once(labelled, mv.phase or "movement"))
-        ax.annotate(str(number), mv.start_m, fontsize=7, color=colour)
+                label=_once(labelled, f"{mv.phase or 'movement'} (raked)"))
+        ax.annotate(str(number), (mv.start_m[0], mv.start_m[1]), fontsize=7, color=colour,
+                    xytext=(2, 2), textcoords="offset points")
         if is_interaction(result):
             ax.plot(stop[0], stop[1], marker="x", color="tab:red", ms=8, mew=2, ls="none",
                     label=_once(labelled, "interaction"))
-    if labelled:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
-    ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{len(results)} exploratory movements")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    return True
+    margin = 0.03 * max(x1 - x0, y1 - y0)
+    plotting.layout_map(figure, ax, None, (x0 - margin, x1 + margin, y0 - margin, y1 + margin),
+                        legend_columns=3)
+    return figure
 
 
 def _once(seen: set[str], label: str) -> str | None:

@@ -169,7 +169,11 @@ class OccupancyGrid(Map):
 
         out_dir = Path(outcome.out_dir)
         outlines = [] if outcome.scene is None else [o.outline() for o in outcome.scene.objects]
+        movements = list(outcome.movements)
         for phase, values in maps.items():
+            # A finished phase's map is the one after its last movement: draw the path so far.
+            ends = [i for i, r in enumerate(movements) if r.movement.phase == phase]
+            shown = movements if phase == self._phase or not ends else movements[: ends[-1] + 1]
             save_log_odds_figure(
                 out_dir / f"{_file_stem(phase)}.png",
                 self._region,
@@ -178,5 +182,6 @@ class OccupancyGrid(Map):
                 (self._log_low, self._log_high),
                 title=f"Occupancy log odds{f' at the end of {phase}' if phase else ''}",
                 outlines=outlines,
+                movements=shown,
             )
         return {}

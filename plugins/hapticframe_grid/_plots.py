@@ -1,20 +1,24 @@
-"""Figures of the occupancy grid (matplotlib's Agg canvas; imported only at finalize)."""
+"""Figures of the occupancy grid (matplotlib, imported on use)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import Region
+from hapticframe import plotting
+from hapticframe.kinds import MovementResult, Region
 
-__all__ = ["save_log_odds_figure"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["draw_log_odds", "save_log_odds_figure"]
 
 
-def save_log_odds_figure(
-    path: Path,
+def draw_log_odds(
     region: Region,
     cell_size_m: float,
     log_odds: NDArray[np.float64],
@@ -22,17 +26,13 @@ def save_log_odds_figure(
     *,
     title: str,
     outlines: Sequence[NDArray[np.float64]] = (),
-) -> Path:
-    """Draw ``log_odds`` (``(nx, ny)``, x-major) with the true outlines in red; save as PNG."""
-    # An explicit Agg canvas leaves pyplot's global backend untouched.
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    movements: Sequence[MovementResult] = (),
+) -> Figure:
+    """``log_odds`` (``(nx, ny)``, x-major) with the true outlines and the fingertip's
+    movements; returns the laid-out Figure."""
     from matplotlib.colors import TwoSlopeNorm
-    from matplotlib.figure import Figure
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure = Figure(figsize=(7.0, 5.0), dpi=120)
-    FigureCanvasAgg(figure)
-    axes = figure.add_subplot(1, 1, 1)
+    figure, axes, colorbar_axes = plotting.map_figure()
     nx, ny = log_odds.shape
     extent = (
         region.x_min_m,
@@ -48,16 +48,30 @@ def save_log_odds_figure(
         norm=TwoSlopeNorm(vmin=min(limits[0], -1e-9), vcenter=0.0, vmax=max(limits[1], 1e-9)),
         cmap="RdBu_r",
         interpolation="nearest",
-        aspect="equal",
     )
-    figure.colorbar(image, ax=axes, label="log odds of occupancy", shrink=0.85)
-    for outline in outlines:
-        closed = np.vstack([outline, outline[:1]])
-        axes.plot(closed[:, 0], closed[:, 1], color="black", linewidth=1.2)
-    axes.set_xlim(region.x_min_m, region.x_max_m)
-    axes.set_ylim(region.y_min_m, region.y_max_m)
+    figure.colorbar(image, cax=colorbar_axes, label="log odds of occupancy")
+    plotting.draw_outlines(axes, outlines, colour="black")
+    plotting.draw_movements(axes, movements, colour="tab:purple")
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title)
-    figure.savefig(path)
-    return path
+    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+    plotting.layout_map(figure, axes, colorbar_axes, bounds)
+    return figure
+
+
+def save_log_odds_figure(
+    path: Path,
+    region: Region,
+    cell_size_m: float,
+    log_odds: NDArray[np.float64],
+    limits: tuple[float, float],
+    *,
+    title: str,
+    outlines: Sequence[NDArray[np.float64]] = (),
+    movements: Sequence[MovementResult] = (),
+) -> Path:
+    """Draw :func:`draw_log_odds` and save it as PNG at ``path``."""
+    figure = draw_log_odds(region, cell_size_m, log_odds, limits, title=title,
+                           outlines=outlines, movements=movements)
+    return plotting.save_figure(figure, path)
