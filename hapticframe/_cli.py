@@ -168,7 +168,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         if not found:
             if args.kind:
                 raise UsageError(registry.unknown_message(Kind(args.kind), name))
-            raise UsageError(f"no plugin called {name!r} is installed; see `hapticframe plugins`")
+            raise UsageError(_unknown_plugin_message(registry, name))
         selected.extend(found)
     failures = 0
     for reg in selected:
@@ -178,6 +178,16 @@ def cmd_check(args: argparse.Namespace) -> int:
             failures += result.status == "FAIL"
     _out(f"{failures} check(s) failed" if failures else "all checks passed")
     return 1 if failures else 0
+
+
+def _unknown_plugin_message(registry: Any, name: str) -> str:
+    """No plugin of any kind is called ``name``: say so, with close names."""
+    import difflib
+
+    names = sorted({reg.spec.name for reg in registry})
+    close = difflib.get_close_matches(name, names, n=3, cutoff=0.5)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    return f"no plugin called {name!r} is installed{hint} (see `hapticframe plugins`)"
 
 
 def cmd_run(args: argparse.Namespace) -> int:
