@@ -133,16 +133,23 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_schema(args: argparse.Namespace) -> int:
     from ._manager import get_registry
-    from ._schema import render_schemas, schema_diff, write_schemas
+    from ._schema import render_schemas, schema_diff, shipped, write_schemas
 
     registry = get_registry()
-    directory = Path(args.dir)
+    if args.dir is None:
+        # The repository's schemas/ describes the plugins hapticframe ships, whatever else
+        # is installed; --dir DIR covers every installed plugin (a lab's own schemas).
+        directory, dir_option = Path("schemas"), ""
+        if args.check or args.write:
+            registry = shipped(registry)
+    else:
+        directory, dir_option = Path(args.dir), f" --dir {args.dir}"
     if args.check:
         problems = schema_diff(registry, directory)
         for problem in problems:
             _err(problem)
         if problems:
-            _err(f"schemas are out of date: run `hapticframe schema --write --dir {args.dir}`")
+            _err(f"schemas are out of date: run `hapticframe schema --write{dir_option}`")
             return 1
         _out(f"{directory}: schemas are up to date")
         return 0
@@ -256,7 +263,9 @@ def _parser() -> argparse.ArgumentParser:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--write", action="store_true", help="write the schema files")
     group.add_argument("--check", action="store_true", help="exit 1 if the files are stale")
-    p.add_argument("--dir", default="schemas", help="schema directory (default: schemas)")
+    p.add_argument("--dir", default=None, metavar="DIR",
+                   help="schema directory for every installed plugin, a lab's own included "
+                   "(default: schemas/, for the plugins hapticframe ships)")
     p.set_defaults(func=cmd_schema)
 
     p = sub.add_parser("check", help="run the conformance kit on installed plugins")
