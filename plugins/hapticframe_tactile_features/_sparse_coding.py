@@ -306,6 +306,11 @@ class SparseCodingExtractor(FeatureExtractor):
             shapes or λ differ from this component's config.
         """
         base = _stem(path)
+        if not (base.with_suffix(".json").is_file() and base.with_suffix(".npz").is_file()):
+            raise ValueError(
+                f"no dictionaries at {path} (neither a directory holding dictionaries.json and "
+                "dictionaries.npz nor the stem of such a pair); `hapticframe train` writes them"
+            )
         meta = json.loads(base.with_suffix(".json").read_text())
         if meta.get("format") != DICTIONARY_FORMAT:
             raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
