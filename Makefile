@@ -13,7 +13,7 @@
 
 PYTHON ?= python3
 VENV ?= .venv
-EXTRAS ?= all,test
+EXTRAS ?= all,test,lint
 TORCH_INDEX ?=
 ARGS ?=
 BIN := $(VENV)/bin
