@@ -294,6 +294,16 @@ def test_linear_svm_on_raw_frames_and_bad_input(trials: tuple[Labelled, Labelled
         svm.fit([raw[1][0]], [np.zeros(len(raw[1][0]), dtype=int)])
 
 
+def test_linear_svm_counts_convergence_warnings_instead_of_printing_them(
+    trials: tuple[Labelled, Labelled], recwarn: pytest.WarningsRecorder
+) -> None:
+    train, _ = trials
+    svm = LinearSVMClassifier(LinearSVMConfig(inputs=SVM_INPUTS, max_iter=1), context(5))
+    svm.fit([b for b, _ in train[:6]], [y for _, y in train[:6]])
+    assert svm.training_metrics["convergence_warnings"] >= 1  # one iteration cannot converge
+    assert not [w for w in recwarn if "converge" in str(w.message)]
+
+
 def test_step_latency_probe_reports_its_figures() -> None:
     # Not a speed test: the figures only have to exist and be consistent.
     clf = SFRNNClassifier(SFRNNConfig(progress=False), context())
