@@ -170,16 +170,23 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_schema(args: argparse.Namespace) -> int:
     from ._manager import get_registry
-    from ._schema import render_schemas, schema_diff, write_schemas
+    from ._schema import render_schemas, schema_diff, shipped, write_schemas
 
     registry = get_registry()
-    directory = Path(args.dir)
+    if args.dir is None:
+        # The repository's schemas/ describes the plugins hapticframe ships, whatever else
+        # is installed; --dir DIR covers every installed plugin (a lab's own schemas).
+        directory, dir_option = Path("schemas"), ""
+        if args.check or args.write:
+            registry = shipped(registry)
+    else:
+        directory, dir_option = Path(args.dir), f" --dir {args.dir}"
     if args.check:
         problems = schema_diff(registry, directory)
         for problem in problems:
             _err(problem)
         if problems:
-            _err(f"schemas are out of date: run `hapticframe schema --write --dir {args.dir}`")
+            _err(f"schemas are out of date: run `hapticframe schema --write{dir_option}`")
             return 1
         _out(f"{directory}: schemas are up to date")
         return 0
@@ -205,7 +212,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         if not found:
             if args.kind:
                 raise UsageError(registry.unknown_message(Kind(args.kind), name))
-            raise UsageError(f"no plugin called {name!r} is installed; see `hapticframe plugins`")
+            raise UsageError(_unknown_plugin_message(registry, name))
         selected.extend(found)
     failures = 0
     for reg in selected:
@@ -245,6 +252,16 @@ def _summary(metrics: Any, label_channel: str = "contact") -> str:
         elif isinstance(value, (int, float)) and not math.isnan(value):  # NaN: metrics.json
             parts.append(f"{key}={_short(value)}")
     return ", ".join(parts)
+
+
+def _unknown_plugin_message(registry: Any, name: str) -> str:
+    """No plugin of any kind is called ``name``: say so, with close names."""
+    import difflib
+
+    names = sorted({reg.spec.name for reg in registry})
+    close = difflib.get_close_matches(name, names, n=3, cutoff=0.5)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    return f"no plugin called {name!r} is installed{hint} (see `hapticframe plugins`)"
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -318,7 +335,9 @@ def _parser() -> argparse.ArgumentParser:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--write", action="store_true", help="write the schema files")
     group.add_argument("--check", action="store_true", help="exit 1 if the files are stale")
-    p.add_argument("--dir", default="schemas", help="schema directory (default: schemas)")
+    p.add_argument("--dir", default=None, metavar="DIR",
+                   help="schema directory for every installed plugin, a lab's own included "
+                   "(default: schemas/, for the plugins hapticframe ships)")
     p.set_defaults(func=cmd_schema)
 
     p = sub.add_parser("check", help="run the conformance kit on installed plugins")

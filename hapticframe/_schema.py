@@ -9,13 +9,30 @@ from typing import Any
 from ._config import build_experiment_model
 from ._registry import Registry
 
-__all__ = ["render_schemas", "schema_diff", "write_schemas"]
+__all__ = ["SHIPPED_DISTRIBUTION", "render_schemas", "schema_diff", "shipped", "write_schemas"]
+
+#: The distribution whose plugins the repository's ``schemas/`` describes.
+SHIPPED_DISTRIBUTION = "hapticframe"
 
 SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 
 
 def _dump(schema: dict[str, Any]) -> str:
     return json.dumps(schema, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+
+
+def shipped(registry: Registry) -> Registry:
+    """The plugins of ``registry`` that hapticframe itself ships (its own distribution).
+
+    The repository's ``schemas/`` describes exactly these, so a lab's plugin installed in the
+    same environment does not make them stale; a lab writes schemas that include its own
+    plugins into a directory of its own (``hapticframe schema --write --dir DIR``).
+    """
+    own = Registry()
+    for registered in registry:
+        if registered.source.distribution.lower() == SHIPPED_DISTRIBUTION:
+            own.add(registered.spec, registered.source)
+    return own
 
 
 def render_schemas(registry: Registry) -> dict[str, str]:

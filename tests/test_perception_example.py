@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from hapticframe import get_registry
 from hapticframe._cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "perception-belief-map.yaml"
+FROM_TRAINED = ROOT / "examples" / "perception-from-trained.yaml"
 
 pytest.importorskip("torch")
 pytest.importorskip("sklearn")
@@ -55,33 +56,44 @@ def test_the_example_trains_first_and_writes_the_timeline_and_snapshots(tmp_path
     assert np.allclose(probabilities.sum(axis=1), 1.0)
 
 
-def test_saved_artifacts_reproduce_the_run_time_fit(tmp_path):
+def test_trained_once_the_example_runs_from_the_artifacts_without_fitting(tmp_path, monkeypatch):
     # `hapticframe train` on the example saves what `run.train_from` would fit in the run;
-    # a run that loads those artifacts must then classify every frame identically.
+    # examples/perception-from-trained.yaml loads those artifacts (from runs/trained, relative
+    # to the working directory) and must then classify every frame as the fitting run does,
+    # without fitting anything, every time it runs.
     text = EXAMPLE.read_text().replace("n_trials: 40", "n_trials: 4").replace("max_epochs: 8", "max_epochs: 1")
     text = text.replace("../schemas/", str(ROOT / "schemas") + "/")
+    # Figures cost time and prove nothing here.
+    text = text.replace("  train_from: {fingertip: training-trials}\n",
+                        "  train_from: {fingertip: training-trials}\n  figures: false\n")
+    assert "figures: false" in text
     fitted_in_run = tmp_path / "fit-in-run.yaml"
     fitted_in_run.write_text(text)
-    assert main(["train", str(fitted_in_run), "--out", str(tmp_path / "artifacts")]) == 0
-    assert (tmp_path / "artifacts" / "codes" / "dictionaries.npz").is_file()
-    assert (tmp_path / "artifacts" / "sf-rnn" / "weights.pt").is_file()
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", str(fitted_in_run), "--out", "runs/trained"]) == 0
+    assert (tmp_path / "runs" / "trained" / "codes" / "dictionaries.npz").is_file()
+    assert (tmp_path / "runs" / "trained" / "sf-rnn" / "weights.pt").is_file()
 
-    loaded = text.replace("config: {amplitude: channel}",
-                          f"config: {{amplitude: channel, dictionary_file: '{tmp_path / 'artifacts' / 'codes'}'}}")
-    loaded = loaded.replace("config: {max_epochs: 1, amplitude_inputs: true}",
-                            f"config: {{amplitude_inputs: true, model_dir: '{tmp_path / 'artifacts' / 'sf-rnn'}'}}")
-    loaded = loaded.replace("  train_from: {fingertip: training-trials}\n", "  label_channel: contact\n")
-    loaded = re.sub(r"  - id: training-trials\n    type: biotac\n    config: \{[^}]*\}\n", "", loaded)
-    assert "training-trials" not in loaded.split("sensors:")[1]
-    assert "train_from: {" not in loaded and "dictionary_file" in loaded and "model_dir" in loaded
-    from_files = tmp_path / "from-files.yaml"
-    from_files.write_text(loaded)
-
-    runs = {}
-    for name, path in (("fit", fitted_in_run), ("files", from_files)):
-        out = tmp_path / name
-        assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
+    def _probabilities(out: Path) -> np.ndarray:
         with np.load(out / "trace.npz", allow_pickle=False) as trace:
-            runs[name] = trace["classifier/sf-rnn/probabilities"]
-    assert runs["fit"].shape == runs["files"].shape and len(runs["fit"]) > 200
-    np.testing.assert_allclose(runs["files"], runs["fit"], rtol=0, atol=1e-6)
+            return trace["classifier/sf-rnn/probabilities"]
+
+    assert main(["run", str(fitted_in_run), "--out", "fit", "--quiet"]) == 0
+    fitted = _probabilities(tmp_path / "fit")
+
+    registry = get_registry()
+    for kind, name in (("feature_extractor", "sparse-coding"), ("classifier", "sf-rnn")):
+        factory = registry.get(kind, name).spec.load_factory()
+        monkeypatch.setattr(factory, "fit", _must_not_fit)
+    from_trained = tmp_path / "from-trained.yaml"  # the shipped file, without figures
+    from_trained.write_text(FROM_TRAINED.read_text() + "run:\n  figures: false\n")
+    assert main(["run", str(from_trained), "--out", "p1", "--quiet"]) == 0
+    record = json.loads((tmp_path / "p1" / "run.json").read_text())
+    assert record["status"] == "ok" and "training" not in record["details"]
+    loaded = _probabilities(tmp_path / "p1")
+    assert loaded.shape == fitted.shape and len(fitted) > 200
+    np.testing.assert_allclose(loaded, fitted, rtol=0, atol=1e-6)
+
+
+def _must_not_fit(*args, **kwargs):
+    raise AssertionError("a component was fitted in a run that loads its artifacts")

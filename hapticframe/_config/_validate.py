@@ -10,7 +10,8 @@ import difflib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from types import UnionType
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
@@ -239,25 +240,75 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
 
 
 def _key_suggestion(parts: list[str | int], loaded: LoadedFile, registry: Registry) -> str:
+    """Close names for an unknown key, from the model that holds it (any nesting level)."""
     key = str(parts[-1])
-    valid: list[str] = []
-    if len(parts) == 1:
-        valid = list(build_experiment_model(registry).model_fields)
-    elif len(parts) >= 4 and parts[2] == "config" and isinstance(parts[0], str):
-        kind = _SECTIONS.get(parts[0])
-        entry = loaded.data.get(parts[0])
-        if kind is not None and isinstance(entry, list) and isinstance(parts[1], int):
-            name = entry[parts[1]].get("type") if isinstance(entry[parts[1]], dict) else None
-            if name in registry.plugins[kind] and len(parts) == 4:
-                valid = list(registry.plugins[kind][name].spec.config.model_fields)
-    elif len(parts) == 3 and isinstance(parts[1], int):
-        valid = ["id", "type", "config", "inputs"]
+    valid = _keys_at(build_experiment_model(registry), parts[:-1], loaded.data)
     close = difflib.get_close_matches(key, valid, n=3, cutoff=0.5)
     if close:
         return "; did you mean " + " or ".join(repr(c) for c in close) + "?"
     if valid:
         return f"; valid keys: {', '.join(valid)}"
     return ""
+
+
+def _keys_at(root: type[BaseModel], parents: Sequence[str | int], data: Any) -> list[str]:
+    """The field names of the model found at ``parents`` (a dotted location in ``data``).
+
+    The walk follows the annotations of the experiment model: optional fields, lists and
+    tagged unions (picked by the raw entry's ``type`` or ``shape``) included. An empty list
+    when the location holds no model (a free-form mapping, or an entry whose tag is unknown).
+    """
+    annotation: Any = root
+    raw: Any = data
+    for part in parents:
+        annotation = _unwrap(annotation, raw)
+        if isinstance(part, int):
+            if get_origin(annotation) not in (list, tuple) or not get_args(annotation):
+                return []
+            annotation = get_args(annotation)[0]
+            raw = raw[part] if isinstance(raw, list) and part < len(raw) else None
+        else:
+            if not (isinstance(annotation, type) and issubclass(annotation, BaseModel)):
+                return []
+            field = annotation.model_fields.get(part)
+            if field is None:
+                return []
+            annotation = field.annotation
+            raw = raw.get(part) if isinstance(raw, dict) else None
+    annotation = _unwrap(annotation, raw)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return list(annotation.model_fields)
+    return []
+
+
+def _unwrap(annotation: Any, raw: Any) -> Any:
+    """Strip ``Annotated`` and ``None`` from a union; pick a tagged union's variant by ``raw``."""
+    while True:
+        if get_origin(annotation) is Annotated:
+            annotation = get_args(annotation)[0]
+            continue
+        if get_origin(annotation) in (Union, UnionType):
+            options = [a for a in get_args(annotation) if a is not type(None)]
+            if len(options) == 1:
+                annotation = options[0]
+                continue
+            return _variant_for(options, raw)
+        return annotation
+
+
+def _variant_for(options: Sequence[Any], raw: Any) -> Any:
+    if not isinstance(raw, dict):
+        return None
+    for option in options:
+        if not (isinstance(option, type) and issubclass(option, BaseModel)):
+            continue
+        for tag in _DISCRIMINATORS:
+            field = option.model_fields.get(tag)
+            if field is not None and get_origin(field.annotation) is Literal and (
+                raw.get(tag) in get_args(field.annotation)
+            ):
+                return option
+    return None
 
 
 def _entries(model: BaseModel, registry: Registry) -> list[ComponentEntry]:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import platform
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -100,6 +101,7 @@ class LinearSVMClassifier(Classifier):
             On mismatched lengths, labels outside {0, 1}, or a single class.
         """
         from sklearn.calibration import CalibratedClassifierCV
+        from sklearn.exceptions import ConvergenceWarning
         from sklearn.svm import LinearSVC
 
         if len(batches) != len(labels):
@@ -126,7 +128,18 @@ class LinearSVMClassifier(Classifier):
             random_state=self._seed,
         )
         model = CalibratedClassifierCV(svm, method="sigmoid", cv=splits, ensemble=False)
-        model.fit(z, y)
+        # liblinear warns once per fold and fit when it stops at max_iter: counted in the
+        # training metrics instead of printed (a benchmark fits dozens of these).
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ConvergenceWarning)
+            model.fit(z, y)
+        unconverged = 0
+        for warning in caught:
+            if issubclass(warning.category, ConvergenceWarning):
+                unconverged += 1
+            else:
+                warnings.warn_explicit(warning.message, warning.category, warning.filename,
+                                       warning.lineno)
         calibrated = model.calibrated_classifiers_[0]
         self.coef = np.asarray(calibrated.estimator.coef_, dtype=np.float64).ravel().copy()
         self.intercept = float(np.ravel(calibrated.estimator.intercept_)[0])
@@ -141,6 +154,7 @@ class LinearSVMClassifier(Classifier):
             "train_trials": len(batches),
             "train_balanced_accuracy": balanced_accuracy(y, train_pred),
             "train_time_s": time.perf_counter() - started,
+            "convergence_warnings": unconverged,
         }
 
     def _calibration_splits(

@@ -88,13 +88,20 @@ def _loss(net: RecurrentNet, x: Tensor, y: Tensor, weights: Tensor | None,
 
 
 def _progress(total: int, enabled: bool) -> Any:
-    if not enabled:
+    """A tqdm bar on a terminal; None elsewhere (a log, a pipe), where each epoch gets a
+    plain line instead: a bar's carriage returns make a log unreadable."""
+    if not enabled or not _stderr_is_terminal():
         return None
     try:
         from tqdm.auto import tqdm
     except ImportError:
         return None
     return tqdm(total=total, desc="training", unit="epoch", leave=False)
+
+
+def _stderr_is_terminal() -> bool:
+    isatty = getattr(sys.stderr, "isatty", None)
+    return bool(isatty is not None and isatty())
 
 
 @contextmanager

@@ -319,6 +319,11 @@ class SparseCodingExtractor(FeatureExtractor):
             shapes or λ differ from this component's config.
         """
         base = _stem(path)
+        if not base.with_suffix(".json").is_file():
+            raise ValueError(
+                f"no dictionaries at {path} (neither a directory holding dictionaries.json and "
+                "dictionaries.npz nor the stem of such a pair); `hapticframe train` writes them"
+            )
         meta = json.loads(base.with_suffix(".json").read_text())
         if meta.get("format") != DICTIONARY_FORMAT:
             raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
@@ -331,6 +336,8 @@ class SparseCodingExtractor(FeatureExtractor):
             )
         loaded: dict[Modality, NDArray[np.float64]] = {}
         references: dict[Modality, float] = {}
+        if not base.with_suffix(".npz").is_file():
+            raise ValueError(f"{base.with_suffix('.npz')} is missing beside its .json")
         with np.load(base.with_suffix(".npz"), allow_pickle=False) as data:
             for m in self.modalities:
                 key = f"{m}_dictionary"

@@ -83,6 +83,8 @@ def test_usage_errors_exit_2(capsys):
 
 def test_check_command_runs_the_kit(lab_dir, capsys, monkeypatch):
     assert main(["check", "no-such-plugin"]) == 2
+    assert main(["check", "bayesian-hilbert-mapp"]) == 2
+    assert "did you mean 'bayesian-hilbert-map'?" in capsys.readouterr().err
 
 
 def test_python_dash_m_and_version():

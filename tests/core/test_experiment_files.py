@@ -32,6 +32,16 @@ CASES = {
     "unknown-key": ("e.yaml", GOOD.replace("name: lab", "nmae: x\nname: lab").encode(), "did you mean 'name'", 3),
     "unknown-config-key": ("e.yaml", GOOD.replace("samples: 300", "sampels: 300").encode(),
                            "sensors[0].config.sampels: unknown key 'sampels'; did you mean 'samples'", 12),
+    # Suggestions at every nesting level: run settings, the scene, its material and objects.
+    "unknown-run-key": ("e.yaml", (GOOD + "run:\n  evalution_map: cells\n").encode(),
+                        ("run.evalution_map: unknown key 'evalution_map'; did you mean "
+                         "'evaluation_map'"), 24),
+    "unknown-material-key": ("e.yaml", GOOD.replace(
+        "scene:\n", "scene:\n  material: {friction_angel_deg: 40.0}\n").encode(),
+        ("scene.material.friction_angel_deg: unknown key 'friction_angel_deg'; did you mean "
+         "'friction_angle_deg'"), 7),
+    "unknown-object-key": ("e.yaml", GOOD.replace("radius_m: 0.03}", "radius_m: 0.03, raduis: 1}").encode(),
+                           "scene.objects[0].raduis: unknown key 'raduis'; did you mean 'radius_m'", 8),
     "unknown-plugin": ("e.yaml", GOOD.replace("type: lab-cells", "type: lab-celss").encode(),
                        "did you mean 'lab-cells'", 21),
     "duplicate-id": ("e.yaml", GOOD.replace("id: cells", "id: point").encode(), "duplicate id 'point'", 20),

@@ -99,3 +99,46 @@ def test_the_example_benchmark_runs_and_refuses_bad_options(installed_example, t
                         "--out", str(out))
     assert proc.returncode == 2
     assert "at least 10 reads" in proc.stderr and "Traceback" not in proc.stderr
+
+
+SERIAL_SESSION = """
+import json
+import numpy as np
+from hapticframe.kinds import BuildContext
+from hf_loadcell.config import LoadCellConfig
+from hf_loadcell.sensor import LoadCellSensor
+
+config = LoadCellConfig(transport="serial", port="loop://", samples_per_read=4)
+sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(0)))
+link = sensor.transport.link
+reads = {"timeout": link.timeout, "idle": len(sensor.read())}
+link.write(b"2148\\n#garbage\\xff\\nnan\\n2048\\n1948\\n20")
+first = sensor.read()
+link.write(b"48\\n" + b"x" * 100)
+second = sensor.read()
+reads.update(
+    first=first.channels["force_n"][:, 0].tolist(), second=second.channels["force_n"][:, 0].tolist(),
+    times=np.concatenate([first.timestamps_s, second.timestamps_s]).tolist(),
+    garbage=sensor.transport.garbage_lines,
+)
+sensor.close()
+reads["closed"] = not link.is_open
+print(json.dumps(reads))
+"""
+
+
+def test_the_serial_transport_skips_garbage_and_never_waits(installed_example):
+    # pyserial's loop:// port reads back what is written: a device that sends a reading, a
+    # line of noise, a NaN, two readings and half a line, then the rest of that line and
+    # 100 bytes without a newline.
+    pytest.importorskip("serial")
+    proc = subprocess.run([sys.executable, "-c", SERIAL_SESSION], capture_output=True, text=True,
+                          env=installed_example, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    reads = json.loads(proc.stdout)
+    assert reads["timeout"] == 0 and reads["idle"] == 0  # no data: an empty batch at once
+    assert reads["first"] == pytest.approx([1.0, 0.0, -1.0])
+    assert reads["second"] == pytest.approx([0.0])  # the half line, completed
+    assert reads["garbage"] == 3  # "#garbage", "nan" and the 100 bytes without a newline
+    assert all(b > a for a, b in zip(reads["times"], reads["times"][1:]))
+    assert reads["closed"]

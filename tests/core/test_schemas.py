@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import shutil
+import sys
 from pathlib import Path
 
 import jsonschema
@@ -11,14 +13,17 @@ import yaml
 
 from hapticframe import get_registry
 from hapticframe._cli import main
-from hapticframe._schema import render_schemas, schema_diff, write_schemas
+from hapticframe._kind import Kind
+from hapticframe._manager import get_plugin_manager
+from hapticframe._schema import render_schemas, schema_diff, shipped, write_schemas
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.yaml"))
+SUPPORT = ROOT / "tests" / "support"
 
 
 def test_committed_schemas_are_fresh():
-    problems = schema_diff(get_registry(), ROOT / "schemas")
+    problems = schema_diff(shipped(get_registry()), ROOT / "schemas")
     assert not problems, (
         "schemas/ is stale; regenerate with `hapticframe schema --write`:\n" + "\n".join(problems)
     )
@@ -52,3 +57,43 @@ def test_the_schema_rejects_what_validation_rejects():
     schema = json.loads(render_schemas(get_registry())["experiment.schema.json"])
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate({"schema_version": 1, "name": "x", "seed": 1, "extra": 1}, schema)
+
+
+@pytest.fixture
+def lab_distribution_installed(tmp_path, monkeypatch):
+    """A lab's plugin package installed beside hapticframe: a distribution on sys.path whose
+    entry point registers the lab-local test plugin, seen by a fresh process-wide manager."""
+    site = tmp_path / "site-packages"
+    site.mkdir()
+    shutil.copy(SUPPORT / "labplugin.py", site / "hf_schema_lab_plugin.py")
+    info = site / "hf_schema_lab-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: hf-schema-lab\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[hapticframe]\nlab = hf_schema_lab_plugin\n")
+    monkeypatch.syspath_prepend(str(site))
+    get_plugin_manager.cache_clear()
+    yield
+    get_plugin_manager.cache_clear()  # rebuilt without the lab once sys.path is restored
+    sys.modules.pop("hf_schema_lab_plugin", None)
+
+
+def test_a_lab_plugin_installed_beside_leaves_the_shipped_schemas_fresh(
+    lab_distribution_installed, tmp_path, monkeypatch, capsys
+):
+    registry = get_registry()
+    assert registry.plugins[Kind.SENSOR]["lab-sweep"].source.distribution == "hf-schema-lab"
+    assert "lab-sweep" not in shipped(registry).plugins[Kind.SENSOR]
+    monkeypatch.chdir(ROOT)
+    assert main(["schema", "--check"]) == 0, capsys.readouterr().err
+    # A lab writes schemas for everything installed, its own plugins included, elsewhere.
+    lab_schemas = tmp_path / "lab-schemas"
+    assert main(["schema", "--write", "--dir", str(lab_schemas)]) == 0
+    assert (lab_schemas / "plugins" / "sensor" / "lab-sweep.schema.json").is_file()
+    assert (lab_schemas / "plugins" / "map" / "bayesian-hilbert-map.schema.json").is_file()
+    experiment = json.loads((lab_schemas / "experiment.schema.json").read_text())
+    assert "lab-sweep" in json.dumps(experiment)
+    assert main(["schema", "--check", "--dir", str(lab_schemas)]) == 0
+    # The repository's schemas/ does not describe the lab's plugins: checked as a lab's
+    # directory, it is missing them.
+    assert main(["schema", "--check", "--dir", str(ROOT / "schemas")]) == 1
+    assert "lab-sweep.schema.json" in capsys.readouterr().err

@@ -290,6 +290,16 @@ def test_linear_svm_on_raw_frames_and_bad_input(trials: tuple[Labelled, Labelled
         svm.fit([raw[1][0]], [np.zeros(len(raw[1][0]), dtype=int)])
 
 
+def test_linear_svm_counts_convergence_warnings_instead_of_printing_them(
+    trials: tuple[Labelled, Labelled], recwarn: pytest.WarningsRecorder
+) -> None:
+    train, _ = trials
+    svm = LinearSVMClassifier(LinearSVMConfig(inputs=SVM_INPUTS, max_iter=1), context(5))
+    svm.fit([b for b, _ in train[:6]], [y for _, y in train[:6]])
+    assert svm.training_metrics["convergence_warnings"] >= 1  # one iteration cannot converge
+    assert not [w for w in recwarn if "converge" in str(w.message)]
+
+
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_sfrnn_reads_what_the_feature_chain_emits() -> None:
     """Wiring through the real emd-features + sparse-coding chain (no accuracy claim).
@@ -387,7 +397,9 @@ def test_training_reports_progress(
     clf = SFRNNClassifier(config, context(1))
     clf.fit([b for b, _ in train[:6]], [y for _, y in train[:6]])
     err = capsys.readouterr().err
-    assert "training" in err or "epoch 1" in err
+    # stderr is not a terminal here (as in a log or a pipe): a plain line per epoch, no bar.
+    assert "epoch 1: train loss" in err and "epoch 2: train loss" in err, err
+    assert "\r" not in err
     assert clf.training_metrics["epochs"] == 2
 
 

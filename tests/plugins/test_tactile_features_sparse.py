@@ -253,6 +253,10 @@ def test_load_rejects_mismatched_files(tmp_path: Path) -> None:
     (tmp_path / "x.json").write_text(json.dumps({"format": "other"}))
     with pytest.raises(ValueError, match="not a"):
         _coder().load(tmp_path / "x")
+    # Before `hapticframe train` has written them: a ValueError (exit 2 from a run), naming
+    # what is missing, not a FileNotFoundError.
+    with pytest.raises(ValueError, match="no dictionaries at .*nowhere"):
+        _coder(dictionary_file=str(tmp_path / "nowhere"))
 
 
 def test_fit_needs_usable_data() -> None:

@@ -1,0 +1,46 @@
+# Set-up, the main job and the checks in one command each (GNU make):
+#
+#   make demo    create .venv if it is missing, install the project, run the simulated search
+#   make test    the same set-up, then the test suite (ARGS="-x tests/core" to narrow it)
+#   make lint    the same set-up, then ruff and mypy (configured in pyproject.toml)
+#
+# The virtual environment is reinstalled when pyproject.toml changes. Variables:
+#   PYTHON=python3.12          the interpreter that creates the environment
+#   VENV=.ci-venv              where the environment lives (default .venv)
+#   TORCH_INDEX=https://download.pytorch.org/whl/cpu
+#                              install torch from this index first (a CPU build, without
+#                              the multi-GB CUDA libraries that PyPI's Linux wheels pull in)
+
+PYTHON ?= python3
+VENV ?= .venv
+EXTRAS ?= all,test,lint
+TORCH_INDEX ?=
+ARGS ?=
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: all demo test lint clean
+
+all: test
+
+demo: $(STAMP)
+	$(BIN)/hapticframe run examples/search-ellipse.yaml --out runs/demo --overwrite
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q $(ARGS)
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
+
+# The stamp, not the directory, is the target: a directory's time changes with its contents.
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+ifneq ($(TORCH_INDEX),)
+	$(BIN)/python -m pip install "torch>=2.2,<2.14" --index-url $(TORCH_INDEX)
+endif
+	$(BIN)/python -m pip install -e ".[$(EXTRAS)]"
+	touch $@
+
+clean:
+	rm -rf runs/demo build dist *.egg-info .ci-venv
