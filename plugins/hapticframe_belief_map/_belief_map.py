@@ -414,7 +414,7 @@ class BeliefMap(Map):
             )
         return {
             "belief_map_refits": int(self.refits),
-            "belief_map_representatives": int(len(self._bins)),
+            "belief_map_representatives": len(self._bins),
             "belief_map_cell_size_m": self.cell_size_m,
             "belief_map_snapshots": sorted(snapshots),
         }

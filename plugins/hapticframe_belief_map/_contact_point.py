@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import BuildContext, LocatedMeasurement, Observations, RunOutcome, SensorModel
+from hapticframe.kinds import (
+    BuildContext,
+    LocatedMeasurement,
+    Observations,
+    RunOutcome,
+    SensorModel,
+)
 
 from . import _functional as fn
 from ._config import ContactPointConfig

@@ -17,7 +17,7 @@ import importlib.metadata
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["ENTRY_POINT_GROUP", "EMULATOR", "backend_factory", "registered_backends"]
+__all__ = ["EMULATOR", "ENTRY_POINT_GROUP", "backend_factory", "registered_backends"]
 
 #: Entry-point group of SPI-batch backend factories.
 ENTRY_POINT_GROUP = "hapticframe.biotac_spi"
@@ -64,4 +64,4 @@ def backend_factory(name: str) -> Callable[[str], Any]:
         raise ValueError(f"SPI backend {name!r} cannot be loaded: {type(exc).__name__}: {exc}") from exc
     if not callable(factory):
         raise ValueError(f"SPI backend {name!r} ({matches[0].value}) is not callable")
-    return factory  # type: ignore[no-any-return]
+    return factory

@@ -210,7 +210,7 @@ class BioTacFrames:
         mask = self.word_valid.get(channel)
         if mask is None:
             return np.ones(len(self), dtype=bool)
-        return mask.reshape(len(self), -1).all(axis=1) if mask.ndim > 1 else mask.copy()
+        return np.all(mask.reshape(len(self), -1), axis=1) if mask.ndim > 1 else mask.copy()
 
     def to_sample_batch(self) -> SampleBatch:
         """SampleBatch rows in the shared layout (ground truth included when present).
@@ -218,11 +218,38 @@ class BioTacFrames:
         Every signal channel gets a validity flag per row (all True when nothing was flagged).
         """
         channels: dict[str, NDArray[np.float64]] = {name: getattr(self, name) for name in SIGNAL_CHANNELS}
-        if self.has_ground_truth:
-            channels["position_m"] = self.position_m  # type: ignore[assignment]
-            channels["contact"] = self.contact  # type: ignore[assignment]
+        if self.position_m is not None and self.contact is not None:
+            channels["position_m"] = self.position_m
+            channels["contact"] = self.contact
         valid = {name: self.channel_valid(name) for name in SIGNAL_CHANNELS}
         return SampleBatch(self.timestamps_s, channels, valid)
+
+    @classmethod
+    def from_channels(
+        cls,
+        layout: FrameLayout,
+        timestamps_s: ArrayLike,
+        signals: Mapping[str, ArrayLike],
+        *,
+        word_valid: Mapping[str, NDArray[np.bool_]] | None = None,
+        frame_index: ArrayLike | None = None,
+        position_m: ArrayLike | None = None,
+        contact: ArrayLike | None = None,
+    ) -> BioTacFrames:
+        """Frames from a mapping of every name in ``SIGNAL_CHANNELS`` to its column array."""
+        return cls(
+            layout,
+            np.asarray(timestamps_s, dtype=np.float64),
+            pac=np.asarray(signals["pac"], dtype=np.float64),
+            pdc=np.asarray(signals["pdc"], dtype=np.float64),
+            tac=np.asarray(signals["tac"], dtype=np.float64),
+            tdc=np.asarray(signals["tdc"], dtype=np.float64),
+            electrodes=np.asarray(signals["electrodes"], dtype=np.float64),
+            word_valid={} if word_valid is None else word_valid,
+            frame_index=None if frame_index is None else np.asarray(frame_index),
+            position_m=None if position_m is None else np.asarray(position_m, dtype=np.float64),
+            contact=None if contact is None else np.asarray(contact, dtype=np.float64),
+        )
 
     @classmethod
     def from_sample_batch(cls, batch: SampleBatch, variant: str = "biotac") -> BioTacFrames:
@@ -241,10 +268,10 @@ class BioTacFrames:
             if name in batch.valid
         }
         truth = "position_m" in batch.channels and "contact" in batch.channels
-        return cls(
+        return cls.from_channels(
             layout,
             np.array(batch.timestamps_s),
-            *(np.array(batch.channels[name]) for name in SIGNAL_CHANNELS),
+            {name: np.array(batch.channels[name]) for name in SIGNAL_CHANNELS},
             word_valid=word_valid,
             position_m=np.array(batch.channels["position_m"]) if truth else None,
             contact=np.array(batch.channels["contact"]) if truth else None,
@@ -252,12 +279,13 @@ class BioTacFrames:
 
     def select(self, rows: slice | NDArray[np.intp] | NDArray[np.bool_]) -> BioTacFrames:
         """The frames at ``rows``."""
-        return BioTacFrames(
+        assert self.frame_index is not None  # __post_init__ fills it in
+        return BioTacFrames.from_channels(
             self.layout,
             self.timestamps_s[rows],
-            *(getattr(self, name)[rows] for name in SIGNAL_CHANNELS),
+            {name: getattr(self, name)[rows] for name in SIGNAL_CHANNELS},
             word_valid={k: v[rows] for k, v in self.word_valid.items()},
-            frame_index=self.frame_index[rows],  # type: ignore[index]
+            frame_index=self.frame_index[rows],
             position_m=None if self.position_m is None else self.position_m[rows],
             contact=None if self.contact is None else self.contact[rows],
         )
@@ -294,13 +322,16 @@ class BioTacFrames:
             )
             for k in names
         }
+        frame_indices = [p.frame_index for p in parts if p.frame_index is not None]
+        positions = [p.position_m for p in parts if p.position_m is not None]
+        contacts = [p.contact for p in parts if p.contact is not None]
         has_truth = truth.pop()
-        return BioTacFrames(
+        return BioTacFrames.from_channels(
             layout,
             np.concatenate([p.timestamps_s for p in parts]),
-            *(np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_CHANNELS),
+            {name: np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_CHANNELS},
             word_valid=word_valid,
-            frame_index=np.concatenate([p.frame_index for p in parts]),  # type: ignore[misc]
-            position_m=np.concatenate([p.position_m for p in parts]) if has_truth else None,  # type: ignore[misc]
-            contact=np.concatenate([p.contact for p in parts]) if has_truth else None,  # type: ignore[misc]
+            frame_index=np.concatenate(frame_indices),
+            position_m=np.concatenate(positions) if has_truth else None,
+            contact=np.concatenate(contacts) if has_truth else None,
         )

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ._frame import SIGNAL_CHANNELS, BioTacFrames, layout_for
 
@@ -77,20 +78,22 @@ def save_npz(path: str | Path, frames: BioTacFrames, metadata: dict[str, Any] | 
         raise ValueError(f"recordings are .npz files, got {path.name!r}")
     meta = {**(metadata or {}), "format": FORMAT_NAME, "version": FORMAT_VERSION,
             "variant": frames.layout.variant, "n_frames": len(frames)}
-    arrays: dict[str, np.ndarray] = {
+    arrays: dict[str, NDArray[Any]] = {
         "metadata": np.array(json.dumps(meta, allow_nan=False)),
         "timestamps_s": frames.timestamps_s,
-        "frame_index": frames.frame_index,  # type: ignore[dict-item]
     }
+    if frames.frame_index is not None:  # always, once the frames are built
+        arrays["frame_index"] = frames.frame_index
     for name in SIGNAL_CHANNELS:
         arrays[name] = getattr(frames, name)
         if name in frames.word_valid:
             arrays[f"valid_{name}"] = frames.word_valid[name]
-    if frames.has_ground_truth:
-        arrays["position_m"] = frames.position_m  # type: ignore[assignment]
-        arrays["contact"] = frames.contact  # type: ignore[assignment]
+    if frames.position_m is not None and frames.contact is not None:
+        arrays["position_m"] = frames.position_m
+        arrays["contact"] = frames.contact
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **arrays)
+    # numpy's stub types **kwds as if a key could be `allow_pickle`; none of these names is.
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -119,10 +122,10 @@ def load_npz(path: str | Path) -> Recording:
         raise ReplayFormatError(path, f"missing arrays {missing}")
     try:
         layout = layout_for(str(meta.get("variant")))
-        frames = BioTacFrames(
+        frames = BioTacFrames.from_channels(
             layout,
             arrays["timestamps_s"],
-            *(arrays[name] for name in SIGNAL_CHANNELS),
+            {name: arrays[name] for name in SIGNAL_CHANNELS},
             word_valid={name: arrays[f"valid_{name}"] for name in SIGNAL_CHANNELS if f"valid_{name}" in arrays},
             frame_index=arrays.get("frame_index"),
             position_m=arrays.get("position_m"),
@@ -227,7 +230,7 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
                 data_rows[r][0], columns[time_name] + 1,
             )
     else:
-        times = np.arange(len(data_rows)) * layout.frame_period_s
+        times = np.arange(len(data_rows), dtype=np.float64) * layout.frame_period_s
     frames = BioTacFrames(
         layout,
         times,

@@ -63,7 +63,14 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._frame import SIGNAL_CHANNELS, SLOT_RATE_HZ, BioTacFrames, FrameLayout, check_counts, layout_for
+from ._frame import (
+    SIGNAL_CHANNELS,
+    SLOT_RATE_HZ,
+    BioTacFrames,
+    FrameLayout,
+    check_counts,
+    layout_for,
+)
 
 __all__ = [
     "ERROR_PREFIX",
@@ -299,7 +306,7 @@ class WordStreamDecoder:
                     out.append(self._filled(fill, self._last_time, period))
                 self._next_index += missing
         channels, masks = {}, {}
-        for code, name in enumerate(SIGNAL_CHANNELS):
+        for name in SIGNAL_CHANNELS:
             slots = self._pac_slots if name == "pac" else self.schedule.slots_of(name)
             v, ok = values[slots], valid[slots]
             if name == "pac":
@@ -311,8 +318,8 @@ class WordStreamDecoder:
             shape = self.layout.shape_of(name)
             channels[name] = v.reshape((1, *shape))
             masks[name] = ok.reshape((1, *shape))
-        out.append(BioTacFrames(
-            self.layout, np.array([t]), *(channels[n] for n in SIGNAL_CHANNELS),
+        out.append(BioTacFrames.from_channels(
+            self.layout, np.array([t]), channels,
             word_valid=masks, frame_index=np.array([self._next_index]),
         ))
         self._next_index += 1
@@ -336,10 +343,10 @@ class WordStreamDecoder:
         arrays["pac"][:] = self._held_pac_last
         masks = {name: np.zeros((n, *self.layout.shape_of(name)), dtype=bool) for name in SIGNAL_CHANNELS}
         self.stats.filled_frames += n
-        return BioTacFrames(
+        return BioTacFrames.from_channels(
             self.layout,
             last_time + period * np.arange(1, n + 1),
-            *(arrays[name] for name in SIGNAL_CHANNELS),
+            arrays,
             word_valid=masks,
             frame_index=self._next_index + np.arange(n),
         )

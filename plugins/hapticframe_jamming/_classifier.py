@@ -26,9 +26,8 @@ on mid-movement does not see a spurious step.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -167,7 +166,7 @@ class ForceRateTracker:
             registers = self._registers = self._zi.tolist()
         self._last_seen_t = t
         sample = magnitude
-        for (b0, b1, b2, a1, a2), section in zip(self._sections, registers):
+        for (b0, b1, b2, a1, a2), section in zip(self._sections, registers, strict=True):
             y = b0 * sample + section[0]
             section[0] = b1 * sample - a1 * y + section[1]
             section[1] = b2 * sample - a2 * y

@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from hapticframe.kinds import SampleBatch
-
-from hapticframe_biotac._frame import LAYOUTS, SIGNAL_CHANNELS, BioTacFrames, check_counts, layout_for
+from hapticframe_biotac._frame import (
+    LAYOUTS,
+    SIGNAL_CHANNELS,
+    BioTacFrames,
+    check_counts,
+    layout_for,
+)
 from hapticframe_biotac._wire import WordStreamDecoder, encode_frames
 
 

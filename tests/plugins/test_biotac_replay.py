@@ -178,7 +178,7 @@ def test_own_format_refuses_pickles_and_foreign_archives(tmp_path):
     arrays = dict(np.load(path, allow_pickle=False))
     arrays["pac"] = np.array([object()] * 5, dtype=object)
     np.savez(tmp_path / "pickled.npz", **arrays)
-    with pytest.raises(ReplayFormatError, match="pickled.npz"):
+    with pytest.raises(ReplayFormatError, match=r"pickled\.npz"):
         load_npz(tmp_path / "pickled.npz")
     np.savez(tmp_path / "foreign.npz", x=np.zeros(3))
     with pytest.raises(ReplayFormatError, match="metadata"):
@@ -195,8 +195,8 @@ def test_own_format_refuses_pickles_and_foreign_archives(tmp_path):
     with pytest.raises(ReplayFormatError, match="pdc"):
         load_npz(tmp_path / "short.npz")
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
-    with pytest.raises(ReplayFormatError, match="junk.npz"):
+    with pytest.raises(ReplayFormatError, match=r"junk\.npz"):
         load_npz(tmp_path / "junk.npz")
-    with pytest.raises(ValueError, match=".npz"):
+    with pytest.raises(ValueError, match=r"\.npz"):
         save_npz(tmp_path / "x.csv", frames)
     assert zipfile.is_zipfile(path)

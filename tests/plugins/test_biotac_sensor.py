@@ -11,7 +11,6 @@ from pydantic import ValidationError
 import hapticframe
 from hapticframe.kinds import concatenate_batches
 from hapticframe.testing import make_component, run_checks
-
 from hapticframe_biotac import BioTacSensorConfig
 from hapticframe_biotac._frame import SIGNAL_CHANNELS, BioTacFrames
 from hapticframe_biotac._replay import save_npz
@@ -145,7 +144,7 @@ def test_replay_of_a_csv_through_the_sensor(registry, tmp_path):
 def test_config_errors_are_clear():
     with pytest.raises(ValidationError, match="needs a path"):
         BioTacSensorConfig(source="replay")
-    with pytest.raises(ValidationError, match=".npz or .csv"):
+    with pytest.raises(ValidationError, match=r"\.npz or \.csv"):
         BioTacSensorConfig(source="replay", path="x.txt")
     with pytest.raises(ValidationError, match="19-electrode"):
         BioTacSensorConfig(source="synthetic", variant="biotac_sp")
@@ -187,9 +186,9 @@ def test_an_spi_backend_is_chosen_by_its_registered_name(registry, monkeypatch):
 
 
 def test_a_backend_name_registered_twice_is_refused(registry, monkeypatch):
-    from hapticframe_biotac import _backends
-
     import importlib.metadata
+
+    from hapticframe_biotac import _backends
 
     twice = [
         importlib.metadata.EntryPoint("cheetah", "a.b:C", _backends.ENTRY_POINT_GROUP),

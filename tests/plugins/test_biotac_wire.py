@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -109,7 +111,7 @@ def test_decoder_is_incremental_over_arbitrary_byte_splits(cuts):
     bounds = sorted({0, len(stream), *cuts})
     decoder = WordStreamDecoder("biotac")
     slot_s = 1 / 4400
-    parts = [decoder.feed(stream[a:b], (b // 2) * slot_s) for a, b in zip(bounds[:-1], bounds[1:])]
+    parts = [decoder.feed(stream[a:b], (b // 2) * slot_s) for a, b in itertools.pairwise(bounds)]
     decoded = BioTacFrames.concatenate(parts)
     assert np.array_equal(decoded.pac, frames.pac) and np.array_equal(decoded.electrodes, frames.electrodes)
     # each frame's time is the moment its last word arrived, whatever the transfer sizes
