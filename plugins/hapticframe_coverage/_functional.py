@@ -282,7 +282,9 @@ def line_scores(
     w1, w2, w3 = (float(w) for w in weights)
     d2 = np.sum((p - np.asarray(centroid_m, dtype=np.float64)) ** 2, axis=1) / distance_scale_m**2
     per_point = w1 * m + w2 * sd + w3 * d2
-    return np.bincount(idx, weights=per_point, minlength=line_count)
+    # A weighted bincount is float64 already (numpy's stub says intp): astype copies nothing.
+    totals = np.bincount(idx, weights=per_point, minlength=line_count)
+    return totals.astype(np.float64, copy=False)
 
 
 def uncertainty_fraction(std: ArrayLike, rule: str, uncertain_std: float) -> float:

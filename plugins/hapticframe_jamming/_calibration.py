@@ -84,7 +84,9 @@ def calibrate_thresholds(
     if not batches:
         raise ValueError("calibration needs at least one labelled recording")
     classifier = _classifier(base, sample_rate_hz)
-    recordings = [(*classifier.force_and_rate(batch), y) for batch, y in zip(batches, ys, strict=True)]
+    recordings: list[F.Recording] = [
+        (*classifier.force_and_rate(batch), y) for batch, y in zip(batches, ys, strict=True)
+    ]
     thresholds, _ = F.best_and_thresholds(
         recordings, n_candidates=n_candidates, base=classifier.thresholds, objective=objective
     )
