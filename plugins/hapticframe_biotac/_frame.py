@@ -105,11 +105,13 @@ def layout_for(variant: str) -> FrameLayout:
     try:
         return LAYOUTS[variant]
     except KeyError:
-        raise ValueError(f"unknown BioTac variant {variant!r}; expected one of {sorted(LAYOUTS)}") from None
+        raise ValueError(
+            f"unknown BioTac variant {variant!r}; expected one of {sorted(LAYOUTS)}"
+        ) from None
 
 
 def check_counts(values: ArrayLike, name: str) -> NDArray[np.int64]:
-    """``values`` as int64 when they are integral 12-bit counts, else a ValueError naming the fault."""
+    """``values`` as int64 when they are integral 12-bit counts, else a ValueError naming why."""
     array = np.asarray(values, dtype=np.float64)
     if array.size and not np.isfinite(array).all():
         raise ValueError(f"{name} contains NaN or infinity; 12-bit counts must be finite")
@@ -122,11 +124,13 @@ def check_counts(values: ArrayLike, name: str) -> NDArray[np.int64]:
     return array.astype(np.int64)
 
 
-def _float_rows(value: ArrayLike, name: str, shape: tuple[int, ...], n: int | None) -> NDArray[np.float64]:
+def _float_rows(
+    value: ArrayLike, name: str, shape: tuple[int, ...], n: int | None
+) -> NDArray[np.float64]:
     array = np.asarray(value, dtype=np.float64)
     if array.ndim != 1 + len(shape) or array.shape[1:] != shape:
-        raise ValueError(f"{name} must have shape (n, {', '.join(map(str, shape))}), got {array.shape}"
-                         if shape else f"{name} must have shape (n,), got {array.shape}")
+        dims = f"(n, {', '.join(map(str, shape))})" if shape else "(n,)"
+        raise ValueError(f"{name} must have shape {dims}, got {array.shape}")
     if n is not None and array.shape[0] != n:
         raise ValueError(f"{name} has {array.shape[0]} rows, expected {n}")
     return array
@@ -176,7 +180,8 @@ class BioTacFrames:
         n = t.size
         object.__setattr__(self, "timestamps_s", t)
         for name in SIGNAL_CHANNELS:
-            object.__setattr__(self, name, _float_rows(getattr(self, name), name, self.layout.shape_of(name), n))
+            rows = _float_rows(getattr(self, name), name, self.layout.shape_of(name), n)
+            object.__setattr__(self, name, rows)
         masks = {}
         for name, mask in self.word_valid.items():
             if name not in SIGNAL_CHANNELS:
@@ -184,15 +189,22 @@ class BioTacFrames:
             mask = np.asarray(mask, dtype=bool)
             expected = (n, *self.layout.shape_of(name))
             if mask.shape != expected:
-                raise ValueError(f"word_valid[{name!r}] must have shape {expected}, got {mask.shape}")
+                raise ValueError(
+                    f"word_valid[{name!r}] must have shape {expected}, got {mask.shape}"
+                )
             masks[name] = mask
         object.__setattr__(self, "word_valid", masks)
-        index = np.arange(n, dtype=np.int64) if self.frame_index is None else np.asarray(self.frame_index)
+        index = (
+            np.arange(n, dtype=np.int64)
+            if self.frame_index is None
+            else np.asarray(self.frame_index)
+        )
         if index.shape != (n,):
             raise ValueError(f"frame_index must have shape ({n},), got {index.shape}")
         object.__setattr__(self, "frame_index", index.astype(np.int64))
         if self.position_m is not None:
-            object.__setattr__(self, "position_m", _float_rows(self.position_m, "position_m", (2,), n))
+            position = _float_rows(self.position_m, "position_m", (2,), n)
+            object.__setattr__(self, "position_m", position)
         if self.contact is not None:
             object.__setattr__(self, "contact", _float_rows(self.contact, "contact", (), n))
         if (self.position_m is None) != (self.contact is None):
@@ -217,7 +229,9 @@ class BioTacFrames:
 
         Every signal channel gets a validity flag per row (all True when nothing was flagged).
         """
-        channels: dict[str, NDArray[np.float64]] = {name: getattr(self, name) for name in SIGNAL_CHANNELS}
+        channels: dict[str, NDArray[np.float64]] = {
+            name: getattr(self, name) for name in SIGNAL_CHANNELS
+        }
         if self.position_m is not None and self.contact is not None:
             channels["position_m"] = self.position_m
             channels["contact"] = self.contact
@@ -318,7 +332,10 @@ class BioTacFrames:
         names = {k for p in parts for k in p.word_valid}
         word_valid = {
             k: np.concatenate(
-                [p.word_valid.get(k, np.ones((len(p), *layout.shape_of(k)), dtype=bool)) for p in parts]
+                [
+                    p.word_valid.get(k, np.ones((len(p), *layout.shape_of(k)), dtype=bool))
+                    for p in parts
+                ]
             )
             for k in names
         }

@@ -52,7 +52,9 @@ _TIME_COLUMNS = ("timestamp", "timestamp_s")
 class ReplayFormatError(ValueError):
     """A recording that cannot be read, located as ``file:line:column: message``."""
 
-    def __init__(self, path: str | Path, message: str, line: int | None = None, column: int | None = None) -> None:
+    def __init__(
+        self, path: str | Path, message: str, line: int | None = None, column: int | None = None
+    ) -> None:
         self.path = str(path)
         self.line = line
         self.column = column
@@ -71,7 +73,9 @@ class Recording:
 # --- own format -------------------------------------------------------------------------------
 
 
-def save_npz(path: str | Path, frames: BioTacFrames, metadata: dict[str, Any] | None = None) -> Path:
+def save_npz(
+    path: str | Path, frames: BioTacFrames, metadata: dict[str, Any] | None = None
+) -> Path:
     """Write ``frames`` in the own format; ``metadata`` must be JSON-serialisable."""
     path = Path(path)
     if path.suffix.lower() != ".npz":
@@ -116,7 +120,10 @@ def load_npz(path: str | Path) -> Recording:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
         raise ReplayFormatError(path, f"metadata does not name the format {FORMAT_NAME!r}")
     if meta.get("version") != FORMAT_VERSION:
-        raise ReplayFormatError(path, f"format version {meta.get('version')!r} is not supported (expected {FORMAT_VERSION})")
+        raise ReplayFormatError(
+            path,
+            f"format version {meta.get('version')!r} is not supported (expected {FORMAT_VERSION})",
+        )
     missing = [k for k in ("timestamps_s", *SIGNAL_CHANNELS) if k not in arrays]
     if missing:
         raise ReplayFormatError(path, f"missing arrays {missing}")
@@ -126,7 +133,11 @@ def load_npz(path: str | Path) -> Recording:
             layout,
             arrays["timestamps_s"],
             {name: arrays[name] for name in SIGNAL_CHANNELS},
-            word_valid={name: arrays[f"valid_{name}"] for name in SIGNAL_CHANNELS if f"valid_{name}" in arrays},
+            word_valid={
+                name: arrays[f"valid_{name}"]
+                for name in SIGNAL_CHANNELS
+                if f"valid_{name}" in arrays
+            },
             frame_index=arrays.get("frame_index"),
             position_m=arrays.get("position_m"),
             contact=arrays.get("contact"),
@@ -161,7 +172,9 @@ def _header(path: Path, row: list[str], line: int) -> dict[str, int]:
         if not name:
             raise ReplayFormatError(path, "empty column name in the header", line, j + 1)
         if name in columns:
-            raise ReplayFormatError(path, f"column {name!r} appears twice in the header", line, j + 1)
+            raise ReplayFormatError(
+                path, f"column {name!r} appears twice in the header", line, j + 1
+            )
         columns[name] = j
     return columns
 
@@ -192,10 +205,14 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
     missing = [name for name in required if name not in columns]
     if missing:
         shown = ", ".join(missing[:6]) + (" ..." if len(missing) > 6 else "")
-        raise ReplayFormatError(path, f"header lacks column(s) {shown} needed for a {variant} recording", header_line)
+        raise ReplayFormatError(
+            path, f"header lacks column(s) {shown} needed for a {variant} recording", header_line
+        )
     truth_names = [name for name in ("contact", "x_m", "y_m") if name in columns]
     if truth_names and len(truth_names) != 3:
-        raise ReplayFormatError(path, "ground truth needs the columns contact, x_m and y_m together", header_line)
+        raise ReplayFormatError(
+            path, "ground truth needs the columns contact, x_m and y_m together", header_line
+        )
     time_name = next((name for name in _TIME_COLUMNS if name in columns), None)
     wanted = required + truth_names + ([time_name] if time_name else [])
     data_rows = rows[1:]
@@ -206,7 +223,12 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
     for r, (line, row) in enumerate(data_rows):
         extra = [j for j in range(width, len(row)) if row[j].strip()]
         if extra:
-            raise ReplayFormatError(path, f"row has {len(row)} cells but the header names {width}", line, extra[0] + 1)
+            raise ReplayFormatError(
+                path,
+                f"row has {len(row)} cells but the header names {width}",
+                line,
+                extra[0] + 1,
+            )
         for c, name in enumerate(wanted):
             j = columns[name]
             if j >= len(row) or not row[j].strip():
@@ -215,9 +237,13 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
             try:
                 value = float(text)
             except ValueError:
-                raise ReplayFormatError(path, f"column {name!r}: {text!r} is not a number", line, j + 1) from None
+                raise ReplayFormatError(
+                    path, f"column {name!r}: {text!r} is not a number", line, j + 1
+                ) from None
             if not np.isfinite(value):
-                raise ReplayFormatError(path, f"column {name!r}: {text!r} is not finite", line, j + 1)
+                raise ReplayFormatError(
+                    path, f"column {name!r}: {text!r} is not finite", line, j + 1
+                )
             table[r, c] = value
     col = {name: table[:, c] for c, name in enumerate(wanted)}
     if time_name:
@@ -255,7 +281,10 @@ def load_recording(path: str | Path, variant: str | None = None) -> Recording:
     if suffix == ".npz":
         recording = load_npz(path)
         if variant and recording.frames.layout.variant != variant:
-            raise ReplayFormatError(path, f"recording is a {recording.frames.layout.variant}, config says {variant}")
+            raise ReplayFormatError(
+                path,
+                f"recording is a {recording.frames.layout.variant}, config says {variant}",
+            )
         return recording
     if suffix == ".csv":
         return load_csv(path, variant)

@@ -146,7 +146,11 @@ def schedule_for(variant: str) -> FrameSchedule:
     slow: list[tuple[int, int, int]] = [  # (channel code, element, channel index on the wire)
         (4, k, _ELECTRODE_BASE + 1 + k) for k in range(layout.n_electrodes)
     ]
-    slow += [(1, 0, _CHANNEL_INDEX["pdc"]), (2, 0, _CHANNEL_INDEX["tac"]), (3, 0, _CHANNEL_INDEX["tdc"])]
+    slow += [
+        (1, 0, _CHANNEL_INDEX["pdc"]),
+        (2, 0, _CHANNEL_INDEX["tac"]),
+        (3, 0, _CHANNEL_INDEX["tdc"]),
+    ]
     channel, element, commands = [], [], []
     for pac_number, (code, elem, wire_index) in enumerate(slow):
         channel += [code, 0]
@@ -176,7 +180,11 @@ def decode_words(data: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.bool_],
     ``error_code`` is the second byte of a sensor error word (``0xA5 xx``) and 0 elsewhere.
     A trailing odd byte is an error.
     """
-    raw = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) else np.asarray(data, dtype=np.uint8)
+    raw = (
+        np.frombuffer(bytes(data), dtype=np.uint8)
+        if isinstance(data, (bytes, bytearray))
+        else np.asarray(data, dtype=np.uint8)
+    )
     if raw.size % 2:
         raise ValueError(f"{raw.size} bytes do not make whole 16-bit words")
     pairs = raw.reshape(-1, 2)
@@ -291,7 +299,9 @@ class WordStreamDecoder:
 
     # -- per frame ------------------------------------------------------------------------
 
-    def _one_frame(self, values: NDArray[np.float64], valid: NDArray[np.bool_], t: float) -> list[BioTacFrames]:
+    def _one_frame(
+        self, values: NDArray[np.float64], valid: NDArray[np.bool_], t: float
+    ) -> list[BioTacFrames]:
         out: list[BioTacFrames] = []
         period = self.layout.frame_period_s
         if self._last_time is not None:
@@ -341,7 +351,10 @@ class WordStreamDecoder:
         arrays = {name: np.broadcast_to(self._held[name], (n, *self.layout.shape_of(name))).copy()
                   for name in SIGNAL_CHANNELS}
         arrays["pac"][:] = self._held_pac_last
-        masks = {name: np.zeros((n, *self.layout.shape_of(name)), dtype=bool) for name in SIGNAL_CHANNELS}
+        masks = {
+            name: np.zeros((n, *self.layout.shape_of(name)), dtype=bool)
+            for name in SIGNAL_CHANNELS
+        }
         self.stats.filled_frames += n
         return BioTacFrames.from_channels(
             self.layout,
