@@ -150,7 +150,9 @@ def _axis_factors(
 ) -> dict[float, FloatArray]:
     """exp(-(c - axis)^2 / (2 l^2)) for each distinct length scale l."""
     offsets = coordinates[:, None] - axis[None, :]
-    return {float(scale): _gaussian_factor(offsets, float(scale)) for scale in np.unique(length_scales)}
+    return {
+        float(scale): _gaussian_factor(offsets, float(scale)) for scale in np.unique(length_scales)
+    }
 
 
 def separable_hinge_features(
