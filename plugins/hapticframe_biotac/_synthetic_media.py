@@ -253,8 +253,8 @@ def pulse_train(
         # Log-normal sizes (σ = 0.6) scaled to unit mean square; random sign of the first lobe.
         sizes = rng.lognormal(-0.36, 0.6, total) * rng.choice([-1.0, 1.0], total)
         # A weighted bincount is float64 already (numpy's stub says intp): astype copies nothing.
-        train = np.bincount(where, weights=sizes * amplitude, minlength=n)
-        train = train.astype(np.float64, copy=False)
+        summed = np.bincount(where, weights=sizes * amplitude, minlength=n)
+        train = summed.astype(np.float64, copy=False)
     length = max(1, round(pulse_s * sample_rate_hz))
     pulse = np.sin(np.pi * (np.arange(length) + 0.5) / length)
     pulse /= np.sqrt(np.sum(pulse**2))
