@@ -11,7 +11,12 @@ def test_the_registry_holds_the_bundled_plugins():
     assert not registry.broken, registry.broken
     assert not registry.conflicts, registry.conflicts
     names = {(r.spec.kind.value, r.spec.name) for r in registry}
-    assert {("robot", "sandbox"), ("map", "bayesian-hilbert-map"), ("planner", "two-phase-coverage")} <= names
+    expected = {
+        ("robot", "sandbox"),
+        ("map", "bayesian-hilbert-map"),
+        ("planner", "two-phase-coverage"),
+    }
+    assert expected <= names
 
 
 @parametrize_with_checks(SPECS)

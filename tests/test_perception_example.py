@@ -58,7 +58,8 @@ def test_the_example_trains_first_and_writes_the_timeline_and_snapshots(tmp_path
 def test_saved_artifacts_reproduce_the_run_time_fit(tmp_path):
     # `hapticframe train` on the example saves what `run.train_from` would fit in the run;
     # a run that loads those artifacts must then classify every frame identically.
-    text = EXAMPLE.read_text().replace("n_trials: 40", "n_trials: 4").replace("max_epochs: 8", "max_epochs: 1")
+    text = EXAMPLE.read_text()
+    text = text.replace("n_trials: 40", "n_trials: 4").replace("max_epochs: 8", "max_epochs: 1")
     text = text.replace("../schemas/", str(ROOT / "schemas") + "/")
     fitted_in_run = tmp_path / "fit-in-run.yaml"
     fitted_in_run.write_text(text)
@@ -66,12 +67,20 @@ def test_saved_artifacts_reproduce_the_run_time_fit(tmp_path):
     assert (tmp_path / "artifacts" / "codes" / "dictionaries.npz").is_file()
     assert (tmp_path / "artifacts" / "sf-rnn" / "weights.pt").is_file()
 
-    loaded = text.replace("config: {amplitude: channel}",
-                          f"config: {{amplitude: channel, dictionary_file: '{tmp_path / 'artifacts' / 'codes'}'}}")
-    loaded = loaded.replace("config: {max_epochs: 1, amplitude_inputs: true}",
-                            f"config: {{amplitude_inputs: true, model_dir: '{tmp_path / 'artifacts' / 'sf-rnn'}'}}")
-    loaded = loaded.replace("  train_from: {fingertip: training-trials}\n", "  label_channel: contact\n")
-    loaded = re.sub(r"  - id: training-trials\n    type: biotac\n    config: \{[^}]*\}\n", "", loaded)
+    codes, sf_rnn = tmp_path / "artifacts" / "codes", tmp_path / "artifacts" / "sf-rnn"
+    loaded = text.replace(
+        "config: {amplitude: channel}",
+        f"config: {{amplitude: channel, dictionary_file: '{codes}'}}",
+    )
+    loaded = loaded.replace(
+        "config: {max_epochs: 1, amplitude_inputs: true}",
+        f"config: {{amplitude_inputs: true, model_dir: '{sf_rnn}'}}",
+    )
+    loaded = loaded.replace(
+        "  train_from: {fingertip: training-trials}\n", "  label_channel: contact\n"
+    )
+    training_sensor = r"  - id: training-trials\n    type: biotac\n    config: \{[^}]*\}\n"
+    loaded = re.sub(training_sensor, "", loaded)
     assert "training-trials" not in loaded.split("sensors:")[1]
     assert "train_from: {" not in loaded and "dictionary_file" in loaded and "model_dir" in loaded
     from_files = tmp_path / "from-files.yaml"

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
-from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
-from hapticframe_tactile_features._latency import measure_chain_latency, synthetic_biotac_frames
-from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
 
 import hapticframe
 from hapticframe import Kind
 from hapticframe.kinds import BuildContext
 from hapticframe.testing import run_checks
+from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
+from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
+from hapticframe_tactile_features._latency import measure_chain_latency, synthetic_biotac_frames
+from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
 
 pytest.importorskip("sklearn")
 
