@@ -44,7 +44,8 @@ def test_an_object_touching_the_region_edge_is_searched_without_failure(tmp_path
     # the boundary at once. The run must finish, stay within the force limit and report
     # finite figures (whether the object is found is the benchmark's business).
     text = (ROOT / "examples" / "search-ellipse.yaml").read_text().replace(
-        "- {shape: ellipse, center_m: [0.42, 0.21], semi_axes_m: [0.045, 0.025], orientation_deg: 35}",
+        "- {shape: ellipse, center_m: [0.42, 0.21], semi_axes_m: [0.045, 0.025], "
+        "orientation_deg: 35}",
         "- {shape: circle, center_m: [0.04, 0.30], radius_m: 0.04}",
     )
     assert "shape: circle" in text

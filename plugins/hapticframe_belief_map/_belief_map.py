@@ -21,7 +21,8 @@ refitting every 10 classifier steps. Here:
   observation, never NaN.
 - Far from every observation the probability returns to ``unexplored_prior`` (0.5, the
   uniform prior of App. A.4): ``mean = w p + (1 - w) prior`` with ``w`` the RBF kernel to the
-  nearest observation bin (less the bin's half diagonal). The bare SVC would return ``sigmoid(A b + B)`` there, which
+  nearest observation bin (less the bin's half diagonal). The bare SVC would return
+  ``sigmoid(A b + B)`` there, which
   follows the class balance of what was seen, not anything about the unexplored ground.
   ``unexplored_prior: null`` switches the blend off.
 - ``query`` returns ``mean = P(object | x)`` and ``std = sqrt(p (1 - p))``: the spread of the
@@ -334,7 +335,8 @@ class BeliefMap(Map):
         if self._first_snapshot is None:
             self._first_snapshot = snapshot
         # A later contact observation makes the kept last-contact map stale.
-        if self._last_snapshot is None or self._last_snapshot.observations_seen <= self._last_contact:
+        last = self._last_snapshot
+        if last is None or last.observations_seen <= self._last_contact:
             self._last_snapshot = snapshot
         self._history.append(snapshot)
         if len(self._history) > self.config.max_snapshots:
@@ -344,7 +346,7 @@ class BeliefMap(Map):
     # --- queries -----------------------------------------------------------------------------
 
     def prior(self) -> float:
-        """The mean on observed ground while no classifier is fitted: the smoothed contact fraction."""
+        """The mean on observed ground while no classifier is fitted: the smoothed contact share."""
         return fn.smoothed_fraction(self._contact_weight, self._total_weight)
 
     def query(self, points_m: ArrayLike) -> MapEstimate:
@@ -442,7 +444,7 @@ class BeliefMap(Map):
             )
         return {
             "belief_map_refits": int(self.refits),
-            "belief_map_representatives": int(len(self._bins)),
+            "belief_map_representatives": len(self._bins),
             "belief_map_cell_size_m": self.cell_size_m,
             "belief_map_snapshots": sorted(snapshots),
         }

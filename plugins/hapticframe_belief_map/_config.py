@@ -83,8 +83,8 @@ class BeliefMapConfig(PluginConfig):
         le=10.0,
         description=(
             "Edge of the square bins that bound the update cost: observations are summed per "
-            "(cell, decided class) into a weight and a weighted mean position, and the SVC is fitted "
-            "on these representatives with their weights as sample weights."
+            "(cell, decided class) into a weight and a weighted mean position, and the SVC is "
+            "fitted on these representatives with their weights as sample weights."
         ),
     )
     max_points: int = Field(
@@ -131,8 +131,8 @@ class BeliefMapConfig(PluginConfig):
         ge=4,
         le=10_000,
         description=(
-            "Fitted maps kept after first contact to pick the mid-contact snapshot from; when full, "
-            "every other interior one is dropped (first and newest kept)."
+            "Fitted maps kept after first contact to pick the mid-contact snapshot from; when "
+            "full, every other interior one is dropped (first and newest kept)."
         ),
     )
 

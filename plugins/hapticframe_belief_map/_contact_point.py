@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import BuildContext, LocatedMeasurement, Observations, RunOutcome, SensorModel
+from hapticframe.kinds import (
+    BuildContext,
+    LocatedMeasurement,
+    Observations,
+    RunOutcome,
+    SensorModel,
+)
 
 from . import _functional as fn
 from ._config import ContactPointConfig
@@ -60,7 +66,9 @@ class ContactPoint(SensorModel):
     def observe(self, measurement: LocatedMeasurement) -> Observations:
         """Observations at the fingertip positions with the contact probability as target."""
         if not isinstance(measurement, LocatedMeasurement):
-            raise TypeError(f"observe expects a LocatedMeasurement, got {type(measurement).__name__}")
+            raise TypeError(
+                f"observe expects a LocatedMeasurement, got {type(measurement).__name__}"
+            )
         targets = fn.contact_targets(
             measurement.probabilities, measurement.classes, self.config.contact_class,
             self.config.class_targets,

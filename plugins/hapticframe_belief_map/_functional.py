@@ -129,11 +129,12 @@ def _aggregate(keys: FloatArray, weights: FloatArray, position_sums: FloatArray)
     inverse[order] = run
     unique = ordered[starts]
     m = unique.shape[0]
-    summed_w = np.bincount(inverse, weights=weights, minlength=m)
+    # Weighted bincounts are float64 already (numpy's stub says intp): astype copies nothing.
+    summed_w = np.bincount(inverse, weights=weights, minlength=m).astype(np.float64, copy=False)
     sums = np.column_stack([
         np.bincount(inverse, weights=position_sums[:, 0], minlength=m),
         np.bincount(inverse, weights=position_sums[:, 1], minlength=m),
-    ])
+    ]).astype(np.float64, copy=False)
     return Bins(unique, summed_w, sums)
 
 

@@ -150,7 +150,9 @@ def _axis_factors(
 ) -> dict[float, FloatArray]:
     """exp(-(c - axis)^2 / (2 l^2)) for each distinct length scale l."""
     offsets = coordinates[:, None] - axis[None, :]
-    return {float(l): _gaussian_factor(offsets, float(l)) for l in np.unique(length_scales)}
+    return {
+        float(scale): _gaussian_factor(offsets, float(scale)) for scale in np.unique(length_scales)
+    }
 
 
 def separable_hinge_features(
@@ -190,8 +192,8 @@ def separable_hinge_features(
         if bias:
             phi[:, m] = 1.0
         return phi
-    fx = _axis_factors(p[:, 0], xs, scales)
-    fy = _axis_factors(p[:, 1], ys, scales)
+    factors_x = _axis_factors(p[:, 0], xs, scales)
+    factors_y = _axis_factors(p[:, 1], ys, scales)
     flat_scales = scales.ravel()
     values, counts = np.unique(flat_scales, return_counts=True)
     # The most common length scale fills every column as an outer product; the hinges
@@ -199,14 +201,16 @@ def separable_hinge_features(
     common = float(values[np.argmax(counts)])
     phi = np.empty((n, m + int(bias)))
     np.multiply(
-        fx[common][:, :, None], fy[common][:, None, :], out=phi[:, :m].reshape(n, xs.size, ys.size)
+        factors_x[common][:, :, None],
+        factors_y[common][:, None, :],
+        out=phi[:, :m].reshape(n, xs.size, ys.size),
     )
     for value in values:
         if float(value) == common:
             continue
         columns = np.flatnonzero(flat_scales == value)
         ix, iy = np.divmod(columns, ys.size)
-        phi[:, columns] = fx[float(value)][:, ix] * fy[float(value)][:, iy]
+        phi[:, columns] = factors_x[float(value)][:, ix] * factors_y[float(value)][:, iy]
     if bias:
         phi[:, m] = 1.0
     return phi

@@ -182,7 +182,7 @@ class WindowedRows:
         nx, ny, k = self.nx, self.ny, self.k
         block = np.zeros((nx, ny, nx, ny))
         scaled = self.rows * np.sqrt(c)[:, None]
-        for g, (a, b) in enumerate(zip(self.starts, self.stops)):
+        for g, (a, b) in enumerate(zip(self.starts, self.stops, strict=True)):
             rows = scaled[a:b]
             i, j = self.corner_x[g], self.corner_y[g]
             block[i : i + k, j : j + k, i : i + k, j : j + k] += (rows.T @ rows).reshape(k, k, k, k)
@@ -230,7 +230,7 @@ class WindowedRows:
         # A contiguous (nx, ny, nx, ny) copy: each window block is then a plain slice.
         block = np.ascontiguousarray(s[: self._hinges, : self._hinges]).reshape(nx, ny, nx, ny)
         out = np.empty(self.count)
-        for g, (a, b) in enumerate(zip(self.starts, self.stops)):
+        for g, (a, b) in enumerate(zip(self.starts, self.stops, strict=True)):
             i, j = self.corner_x[g], self.corner_y[g]
             local = block[i : i + k, j : j + k, i : i + k, j : j + k].reshape(k * k, k * k)
             rows = self.rows[a:b]

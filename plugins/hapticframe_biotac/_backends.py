@@ -17,7 +17,7 @@ import importlib.metadata
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["ENTRY_POINT_GROUP", "EMULATOR", "backend_factory", "registered_backends"]
+__all__ = ["EMULATOR", "ENTRY_POINT_GROUP", "backend_factory", "registered_backends"]
 
 #: Entry-point group of SPI-batch backend factories.
 ENTRY_POINT_GROUP = "hapticframe.biotac_spi"
@@ -35,7 +35,8 @@ def registered_backends() -> dict[str, str]:
     out: dict[str, str] = {}
     for entry in _entry_points():
         dist = getattr(entry, "dist", None)
-        out[entry.name] = f"{dist.name} {dist.version}" if dist is not None else "unknown distribution"
+        known = f"{dist.name} {dist.version}" if dist is not None else "unknown distribution"
+        out[entry.name] = known
     return out
 
 
@@ -61,7 +62,9 @@ def backend_factory(name: str) -> Callable[[str], Any]:
     try:
         factory = matches[0].load()
     except Exception as exc:  # an adapter's import error must not become a traceback
-        raise ValueError(f"SPI backend {name!r} cannot be loaded: {type(exc).__name__}: {exc}") from exc
+        raise ValueError(
+            f"SPI backend {name!r} cannot be loaded: {type(exc).__name__}: {exc}"
+        ) from exc
     if not callable(factory):
         raise ValueError(f"SPI backend {name!r} ({matches[0].value}) is not callable")
-    return factory  # type: ignore[no-any-return]
+    return factory

@@ -23,7 +23,9 @@ class BioTacSensorConfig(PluginConfig):
     """
 
     source: Literal["synthetic", "replay", "spi"] = Field(
-        "synthetic", description="Where frames come from: the synthetic generator, a recording, or the SPI word stream."
+        "synthetic",
+        description="Where frames come from: the synthetic generator, a recording, or the SPI "
+        "word stream.",
     )
     variant: Literal["biotac", "biotac_sp"] = Field(
         "biotac",
@@ -38,24 +40,44 @@ class BioTacSensorConfig(PluginConfig):
     )
 
     # -- synthetic ---------------------------------------------------------------------------
-    medium: Literal["poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads"] = Field(
+    medium: Literal[
+        "poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads"
+    ] = Field(
         "poppy_seed", description="Synthetic: the granular medium (Table 2.1 of the thesis)."
     )
-    speed_m_per_s: float = Field(0.04, ge=0.005, le=0.2, description="Synthetic: fingertip speed (0.04 or 0.02 in the thesis).")
-    orientation_deg: float = Field(0.0, ge=-45, le=45, description="Synthetic: fingertip orientation (0 or 20 in the thesis).")
-    object_offset_m: float = Field(
-        0.0, ge=-0.05, le=0.05, description="Synthetic: object offset along the path (0 or 0.035 in the thesis)."
+    speed_m_per_s: float = Field(
+        0.04,
+        ge=0.005,
+        le=0.2,
+        description="Synthetic: fingertip speed (0.04 or 0.02 in the thesis).",
     )
-    has_object: bool = Field(True, description="Synthetic: whether a buried object lies on the path.")
-    fingertip_depth_m: float = Field(0.05, ge=0.01, le=0.12, description="Synthetic: fingertip depth below the surface.")
+    orientation_deg: float = Field(
+        0.0, ge=-45, le=45, description="Synthetic: fingertip orientation (0 or 20 in the thesis)."
+    )
+    object_offset_m: float = Field(
+        0.0,
+        ge=-0.05,
+        le=0.05,
+        description="Synthetic: object offset along the path (0 or 0.035 in the thesis).",
+    )
+    has_object: bool = Field(
+        True, description="Synthetic: whether a buried object lies on the path."
+    )
+    fingertip_depth_m: float = Field(
+        0.05, ge=0.01, le=0.12, description="Synthetic: fingertip depth below the surface."
+    )
     dataset: Literal["single", "training", "robustness"] = Field(
         "single",
         description="Synthetic: 'single' repeats the trial described here n_trials times; "
         "'training' (750 trials) and 'robustness' (375) are the thesis's sets, cut to n_trials.",
     )
-    n_trials: int = Field(1, ge=1, le=100_000, description="Synthetic: trials generated one after another.")
+    n_trials: int = Field(
+        1, ge=1, le=100_000, description="Synthetic: trials generated one after another."
+    )
     trial_gap_s: float = Field(
-        0.5, gt=0, description="Synthetic: time between the last frame of a trial and the first of the next."
+        0.5,
+        gt=0,
+        description="Synthetic: time between the last frame of a trial and the first of the next.",
     )
 
     tare_frames: int = Field(
@@ -83,18 +105,29 @@ class BioTacSensorConfig(PluginConfig):
         "as factory(variant) that returns an SpiBatchBackend). Never an import path.",
     )
     emulator_frames: int | None = Field(
-        None, ge=0, description="SPI emulator: end after this many frames (None: endless resting signal)."
+        None,
+        ge=0,
+        description="SPI emulator: end after this many frames (None: endless resting signal).",
     )
-    parity_error_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per word of a parity error.")
-    stale_word_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per word of a stale ('E-') word.")
-    dropped_frame_rate: float = Field(0.0, ge=0, le=1, description="SPI emulator: probability per frame that it is lost.")
+    parity_error_rate: float = Field(
+        0.0, ge=0, le=1, description="SPI emulator: probability per word of a parity error."
+    )
+    stale_word_rate: float = Field(
+        0.0, ge=0, le=1, description="SPI emulator: probability per word of a stale ('E-') word."
+    )
+    dropped_frame_rate: float = Field(
+        0.0, ge=0, le=1, description="SPI emulator: probability per frame that it is lost."
+    )
     jitter_s: float = Field(
-        0.0005, ge=0, lt=0.005, description="SPI emulator: late reporting of each transfer's completion time, up to this."
+        0.0005,
+        ge=0,
+        lt=0.005,
+        description="SPI emulator: late reporting of each transfer's completion time, up to this.",
     )
     on_dropped_frame: Literal["mark", "skip"] = Field(
         "mark",
-        description="SPI: deliver a dropped frame as a row holding the last values with every channel "
-        "invalid ('mark', keeps a regular grid) or leave it out ('skip').",
+        description="SPI: deliver a dropped frame as a row holding the last values with every "
+        "channel invalid ('mark', keeps a regular grid) or leave it out ('skip').",
     )
 
     @field_validator("spi_backend")
@@ -122,7 +155,11 @@ class BioTacSensorConfig(PluginConfig):
                 "air is zeroed in air by tare_source 'trial_start'"
             )
         if self.tare_source == "air" and not self.tare_frames:
-            raise ValueError("tare_source 'air' needs tare_frames of at least 1 (frames averaged in air)")
+            raise ValueError(
+                "tare_source 'air' needs tare_frames of at least 1 (frames averaged in air)"
+            )
         if self.source == "synthetic" and self.variant != "biotac":
-            raise ValueError("the synthetic generator models the 19-electrode BioTac only; use variant 'biotac'")
+            raise ValueError(
+                "the synthetic generator models the 19-electrode BioTac only; use variant 'biotac'"
+            )
         return self

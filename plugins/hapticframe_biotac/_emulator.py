@@ -129,7 +129,8 @@ def resting_frame_values(variant: str, n: int, rng: np.random.Generator,
         state["tdc"] = np.array([rng.uniform(2500.0, 2700.0)])
     pdc = state["pdc"][0] + np.cumsum(rng.normal(0.0, 0.2, n))
     tdc = state["tdc"][0] + np.cumsum(rng.normal(0.0, 0.05, n))
-    state["pdc"][0], state["tdc"][0] = (pdc[-1], tdc[-1]) if n else (state["pdc"][0], state["tdc"][0])
+    if n:
+        state["pdc"][0], state["tdc"][0] = pdc[-1], tdc[-1]
     frames = BioTacFrames(
         layout,
         np.arange(n, dtype=np.float64),
@@ -254,7 +255,9 @@ class EmulatedBioTac(SpiBatchBackend):
             return self._content[frame]
         while frame >= self._cache_start + len(self._cache):
             self._cache_start += len(self._cache)
-            self._cache = resting_frame_values(self.variant, self._CHUNK, self.rng, self._rest_state)
+            self._cache = resting_frame_values(
+                self.variant, self._CHUNK, self.rng, self._rest_state
+            )
         return self._cache[frame - self._cache_start]
 
     def _frame_words(self, frame: int) -> bytes:
@@ -273,7 +276,8 @@ class EmulatedBioTac(SpiBatchBackend):
         for slot, byte in sorted(parity):
             if slot in stale:
                 continue  # the word is already an error word
-            data[slot, byte] ^= np.uint8(1 << int(self.rng.integers(8)))  # any one bit breaks odd parity
+            # Any one flipped bit breaks odd parity.
+            data[slot, byte] ^= np.uint8(1 << int(self.rng.integers(8)))
             self.injected.append(InjectedFault(frame, slot, "parity", byte))
         return data.tobytes()
 
@@ -288,4 +292,8 @@ def plan_from_positions(
     dropped: Iterable[int] = (),
 ) -> FaultPlan:
     """A :class:`FaultPlan` with faults at fixed positions only."""
-    return FaultPlan(parity_errors=frozenset(parity), stale_words=frozenset(stale), dropped_frames=frozenset(dropped))
+    return FaultPlan(
+        parity_errors=frozenset(parity),
+        stale_words=frozenset(stale),
+        dropped_frames=frozenset(dropped),
+    )

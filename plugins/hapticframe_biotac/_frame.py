@@ -105,11 +105,13 @@ def layout_for(variant: str) -> FrameLayout:
     try:
         return LAYOUTS[variant]
     except KeyError:
-        raise ValueError(f"unknown BioTac variant {variant!r}; expected one of {sorted(LAYOUTS)}") from None
+        raise ValueError(
+            f"unknown BioTac variant {variant!r}; expected one of {sorted(LAYOUTS)}"
+        ) from None
 
 
 def check_counts(values: ArrayLike, name: str) -> NDArray[np.int64]:
-    """``values`` as int64 when they are integral 12-bit counts, else a ValueError naming the fault."""
+    """``values`` as int64 when they are integral 12-bit counts, else a ValueError naming why."""
     array = np.asarray(values, dtype=np.float64)
     if array.size and not np.isfinite(array).all():
         raise ValueError(f"{name} contains NaN or infinity; 12-bit counts must be finite")
@@ -122,11 +124,13 @@ def check_counts(values: ArrayLike, name: str) -> NDArray[np.int64]:
     return array.astype(np.int64)
 
 
-def _float_rows(value: ArrayLike, name: str, shape: tuple[int, ...], n: int | None) -> NDArray[np.float64]:
+def _float_rows(
+    value: ArrayLike, name: str, shape: tuple[int, ...], n: int | None
+) -> NDArray[np.float64]:
     array = np.asarray(value, dtype=np.float64)
     if array.ndim != 1 + len(shape) or array.shape[1:] != shape:
-        raise ValueError(f"{name} must have shape (n, {', '.join(map(str, shape))}), got {array.shape}"
-                         if shape else f"{name} must have shape (n,), got {array.shape}")
+        dims = f"(n, {', '.join(map(str, shape))})" if shape else "(n,)"
+        raise ValueError(f"{name} must have shape {dims}, got {array.shape}")
     if n is not None and array.shape[0] != n:
         raise ValueError(f"{name} has {array.shape[0]} rows, expected {n}")
     return array
@@ -176,7 +180,8 @@ class BioTacFrames:
         n = t.size
         object.__setattr__(self, "timestamps_s", t)
         for name in SIGNAL_CHANNELS:
-            object.__setattr__(self, name, _float_rows(getattr(self, name), name, self.layout.shape_of(name), n))
+            rows = _float_rows(getattr(self, name), name, self.layout.shape_of(name), n)
+            object.__setattr__(self, name, rows)
         masks = {}
         for name, mask in self.word_valid.items():
             if name not in SIGNAL_CHANNELS:
@@ -184,15 +189,22 @@ class BioTacFrames:
             mask = np.asarray(mask, dtype=bool)
             expected = (n, *self.layout.shape_of(name))
             if mask.shape != expected:
-                raise ValueError(f"word_valid[{name!r}] must have shape {expected}, got {mask.shape}")
+                raise ValueError(
+                    f"word_valid[{name!r}] must have shape {expected}, got {mask.shape}"
+                )
             masks[name] = mask
         object.__setattr__(self, "word_valid", masks)
-        index = np.arange(n, dtype=np.int64) if self.frame_index is None else np.asarray(self.frame_index)
+        index = (
+            np.arange(n, dtype=np.int64)
+            if self.frame_index is None
+            else np.asarray(self.frame_index)
+        )
         if index.shape != (n,):
             raise ValueError(f"frame_index must have shape ({n},), got {index.shape}")
         object.__setattr__(self, "frame_index", index.astype(np.int64))
         if self.position_m is not None:
-            object.__setattr__(self, "position_m", _float_rows(self.position_m, "position_m", (2,), n))
+            position = _float_rows(self.position_m, "position_m", (2,), n)
+            object.__setattr__(self, "position_m", position)
         if self.contact is not None:
             object.__setattr__(self, "contact", _float_rows(self.contact, "contact", (), n))
         if (self.position_m is None) != (self.contact is None):
@@ -210,19 +222,48 @@ class BioTacFrames:
         mask = self.word_valid.get(channel)
         if mask is None:
             return np.ones(len(self), dtype=bool)
-        return mask.reshape(len(self), -1).all(axis=1) if mask.ndim > 1 else mask.copy()
+        return np.all(mask.reshape(len(self), -1), axis=1) if mask.ndim > 1 else mask.copy()
 
     def to_sample_batch(self) -> SampleBatch:
         """SampleBatch rows in the shared layout (ground truth included when present).
 
         Every signal channel gets a validity flag per row (all True when nothing was flagged).
         """
-        channels: dict[str, NDArray[np.float64]] = {name: getattr(self, name) for name in SIGNAL_CHANNELS}
-        if self.has_ground_truth:
-            channels["position_m"] = self.position_m  # type: ignore[assignment]
-            channels["contact"] = self.contact  # type: ignore[assignment]
+        channels: dict[str, NDArray[np.float64]] = {
+            name: getattr(self, name) for name in SIGNAL_CHANNELS
+        }
+        if self.position_m is not None and self.contact is not None:
+            channels["position_m"] = self.position_m
+            channels["contact"] = self.contact
         valid = {name: self.channel_valid(name) for name in SIGNAL_CHANNELS}
         return SampleBatch(self.timestamps_s, channels, valid)
+
+    @classmethod
+    def from_channels(
+        cls,
+        layout: FrameLayout,
+        timestamps_s: ArrayLike,
+        signals: Mapping[str, ArrayLike],
+        *,
+        word_valid: Mapping[str, NDArray[np.bool_]] | None = None,
+        frame_index: ArrayLike | None = None,
+        position_m: ArrayLike | None = None,
+        contact: ArrayLike | None = None,
+    ) -> BioTacFrames:
+        """Frames from a mapping of every name in ``SIGNAL_CHANNELS`` to its column array."""
+        return cls(
+            layout,
+            np.asarray(timestamps_s, dtype=np.float64),
+            pac=np.asarray(signals["pac"], dtype=np.float64),
+            pdc=np.asarray(signals["pdc"], dtype=np.float64),
+            tac=np.asarray(signals["tac"], dtype=np.float64),
+            tdc=np.asarray(signals["tdc"], dtype=np.float64),
+            electrodes=np.asarray(signals["electrodes"], dtype=np.float64),
+            word_valid={} if word_valid is None else word_valid,
+            frame_index=None if frame_index is None else np.asarray(frame_index),
+            position_m=None if position_m is None else np.asarray(position_m, dtype=np.float64),
+            contact=None if contact is None else np.asarray(contact, dtype=np.float64),
+        )
 
     @classmethod
     def from_sample_batch(cls, batch: SampleBatch, variant: str = "biotac") -> BioTacFrames:
@@ -241,10 +282,10 @@ class BioTacFrames:
             if name in batch.valid
         }
         truth = "position_m" in batch.channels and "contact" in batch.channels
-        return cls(
+        return cls.from_channels(
             layout,
             np.array(batch.timestamps_s),
-            *(np.array(batch.channels[name]) for name in SIGNAL_CHANNELS),
+            {name: np.array(batch.channels[name]) for name in SIGNAL_CHANNELS},
             word_valid=word_valid,
             position_m=np.array(batch.channels["position_m"]) if truth else None,
             contact=np.array(batch.channels["contact"]) if truth else None,
@@ -252,12 +293,13 @@ class BioTacFrames:
 
     def select(self, rows: slice | NDArray[np.intp] | NDArray[np.bool_]) -> BioTacFrames:
         """The frames at ``rows``."""
-        return BioTacFrames(
+        assert self.frame_index is not None  # __post_init__ fills it in
+        return BioTacFrames.from_channels(
             self.layout,
             self.timestamps_s[rows],
-            *(getattr(self, name)[rows] for name in SIGNAL_CHANNELS),
+            {name: getattr(self, name)[rows] for name in SIGNAL_CHANNELS},
             word_valid={k: v[rows] for k, v in self.word_valid.items()},
-            frame_index=self.frame_index[rows],  # type: ignore[index]
+            frame_index=self.frame_index[rows],
             position_m=None if self.position_m is None else self.position_m[rows],
             contact=None if self.contact is None else self.contact[rows],
         )
@@ -290,17 +332,23 @@ class BioTacFrames:
         names = {k for p in parts for k in p.word_valid}
         word_valid = {
             k: np.concatenate(
-                [p.word_valid.get(k, np.ones((len(p), *layout.shape_of(k)), dtype=bool)) for p in parts]
+                [
+                    p.word_valid.get(k, np.ones((len(p), *layout.shape_of(k)), dtype=bool))
+                    for p in parts
+                ]
             )
             for k in names
         }
+        frame_indices = [p.frame_index for p in parts if p.frame_index is not None]
+        positions = [p.position_m for p in parts if p.position_m is not None]
+        contacts = [p.contact for p in parts if p.contact is not None]
         has_truth = truth.pop()
-        return BioTacFrames(
+        return BioTacFrames.from_channels(
             layout,
             np.concatenate([p.timestamps_s for p in parts]),
-            *(np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_CHANNELS),
+            {name: np.concatenate([getattr(p, name) for p in parts]) for name in SIGNAL_CHANNELS},
             word_valid=word_valid,
-            frame_index=np.concatenate([p.frame_index for p in parts]),  # type: ignore[misc]
-            position_m=np.concatenate([p.position_m for p in parts]) if has_truth else None,  # type: ignore[misc]
-            contact=np.concatenate([p.contact for p in parts]) if has_truth else None,  # type: ignore[misc]
+            frame_index=np.concatenate(frame_indices),
+            position_m=np.concatenate(positions) if has_truth else None,
+            contact=np.concatenate(contacts) if has_truth else None,
         )

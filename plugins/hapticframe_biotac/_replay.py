@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ._frame import SIGNAL_CHANNELS, BioTacFrames, layout_for
 
@@ -51,7 +52,9 @@ _TIME_COLUMNS = ("timestamp", "timestamp_s")
 class ReplayFormatError(ValueError):
     """A recording that cannot be read, located as ``file:line:column: message``."""
 
-    def __init__(self, path: str | Path, message: str, line: int | None = None, column: int | None = None) -> None:
+    def __init__(
+        self, path: str | Path, message: str, line: int | None = None, column: int | None = None
+    ) -> None:
         self.path = str(path)
         self.line = line
         self.column = column
@@ -70,27 +73,31 @@ class Recording:
 # --- own format -------------------------------------------------------------------------------
 
 
-def save_npz(path: str | Path, frames: BioTacFrames, metadata: dict[str, Any] | None = None) -> Path:
+def save_npz(
+    path: str | Path, frames: BioTacFrames, metadata: dict[str, Any] | None = None
+) -> Path:
     """Write ``frames`` in the own format; ``metadata`` must be JSON-serialisable."""
     path = Path(path)
     if path.suffix.lower() != ".npz":
         raise ValueError(f"recordings are .npz files, got {path.name!r}")
     meta = {**(metadata or {}), "format": FORMAT_NAME, "version": FORMAT_VERSION,
             "variant": frames.layout.variant, "n_frames": len(frames)}
-    arrays: dict[str, np.ndarray] = {
+    arrays: dict[str, NDArray[Any]] = {
         "metadata": np.array(json.dumps(meta, allow_nan=False)),
         "timestamps_s": frames.timestamps_s,
-        "frame_index": frames.frame_index,  # type: ignore[dict-item]
     }
+    if frames.frame_index is not None:  # always, once the frames are built
+        arrays["frame_index"] = frames.frame_index
     for name in SIGNAL_CHANNELS:
         arrays[name] = getattr(frames, name)
         if name in frames.word_valid:
             arrays[f"valid_{name}"] = frames.word_valid[name]
-    if frames.has_ground_truth:
-        arrays["position_m"] = frames.position_m  # type: ignore[assignment]
-        arrays["contact"] = frames.contact  # type: ignore[assignment]
+    if frames.position_m is not None and frames.contact is not None:
+        arrays["position_m"] = frames.position_m
+        arrays["contact"] = frames.contact
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **arrays)
+    # numpy's stub types **kwds as if a key could be `allow_pickle`; none of these names is.
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -113,17 +120,24 @@ def load_npz(path: str | Path) -> Recording:
     if not isinstance(meta, dict) or meta.get("format") != FORMAT_NAME:
         raise ReplayFormatError(path, f"metadata does not name the format {FORMAT_NAME!r}")
     if meta.get("version") != FORMAT_VERSION:
-        raise ReplayFormatError(path, f"format version {meta.get('version')!r} is not supported (expected {FORMAT_VERSION})")
+        raise ReplayFormatError(
+            path,
+            f"format version {meta.get('version')!r} is not supported (expected {FORMAT_VERSION})",
+        )
     missing = [k for k in ("timestamps_s", *SIGNAL_CHANNELS) if k not in arrays]
     if missing:
         raise ReplayFormatError(path, f"missing arrays {missing}")
     try:
         layout = layout_for(str(meta.get("variant")))
-        frames = BioTacFrames(
+        frames = BioTacFrames.from_channels(
             layout,
             arrays["timestamps_s"],
-            *(arrays[name] for name in SIGNAL_CHANNELS),
-            word_valid={name: arrays[f"valid_{name}"] for name in SIGNAL_CHANNELS if f"valid_{name}" in arrays},
+            {name: arrays[name] for name in SIGNAL_CHANNELS},
+            word_valid={
+                name: arrays[f"valid_{name}"]
+                for name in SIGNAL_CHANNELS
+                if f"valid_{name}" in arrays
+            },
             frame_index=arrays.get("frame_index"),
             position_m=arrays.get("position_m"),
             contact=arrays.get("contact"),
@@ -158,7 +172,9 @@ def _header(path: Path, row: list[str], line: int) -> dict[str, int]:
         if not name:
             raise ReplayFormatError(path, "empty column name in the header", line, j + 1)
         if name in columns:
-            raise ReplayFormatError(path, f"column {name!r} appears twice in the header", line, j + 1)
+            raise ReplayFormatError(
+                path, f"column {name!r} appears twice in the header", line, j + 1
+            )
         columns[name] = j
     return columns
 
@@ -189,10 +205,14 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
     missing = [name for name in required if name not in columns]
     if missing:
         shown = ", ".join(missing[:6]) + (" ..." if len(missing) > 6 else "")
-        raise ReplayFormatError(path, f"header lacks column(s) {shown} needed for a {variant} recording", header_line)
+        raise ReplayFormatError(
+            path, f"header lacks column(s) {shown} needed for a {variant} recording", header_line
+        )
     truth_names = [name for name in ("contact", "x_m", "y_m") if name in columns]
     if truth_names and len(truth_names) != 3:
-        raise ReplayFormatError(path, "ground truth needs the columns contact, x_m and y_m together", header_line)
+        raise ReplayFormatError(
+            path, "ground truth needs the columns contact, x_m and y_m together", header_line
+        )
     time_name = next((name for name in _TIME_COLUMNS if name in columns), None)
     wanted = required + truth_names + ([time_name] if time_name else [])
     data_rows = rows[1:]
@@ -203,7 +223,12 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
     for r, (line, row) in enumerate(data_rows):
         extra = [j for j in range(width, len(row)) if row[j].strip()]
         if extra:
-            raise ReplayFormatError(path, f"row has {len(row)} cells but the header names {width}", line, extra[0] + 1)
+            raise ReplayFormatError(
+                path,
+                f"row has {len(row)} cells but the header names {width}",
+                line,
+                extra[0] + 1,
+            )
         for c, name in enumerate(wanted):
             j = columns[name]
             if j >= len(row) or not row[j].strip():
@@ -212,9 +237,13 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
             try:
                 value = float(text)
             except ValueError:
-                raise ReplayFormatError(path, f"column {name!r}: {text!r} is not a number", line, j + 1) from None
+                raise ReplayFormatError(
+                    path, f"column {name!r}: {text!r} is not a number", line, j + 1
+                ) from None
             if not np.isfinite(value):
-                raise ReplayFormatError(path, f"column {name!r}: {text!r} is not finite", line, j + 1)
+                raise ReplayFormatError(
+                    path, f"column {name!r}: {text!r} is not finite", line, j + 1
+                )
             table[r, c] = value
     col = {name: table[:, c] for c, name in enumerate(wanted)}
     if time_name:
@@ -227,7 +256,7 @@ def load_csv(path: str | Path, variant: str | None = None) -> Recording:
                 data_rows[r][0], columns[time_name] + 1,
             )
     else:
-        times = np.arange(len(data_rows)) * layout.frame_period_s
+        times = np.arange(len(data_rows), dtype=np.float64) * layout.frame_period_s
     frames = BioTacFrames(
         layout,
         times,
@@ -252,7 +281,10 @@ def load_recording(path: str | Path, variant: str | None = None) -> Recording:
     if suffix == ".npz":
         recording = load_npz(path)
         if variant and recording.frames.layout.variant != variant:
-            raise ReplayFormatError(path, f"recording is a {recording.frames.layout.variant}, config says {variant}")
+            raise ReplayFormatError(
+                path,
+                f"recording is a {recording.frames.layout.variant}, config says {variant}",
+            )
         return recording
     if suffix == ".csv":
         return load_csv(path, variant)

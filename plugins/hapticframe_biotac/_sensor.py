@@ -1,4 +1,4 @@
-"""The BioTac sensor component: frames from the synthetic generator, a recording or the SPI stream."""
+"""The BioTac sensor component: frames from the synthetic generator, a recording or SPI words."""
 
 from __future__ import annotations
 
@@ -108,7 +108,9 @@ class _SyntheticSource(_FrameSource):
 
     ground_truth = True
 
-    def __init__(self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator) -> None:
+    def __init__(
+        self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator
+    ) -> None:
         # Imported here: the generator is numpy-heavy and owned by the dataset module.
         synthetic = importlib.import_module("hapticframe_biotac._synthetic")
         self._generate = synthetic.generate_trial
@@ -185,7 +187,9 @@ class _SyntheticSource(_FrameSource):
 class _SpiSource(_FrameSource):
     """Words from an SPI-batch backend through the decoder."""
 
-    def __init__(self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator) -> None:
+    def __init__(
+        self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator
+    ) -> None:
         if config.spi_backend == EMULATOR:
             backend: Any = EmulatedBioTac(
                 config.variant,
@@ -201,7 +205,10 @@ class _SpiSource(_FrameSource):
         else:
             backend = backend_factory(config.spi_backend)(config.variant)
         if not isinstance(backend, SpiBatchBackend):
-            raise TypeError(f"SPI backend {config.spi_backend!r} built {type(backend).__name__}, not an SpiBatchBackend")
+            raise TypeError(
+                f"SPI backend {config.spi_backend!r} built {type(backend).__name__}, "
+                "not an SpiBatchBackend"
+            )
         self.backend: SpiBatchBackend = backend
         self.decoder = WordStreamDecoder(config.variant, on_dropped=config.on_dropped_frame)
         self.frame_words = layout.frame_words

@@ -252,8 +252,10 @@ def pulse_train(
         where = np.repeat(np.arange(n), counts)
         # Log-normal sizes (σ = 0.6) scaled to unit mean square; random sign of the first lobe.
         sizes = rng.lognormal(-0.36, 0.6, total) * rng.choice([-1.0, 1.0], total)
-        train = np.bincount(where, weights=sizes * amplitude, minlength=n)
-    length = max(1, int(round(pulse_s * sample_rate_hz)))
+        # A weighted bincount is float64 already (numpy's stub says intp): astype copies nothing.
+        summed = np.bincount(where, weights=sizes * amplitude, minlength=n)
+        train = summed.astype(np.float64, copy=False)
+    length = max(1, round(pulse_s * sample_rate_hz))
     pulse = np.sin(np.pi * (np.arange(length) + 0.5) / length)
     pulse /= np.sqrt(np.sum(pulse**2))
     return np.convolve(train, pulse)[:n]

@@ -63,7 +63,14 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._frame import SIGNAL_CHANNELS, SLOT_RATE_HZ, BioTacFrames, FrameLayout, check_counts, layout_for
+from ._frame import (
+    SIGNAL_CHANNELS,
+    SLOT_RATE_HZ,
+    BioTacFrames,
+    FrameLayout,
+    check_counts,
+    layout_for,
+)
 
 __all__ = [
     "ERROR_PREFIX",
@@ -139,7 +146,11 @@ def schedule_for(variant: str) -> FrameSchedule:
     slow: list[tuple[int, int, int]] = [  # (channel code, element, channel index on the wire)
         (4, k, _ELECTRODE_BASE + 1 + k) for k in range(layout.n_electrodes)
     ]
-    slow += [(1, 0, _CHANNEL_INDEX["pdc"]), (2, 0, _CHANNEL_INDEX["tac"]), (3, 0, _CHANNEL_INDEX["tdc"])]
+    slow += [
+        (1, 0, _CHANNEL_INDEX["pdc"]),
+        (2, 0, _CHANNEL_INDEX["tac"]),
+        (3, 0, _CHANNEL_INDEX["tdc"]),
+    ]
     channel, element, commands = [], [], []
     for pac_number, (code, elem, wire_index) in enumerate(slow):
         channel += [code, 0]
@@ -169,7 +180,11 @@ def decode_words(data: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.bool_],
     ``error_code`` is the second byte of a sensor error word (``0xA5 xx``) and 0 elsewhere.
     A trailing odd byte is an error.
     """
-    raw = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) else np.asarray(data, dtype=np.uint8)
+    raw = (
+        np.frombuffer(bytes(data), dtype=np.uint8)
+        if isinstance(data, (bytes, bytearray))
+        else np.asarray(data, dtype=np.uint8)
+    )
     if raw.size % 2:
         raise ValueError(f"{raw.size} bytes do not make whole 16-bit words")
     pairs = raw.reshape(-1, 2)
@@ -284,7 +299,9 @@ class WordStreamDecoder:
 
     # -- per frame ------------------------------------------------------------------------
 
-    def _one_frame(self, values: NDArray[np.float64], valid: NDArray[np.bool_], t: float) -> list[BioTacFrames]:
+    def _one_frame(
+        self, values: NDArray[np.float64], valid: NDArray[np.bool_], t: float
+    ) -> list[BioTacFrames]:
         out: list[BioTacFrames] = []
         period = self.layout.frame_period_s
         if self._last_time is not None:
@@ -299,7 +316,7 @@ class WordStreamDecoder:
                     out.append(self._filled(fill, self._last_time, period))
                 self._next_index += missing
         channels, masks = {}, {}
-        for code, name in enumerate(SIGNAL_CHANNELS):
+        for name in SIGNAL_CHANNELS:
             slots = self._pac_slots if name == "pac" else self.schedule.slots_of(name)
             v, ok = values[slots], valid[slots]
             if name == "pac":
@@ -311,8 +328,8 @@ class WordStreamDecoder:
             shape = self.layout.shape_of(name)
             channels[name] = v.reshape((1, *shape))
             masks[name] = ok.reshape((1, *shape))
-        out.append(BioTacFrames(
-            self.layout, np.array([t]), *(channels[n] for n in SIGNAL_CHANNELS),
+        out.append(BioTacFrames.from_channels(
+            self.layout, np.array([t]), channels,
             word_valid=masks, frame_index=np.array([self._next_index]),
         ))
         self._next_index += 1
@@ -334,12 +351,15 @@ class WordStreamDecoder:
         arrays = {name: np.broadcast_to(self._held[name], (n, *self.layout.shape_of(name))).copy()
                   for name in SIGNAL_CHANNELS}
         arrays["pac"][:] = self._held_pac_last
-        masks = {name: np.zeros((n, *self.layout.shape_of(name)), dtype=bool) for name in SIGNAL_CHANNELS}
+        masks = {
+            name: np.zeros((n, *self.layout.shape_of(name)), dtype=bool)
+            for name in SIGNAL_CHANNELS
+        }
         self.stats.filled_frames += n
-        return BioTacFrames(
+        return BioTacFrames.from_channels(
             self.layout,
             last_time + period * np.arange(1, n + 1),
-            *(arrays[name] for name in SIGNAL_CHANNELS),
+            arrays,
             word_valid=masks,
             frame_index=self._next_index + np.arange(n),
         )

@@ -15,17 +15,17 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "Bounds",
-    "angle_gap_deg",
     "allowed_sweep_mask",
+    "angle_gap_deg",
     "bearing_gap_scores_deg",
-    "largest_angular_gap_deg",
-    "outer_last_order",
-    "ray_exit_distance",
     "binary_search_order",
+    "largest_angular_gap_deg",
     "line_scores",
     "longer_side_angle_deg",
+    "outer_last_order",
     "parallel_lines",
     "points_along",
+    "ray_exit_distance",
     "sample_sweep_angle_deg",
     "shrink_bounds",
     "uncertainty_fraction",
@@ -219,7 +219,7 @@ def shrink_bounds(
         raise ValueError("keep_fraction must lie in (0, 1]")
     result = []
     for centre, (lo, hi), (olo, ohi) in zip(
-        c, ((x_min, x_max), (y_min, y_max)), ((ox_min, ox_max), (oy_min, oy_max))
+        c, ((x_min, x_max), (y_min, y_max)), ((ox_min, ox_max), (oy_min, oy_max)), strict=True
     ):
         side = min(hi - lo, ohi - olo)
         side = min(side, max(keep_fraction * side, min_size_m))
@@ -246,7 +246,7 @@ def points_along(
     if not step_m > 0:
         raise ValueError("step_m must be positive")
     points, index = [], []
-    for i, (a, b) in enumerate(zip(s, e)):
+    for i, (a, b) in enumerate(zip(s, e, strict=True)):
         n = max(1, math.ceil(float(np.linalg.norm(b - a)) / step_m))
         t = np.linspace(0.0, 1.0, n + 1)[:, None]
         points.append(a + t * (b - a))
@@ -282,7 +282,9 @@ def line_scores(
     w1, w2, w3 = (float(w) for w in weights)
     d2 = np.sum((p - np.asarray(centroid_m, dtype=np.float64)) ** 2, axis=1) / distance_scale_m**2
     per_point = w1 * m + w2 * sd + w3 * d2
-    return np.bincount(idx, weights=per_point, minlength=line_count)
+    # A weighted bincount is float64 already (numpy's stub says intp): astype copies nothing.
+    totals = np.bincount(idx, weights=per_point, minlength=line_count)
+    return totals.astype(np.float64, copy=False)
 
 
 def uncertainty_fraction(std: ArrayLike, rule: str, uncertain_std: float) -> float:

@@ -13,6 +13,11 @@ __all__ = ["FailureZoneConfig"]
 State = Literal["free", "jamming", "contact"]
 
 
+def _same_named_states() -> dict[str, State]:
+    """Each classifier class stands for the kernel state of the same name."""
+    return {"free": "free", "jamming": "jamming", "contact": "contact"}
+
+
 class FailureZoneConfig(PluginConfig):
     """Failure-zone kernel (dissertation Eqs. 3.2-3.4, Table 3.1).
 
@@ -43,7 +48,7 @@ class FailureZoneConfig(PluginConfig):
         "(the dissertation's binary Θ); 'soft' uses the class probabilities.",
     )
     class_states: dict[str, State] = Field(
-        default_factory=lambda: {"free": "free", "jamming": "jamming", "contact": "contact"},
+        default_factory=_same_named_states,
         description="Kernel state ('free', 'jamming', 'contact') of each classifier class name; "
         "a classifier with classes ('free', 'contact') works unchanged.",
     )

@@ -13,6 +13,8 @@ equals fusing their concatenation exactly (clamping makes the order matter withi
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import expit
@@ -96,7 +98,7 @@ def fuse_clamped(
     by_rank = np.argsort(rank, kind="stable")
     observation = order[by_rank]
     bounds = np.searchsorted(rank[by_rank], np.arange(int(run_lengths.max()) + 1))
-    for begin, end in zip(bounds[:-1], bounds[1:]):
+    for begin, end in itertools.pairwise(bounds):
         chosen = observation[begin:end]
         target = cells[chosen]
         log_odds[target] = np.clip(log_odds[target] + inc[chosen], low, high)

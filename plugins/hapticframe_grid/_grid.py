@@ -100,8 +100,8 @@ class OccupancyGrid(Map):
     def cell_centers(self) -> tuple[FloatArray, FloatArray]:
         """Cell-centre coordinates ``(xs, ys)``."""
         size = self.config.cell_size_m
-        xs = self._region.x_min_m + (np.arange(self._shape[0]) + 0.5) * size
-        ys = self._region.y_min_m + (np.arange(self._shape[1]) + 0.5) * size
+        xs = self._region.x_min_m + (np.arange(self._shape[0], dtype=np.float64) + 0.5) * size
+        ys = self._region.y_min_m + (np.arange(self._shape[1], dtype=np.float64) + 0.5) * size
         return xs, ys
 
     @property

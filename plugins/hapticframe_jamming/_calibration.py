@@ -21,7 +21,7 @@ def _check_pairs(batches: Sequence[SampleBatch], labels: Sequence[ArrayLike]) ->
     if len(batches) != len(labels):
         raise ValueError(f"got {len(batches)} batches but {len(labels)} label arrays")
     out = []
-    for i, (batch, y) in enumerate(zip(batches, labels)):
+    for i, (batch, y) in enumerate(zip(batches, labels, strict=True)):
         y = np.asarray(y)
         if y.shape != (len(batch),):
             raise ValueError(f"labels[{i}] has shape {y.shape}, expected ({len(batch)},)")
@@ -84,7 +84,9 @@ def calibrate_thresholds(
     if not batches:
         raise ValueError("calibration needs at least one labelled recording")
     classifier = _classifier(base, sample_rate_hz)
-    recordings = [(*classifier.force_and_rate(batch), y) for batch, y in zip(batches, ys)]
+    recordings: list[F.Recording] = [
+        (*classifier.force_and_rate(batch), y) for batch, y in zip(batches, ys, strict=True)
+    ]
     thresholds, _ = F.best_and_thresholds(
         recordings, n_candidates=n_candidates, base=classifier.thresholds, objective=objective
     )
@@ -148,7 +150,7 @@ def evaluate_detection(
     counts = {"approaches": 0, "early": 0, "late": 0, "missed": 0, "false_alarm": 0}
     free_moves = free_flagged = free_samples = free_samples_flagged = 0
     leads = []
-    for batch, y in zip(batches, ys):
+    for batch, y in zip(batches, ys, strict=True):
         predicted = classifier.predict(batch) if len(batch) else np.zeros(0, dtype=np.int64)
         free_samples += int(np.sum(y == 0))
         free_samples_flagged += int(np.sum((y == 0) & (predicted != 0)))

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -44,12 +45,24 @@ from hapticframe.kinds import (
 from . import _functional as F
 from ._config import ForceRateJammingConfig
 
-__all__ = ["CLASSES", "ForceRateJammingClassifier", "ForceRateTracker"]
+__all__ = ["CLASSES", "ForceRateJammingClassifier", "ForceRateTracker", "TrackerState"]
 
 CLASSES = ("free", "jamming", "contact")
 DEFAULT_SAMPLE_RATE_HZ = 100.0
 #: Longest batch that :meth:`ForceRateJammingClassifier.update` classifies row by row.
 ROW_BY_ROW_MAX = 4096
+
+
+@dataclass(frozen=True)
+class TrackerState:
+    """The streaming state of a :class:`ForceRateTracker`, copied by its ``snapshot``."""
+
+    zi: NDArray[np.float64] | None
+    registers: list[list[float]] | None
+    held: float | None
+    last_y: float | None
+    last_t: float | None
+    last_seen_t: float
 
 
 class ForceRateTracker:
@@ -79,9 +92,9 @@ class ForceRateTracker:
         self._last_t: float | None = None  # time of the last filtered sample
         self._last_seen_t = -np.inf  # time of the last sample of any kind
 
-    def snapshot(self) -> tuple[object, ...]:
+    def snapshot(self) -> TrackerState:
         """The whole streaming state (copies), for :meth:`restore`."""
-        return (
+        return TrackerState(
             None if self._zi is None else self._zi.copy(),
             None if self._registers is None else [list(r) for r in self._registers],
             self._held,
@@ -90,15 +103,15 @@ class ForceRateTracker:
             self._last_seen_t,
         )
 
-    def restore(self, snapshot: tuple[object, ...]) -> None:
+    def restore(self, snapshot: TrackerState) -> None:
         """Return to the state :meth:`snapshot` returned."""
-        zi, registers, held, last_y, last_t, last_seen_t = snapshot
+        zi, registers = snapshot.zi, snapshot.registers
         self._zi = None if zi is None else np.array(zi, dtype=np.float64)
-        self._registers = None if registers is None else [list(r) for r in registers]  # type: ignore[union-attr]
-        self._held = held  # type: ignore[assignment]
-        self._last_y = last_y  # type: ignore[assignment]
-        self._last_t = last_t  # type: ignore[assignment]
-        self._last_seen_t = last_seen_t  # type: ignore[assignment]
+        self._registers = None if registers is None else [list(r) for r in registers]
+        self._held = snapshot.held
+        self._last_y = snapshot.last_y
+        self._last_t = snapshot.last_t
+        self._last_seen_t = snapshot.last_seen_t
 
     def process(
         self,
@@ -167,7 +180,7 @@ class ForceRateTracker:
             registers = self._registers = self._zi.tolist()
         self._last_seen_t = t
         sample = magnitude
-        for (b0, b1, b2, a1, a2), section in zip(self._sections, registers):
+        for (b0, b1, b2, a1, a2), section in zip(self._sections, registers, strict=True):
             y = b0 * sample + section[0]
             section[0] = b1 * sample - a1 * y + section[1]
             section[1] = b2 * sample - a2 * y
@@ -241,11 +254,11 @@ class ForceRateJammingClassifier(Classifier):
     def reset(self) -> None:
         self._tracker.reset()
 
-    def checkpoint(self) -> tuple[object, ...]:
+    def checkpoint(self) -> TrackerState:
         """The filter state (the classifier keeps no other state between updates)."""
         return self._tracker.snapshot()
 
-    def rewind(self, checkpoint: tuple[object, ...]) -> None:
+    def rewind(self, checkpoint: TrackerState) -> None:
         self._tracker.restore(checkpoint)
 
     def on_movement_end(self, result: MovementResult) -> None:

@@ -72,11 +72,11 @@ class SandboxForceSensor(Sensor):
         noise = self.config.noise_std_n * self._rng.standard_normal(forces.shape)
         return SampleBatch(timestamps, {FORCE_CHANNEL: forces + noise})
 
-    def checkpoint(self) -> tuple[int, dict[str, Any]]:
+    def checkpoint(self) -> tuple[int, Mapping[str, Any]]:
         """The read cursor and the noise generator's state."""
         return self._cursor, self._rng.bit_generator.state
 
-    def rewind(self, checkpoint: tuple[int, dict[str, Any]]) -> None:
+    def rewind(self, checkpoint: tuple[int, Mapping[str, Any]]) -> None:
         self._cursor, generator = checkpoint
         self._rng.bit_generator.state = generator
 

@@ -10,10 +10,10 @@ from hapticframe import PluginConfig
 
 __all__ = [
     "ELECTRODE_FRAMES",
-    "EMDFeaturesConfig",
     "MODALITIES",
-    "Modality",
     "PDC_FRAMES",
+    "EMDFeaturesConfig",
+    "Modality",
     "SparseCodingConfig",
     "feature_channel",
     "input_channel",

@@ -50,7 +50,7 @@ class EMDFeatureExtractor(FeatureExtractor):
         return self.config.delay_frames / self.config.frame_rate_hz
 
     @property
-    def imf_counts(self) -> dict[str, int]:
+    def imf_counts(self) -> dict[Modality, int]:
         """IMFs actually found in the latest pac and pdc windows (later rows are zero)."""
         return dict(self._stream.imf_counts)
 

@@ -113,7 +113,7 @@ class SparseCodingExtractor(FeatureExtractor):
             "pdc": self.config.pdc_shape,
             "electrodes": self.config.electrodes_shape,
         }
-        return tuple(shapes[modality])  # type: ignore[return-value]
+        return shapes[modality]
 
     def dimension(self, modality: Modality) -> int:
         """m: the length of the flattened tensor."""
@@ -173,7 +173,7 @@ class SparseCodingExtractor(FeatureExtractor):
                 f"expected {self.tensor_shape(modality)}"
             )
         rows = tensors.reshape(len(batch), self.dimension(modality))
-        ok = np.isfinite(rows).all(axis=1)
+        ok = np.all(np.isfinite(rows), axis=1)
         if name in batch.valid:
             ok &= batch.valid[name]
         return np.where(ok[:, np.newaxis], rows, 0.0), ok
@@ -304,7 +304,8 @@ class SparseCodingExtractor(FeatureExtractor):
             {f"{m}_amplitude_reference": np.array(self.amplitude_references[m])
              for m in self.modalities}
         )  # fmt: skip
-        np.savez(arrays, **payload)
+        # numpy's stub types **kwds as if a key could be `allow_pickle`; none of these names is.
+        np.savez(arrays, **payload)  # type: ignore[arg-type]
         meta.write_text(json.dumps(self.metadata(), indent=2, allow_nan=False) + "\n")
         return arrays, meta
 

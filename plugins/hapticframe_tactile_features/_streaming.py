@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._config import ELECTRODE_FRAMES, PDC_FRAMES, EMDFeaturesConfig, Modality, feature_channel
-from ._emd import emd
+from ._emd import EMDResult, emd
 
 __all__ = ["FeatureStream", "RingBuffer", "hold_invalid"]
 
@@ -203,21 +203,26 @@ class FeatureStream:
     def _features(self) -> dict[str, FloatArray]:
         cfg = self.config
         out: dict[str, FloatArray] = {}
-        settings = {
-            "sd_threshold": cfg.sd_threshold,
-            "max_sifts": cfg.max_sifts,
-            "residue_ratio": cfg.residue_ratio,
-            "n_mirror": cfg.mirrored_extrema,
-            "backend": cfg.emd_backend,
-        }
+
+        def decompose(signal: FloatArray, max_imfs: int) -> EMDResult:
+            return emd(
+                signal,
+                max_imfs,
+                sd_threshold=cfg.sd_threshold,
+                max_sifts=cfg.max_sifts,
+                residue_ratio=cfg.residue_ratio,
+                n_mirror=cfg.mirrored_extrema,
+                backend=cfg.emd_backend,
+            )
+
         if "pac" in self.modalities:
-            result = emd(self._pac.view(), cfg.pac_imfs, **settings)
+            result = decompose(self._pac.view(), cfg.pac_imfs)
             self.imf_counts["pac"] = result.n_found
             imfs = result.imfs
             end = cfg.pac_window_samples - cfg.pac_samples_per_frame * self.delay
             out["pac_imfs"] = imfs[:, end - cfg.pac_samples_per_frame : end]
         if "pdc" in self.modalities:
-            result = emd(self._pdc.view(), cfg.pdc_imfs, **settings)
+            result = decompose(self._pdc.view(), cfg.pdc_imfs)
             self.imf_counts["pdc"] = result.n_found
             imfs = result.imfs
             end = cfg.pdc_window_samples - self.delay

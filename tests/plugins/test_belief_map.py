@@ -21,10 +21,13 @@ def build_map(seed: int = 0, scene: Scene | None = None, **config) -> BeliefMap:
 
 
 def build_model(**config) -> ContactPoint:
-    return ContactPoint(ContactPointConfig(**config), BuildContext(id="cp", rng=np.random.default_rng(0)))
+    context = BuildContext(id="cp", rng=np.random.default_rng(0))
+    return ContactPoint(ContactPointConfig(**config), context)
 
 
-def blob_observations(n: int, seed: int, *, radius: float = 0.04, noise: float = 0.0) -> Observations:
+def blob_observations(
+    n: int, seed: int, *, radius: float = 0.04, noise: float = 0.0
+) -> Observations:
     """Uniform points in a 0.2 m square around the origin; contact inside a disc at the origin."""
     rng = np.random.default_rng(seed)
     points = rng.uniform(-0.1, 0.1, (n, 2))
@@ -33,8 +36,11 @@ def blob_observations(n: int, seed: int, *, radius: float = 0.04, noise: float =
     return Observations(points, (inside ^ flip).astype(float))
 
 
-def sweep(n: int = 200, contact: tuple[int, int] = (60, 120), step: float = 0.0004) -> LocatedMeasurement:
-    """A fingertip raked along +x at 100 Hz; the classifier says contact on [contact[0], contact[1])."""
+def sweep(
+    n: int = 200, contact: tuple[int, int] = (60, 120), step: float = 0.0004
+) -> LocatedMeasurement:
+    """A fingertip raked along +x at 100 Hz; the classifier says contact on
+    ``[contact[0], contact[1])``."""
     t = 0.01 * np.arange(1, n + 1)
     x = -0.04 + step * np.arange(n)
     p_contact = np.full(n, 0.05)
@@ -97,7 +103,9 @@ def test_contact_point_observes_the_contact_probability_at_the_fingertip() -> No
 def test_three_classes_map_per_config() -> None:
     probabilities = np.array([[0.2, 0.5, 0.3], [0.1, 0.1, 0.8], [1.0, 0.0, 0.0]])
     classes = ("free", "jamming", "contact")
-    np.testing.assert_allclose(fn.contact_targets(probabilities, classes, "contact"), [0.3, 0.8, 0.0])
+    np.testing.assert_allclose(
+        fn.contact_targets(probabilities, classes, "contact"), [0.3, 0.8, 0.0]
+    )
     both = fn.contact_targets(probabilities, classes, "contact", {"contact": 1.0, "jamming": 1.0})
     np.testing.assert_allclose(both, [0.8, 0.9, 0.0])
     half = fn.contact_targets(probabilities, classes, "contact", {"contact": 1.0, "jamming": 0.5})
@@ -137,7 +145,9 @@ def test_binning_is_exact_under_coarsening_and_order() -> None:
     cells = np.floor(fine.positions / 0.002)
     np.testing.assert_array_equal(cells, fine.keys[:, :2])
     order = np.random.default_rng(2).permutation(5000)
-    shuffled = fn.bin_observations(obs.points_m[order], obs.targets[order], obs.weights[order], 0.002)
+    shuffled = fn.bin_observations(
+        obs.points_m[order], obs.targets[order], obs.weights[order], 0.002
+    )
     np.testing.assert_array_equal(shuffled.keys, fine.keys)
 
 
@@ -149,7 +159,9 @@ def test_update_cost_is_bounded() -> None:
     assert the_map.representatives <= 300
     assert the_map.cell_size_m > 0.002  # it had to coarsen
     # Streaming reached the same level and bins as binning everything at once.
-    everything = Observations.concatenate([blob_observations(25_000, 10 + p, noise=0.05) for p in range(4)])
+    everything = Observations.concatenate(
+        [blob_observations(25_000, 10 + p, noise=0.05) for p in range(4)]
+    )
     batch = build_map(max_points=300, update_every=10**6)
     batch.update(everything)
     assert batch.cell_size_m == the_map.cell_size_m
@@ -180,7 +192,8 @@ def test_prior_before_both_classes() -> None:
     flat = build_map(unexplored_prior=None)
     flat.update(free)
     np.testing.assert_allclose(flat.query(grid).mean, 1 / 50)
-    the_map.update(Observations(np.column_stack([np.linspace(0.21, 0.23, 10), np.zeros(10)]), np.ones(10)))
+    points = np.column_stack([np.linspace(0.21, 0.23, 10), np.zeros(10)])
+    the_map.update(Observations(points, np.ones(10)))
     assert the_map.fitted
 
 
@@ -323,14 +336,20 @@ def test_synthetic_biotac_trial_puts_the_object_on_the_contact_chord() -> None:
     trial = synthetic.generate_trial(spec, np.random.default_rng(0))
     model, the_map = build_model(), build_map()
     probabilities = np.column_stack([1.0 - trial.contact, trial.contact]).astype(float)
-    measurement = LocatedMeasurement(trial.timestamps_s, trial.position_m, np.zeros(len(trial.contact)),
-                                     probabilities, ("free", "contact"))
+    measurement = LocatedMeasurement(
+        trial.timestamps_s,
+        trial.position_m,
+        np.zeros(len(trial.contact)),
+        probabilities,
+        ("free", "contact"),
+    )
     for i in range(0, len(measurement), 10):
         the_map.update(model.observe(measurement.select(slice(i, i + 10))))
     contact_x = trial.position_m[trial.contact > 0, 0]
     y = float(np.median(trial.position_m[:, 1]))
     centre = [[0.5 * (contact_x.min() + contact_x.max()), y]]
     assert the_map.query(centre).mean[0] > 0.8
-    assert the_map.query([[trial.position_m[0, 0], y], [trial.position_m[-1, 0], y]]).mean.max() < 0.3
+    ends = [[trial.position_m[0, 0], y], [trial.position_m[-1, 0], y]]
+    assert the_map.query(ends).mean.max() < 0.3
     region = the_map.region  # extent of the rake plus 5 cm, not the 0.75 x 0.50 m default
     assert region.size_m[0] < 0.35

@@ -145,7 +145,7 @@ def test_variational_update_matches_dense_reference(small_problem, iterations) -
     np.testing.assert_allclose(post.mean, mean, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose(post.covariance(), cov, rtol=1e-8, atol=1e-10)
     np.testing.assert_allclose(post.variances(), np.diag(cov), rtol=1e-8)
-    mu, var = fn.predictive_moments(post, phi)
+    _mu, var = fn.predictive_moments(post, phi)
     np.testing.assert_allclose(var, np.einsum("ij,jk,ik->i", phi, cov, phi), rtol=1e-8)
 
 

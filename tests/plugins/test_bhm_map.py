@@ -18,7 +18,6 @@ from hapticframe_bhm import plugin as bhm_plugin
 from hapticframe_bhm._config import length_scale_from_bandwidth_per_cm2
 from hapticframe_bench import labelled_points, roc_auc, two_object_scene
 
-
 #: Table 3.1's map: 2.24 / 3.54 cm length scales switched per region, a zero-mean prior of
 #: variance 10 and the Monte-Carlo std of Eq. 3.8 (the defaults are calibrated, see _map).
 THESIS = {
@@ -209,7 +208,7 @@ def test_sequential_updates_approximate_one_batch_fit(data) -> None:
 
 
 def test_fit_forgets_earlier_data(data) -> None:
-    train, test = data
+    train, _test = data
     once = build()
     once.fit(train)
     twice = build()

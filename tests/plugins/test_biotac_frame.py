@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from hapticframe.kinds import SampleBatch
-
-from hapticframe_biotac._frame import LAYOUTS, SIGNAL_CHANNELS, BioTacFrames, check_counts, layout_for
+from hapticframe_biotac._frame import (
+    LAYOUTS,
+    SIGNAL_CHANNELS,
+    BioTacFrames,
+    check_counts,
+    layout_for,
+)
 from hapticframe_biotac._wire import WordStreamDecoder, encode_frames
 
 
@@ -22,17 +27,21 @@ def frames(n: int = 4, variant: str = "biotac", **kw) -> BioTacFrames:
 
 
 def test_layouts_follow_the_frame_schedules():
-    assert (LAYOUTS["biotac"].n_pac, LAYOUTS["biotac"].n_electrodes, LAYOUTS["biotac"].frame_words) == (22, 19, 44)
-    assert (LAYOUTS["biotac_sp"].n_pac, LAYOUTS["biotac_sp"].n_electrodes, LAYOUTS["biotac_sp"].frame_words) == (27, 24, 54)
+    biotac, sp = LAYOUTS["biotac"], LAYOUTS["biotac_sp"]
+    assert (biotac.n_pac, biotac.n_electrodes, biotac.frame_words) == (22, 19, 44)
+    assert (sp.n_pac, sp.n_electrodes, sp.frame_words) == (27, 24, 54)
     assert LAYOUTS["biotac"].frame_rate_hz == pytest.approx(100.0)
     infos = LAYOUTS["biotac"].channel_infos(ground_truth=True)
-    assert infos["pac"].shape == (22,) and infos["pdc"].shape == () and infos["position_m"].unit == "m"
+    assert infos["pac"].shape == (22,) and infos["pdc"].shape == ()
+    assert infos["position_m"].unit == "m"
 
 
 def test_sample_batch_round_trip_keeps_values_validity_and_ground_truth():
     valid = np.ones((4, 19), dtype=bool)
     valid[2, 5] = False
-    original = frames(word_valid={"electrodes": valid}, position_m=np.zeros((4, 2)), contact=[0, 1, 1, 0])
+    original = frames(
+        word_valid={"electrodes": valid}, position_m=np.zeros((4, 2)), contact=[0, 1, 1, 0]
+    )
     batch = original.to_sample_batch()
     assert isinstance(batch, SampleBatch)
     assert set(batch.valid) == set(SIGNAL_CHANNELS)
@@ -42,7 +51,8 @@ def test_sample_batch_round_trip_keeps_values_validity_and_ground_truth():
     for name in SIGNAL_CHANNELS:
         assert np.array_equal(getattr(back, name), getattr(original, name))
     # a row flag covers every word of its channel on the way back
-    assert not back.word_valid["electrodes"][2].any() and back.word_valid["electrodes"][[0, 1, 3]].all()
+    assert not back.word_valid["electrodes"][2].any()
+    assert back.word_valid["electrodes"][[0, 1, 3]].all()
     assert np.array_equal(back.contact, original.contact)
     with pytest.raises(ValueError, match="lacks BioTac channel"):
         BioTacFrames.from_sample_batch(SampleBatch(np.zeros(1), {"pac": np.zeros((1, 22))}))
@@ -52,13 +62,22 @@ def test_frames_reject_malformed_input():
     layout = layout_for("biotac")
     good = frames(3)
     with pytest.raises(ValueError, match="strictly increasing"):
-        BioTacFrames(layout, [0.0, 0.0, 1.0], good.pac, good.pdc, good.tac, good.tdc, good.electrodes)
+        BioTacFrames(
+            layout, [0.0, 0.0, 1.0], good.pac, good.pdc, good.tac, good.tdc, good.electrodes
+        )
     with pytest.raises(ValueError, match="finite"):
-        BioTacFrames(layout, [0.0, np.nan, 1.0], good.pac, good.pdc, good.tac, good.tdc, good.electrodes)
+        BioTacFrames(
+            layout, [0.0, np.nan, 1.0], good.pac, good.pdc, good.tac, good.tdc, good.electrodes
+        )
     with pytest.raises(ValueError, match="pac"):
-        BioTacFrames(layout, good.timestamps_s, good.pac[:, :21], good.pdc, good.tac, good.tdc, good.electrodes)
+        BioTacFrames(
+            layout, good.timestamps_s, good.pac[:, :21], good.pdc, good.tac, good.tdc,
+            good.electrodes,
+        )
     with pytest.raises(ValueError, match="rows"):
-        BioTacFrames(layout, good.timestamps_s, good.pac, good.pdc[:2], good.tac, good.tdc, good.electrodes)
+        BioTacFrames(
+            layout, good.timestamps_s, good.pac, good.pdc[:2], good.tac, good.tdc, good.electrodes
+        )
     with pytest.raises(ValueError, match="both"):
         frames(3, contact=[0, 1, 0])
     with pytest.raises(ValueError, match="word_valid"):
@@ -72,7 +91,8 @@ def test_frames_reject_malformed_input():
 def test_check_counts_accepts_only_integral_12_bit_values():
     assert check_counts([0, 4095.0], "x").tolist() == [0, 4095]
     assert check_counts(np.empty(0), "x").size == 0
-    for bad, why in (([4096], "0..4095"), ([-1], "0..4095"), ([2.5], "integer"), ([np.inf], "finite")):
+    cases = (([4096], "0..4095"), ([-1], "0..4095"), ([2.5], "integer"), ([np.inf], "finite"))
+    for bad, why in cases:
         with pytest.raises(ValueError, match=why):
             check_counts(bad, "x")
 

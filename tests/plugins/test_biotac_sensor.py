@@ -11,7 +11,6 @@ from pydantic import ValidationError
 import hapticframe
 from hapticframe.kinds import concatenate_batches
 from hapticframe.testing import make_component, run_checks
-
 from hapticframe_biotac import BioTacSensorConfig
 from hapticframe_biotac._frame import SIGNAL_CHANNELS, BioTacFrames
 from hapticframe_biotac._replay import save_npz
@@ -42,7 +41,9 @@ def test_conformance_kit_passes_for_the_sp_and_for_a_replay(registry, tmp_path):
     sp = dataclasses.replace(SPEC, check_config={**SPEC.check_config, "variant": "biotac_sp"})
     assert_all_pass(sp, registry)
     path = save_npz(tmp_path / "rec.npz", resting_frames(200))
-    replay = dataclasses.replace(SPEC, check_config={"source": "replay", "path": str(path), "frames_per_read": 3})
+    replay = dataclasses.replace(
+        SPEC, check_config={"source": "replay", "path": str(path), "frames_per_read": 3}
+    )
     assert_all_pass(replay, registry)
 
 
@@ -72,7 +73,9 @@ def test_spi_source_layout_validity_and_counters(registry):
     invalid_rows = ~np.logical_and.reduce([batch.valid[name] for name in SIGNAL_CHANNELS])
     assert invalid_rows.sum() >= stats.dropped_frames
     assert batch.valid["pac"].mean() > 0.5  # one bad word spoils its own channel's row only
-    counts = np.concatenate([batch.channels[name].reshape(len(batch), -1) for name in SIGNAL_CHANNELS], axis=1)
+    counts = np.concatenate(
+        [batch.channels[name].reshape(len(batch), -1) for name in SIGNAL_CHANNELS], axis=1
+    )
     assert np.isfinite(counts).all() and counts.min() >= 0 and counts.max() <= 4095
     assert sensor.read_all().timestamps_s.size == 0
 
@@ -90,7 +93,8 @@ def test_spi_source_skip_mode_and_frames_per_read(registry):
 def test_sp_variant_shapes(registry):
     sensor = build(registry, source="spi", variant="biotac_sp", emulator_frames=10)
     batch = sensor.read_all()
-    assert batch.channels["pac"].shape == (10, 27) and batch.channels["electrodes"].shape == (10, 24)
+    assert batch.channels["pac"].shape == (10, 27)
+    assert batch.channels["electrodes"].shape == (10, 24)
     assert sensor.channels["pac"].rate_hz == pytest.approx(4400 / 54)
 
 
@@ -131,7 +135,11 @@ def test_replay_source_streams_the_recording_exactly(registry, tmp_path):
 
 
 def test_replay_of_a_csv_through_the_sensor(registry, tmp_path):
-    header = ["pdc", "tac", "tdc"] + [f"pac{i}" for i in range(1, 23)] + [f"ele{i}" for i in range(1, 20)]
+    header = (
+        ["pdc", "tac", "tdc"]
+        + [f"pac{i}" for i in range(1, 23)]
+        + [f"ele{i}" for i in range(1, 20)]
+    )
     rows = np.random.default_rng(1).integers(0, 4096, (7, len(header)))
     path = tmp_path / "t.csv"
     path.write_text(",".join(header) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
@@ -142,7 +150,7 @@ def test_replay_of_a_csv_through_the_sensor(registry, tmp_path):
 def test_config_errors_are_clear():
     with pytest.raises(ValidationError, match="needs a path"):
         BioTacSensorConfig(source="replay")
-    with pytest.raises(ValidationError, match=".npz or .csv"):
+    with pytest.raises(ValidationError, match=r"\.npz or \.csv"):
         BioTacSensorConfig(source="replay", path="x.txt")
     with pytest.raises(ValidationError, match="19-electrode"):
         BioTacSensorConfig(source="synthetic", variant="biotac_sp")
@@ -175,7 +183,8 @@ def test_an_spi_backend_is_chosen_by_its_registered_name(registry, monkeypatch):
     sensor = build(registry, source="spi", spi_backend="cheetah")
     batch = sensor.read()
     assert len(batch) == 1 and batch.valid["pac"].all()
-    with pytest.raises(ValueError, match=r"no SPI backend named 'aardvark'.*known: broken, cheetah, emulator, wrong"):
+    unknown = r"no SPI backend named 'aardvark'.*known: broken, cheetah, emulator, wrong"
+    with pytest.raises(ValueError, match=unknown):
         build(registry, source="spi", spi_backend="aardvark")
     with pytest.raises(ValueError, match="'broken' cannot be loaded: ModuleNotFoundError"):
         build(registry, source="spi", spi_backend="broken")
@@ -184,9 +193,9 @@ def test_an_spi_backend_is_chosen_by_its_registered_name(registry, monkeypatch):
 
 
 def test_a_backend_name_registered_twice_is_refused(registry, monkeypatch):
-    from hapticframe_biotac import _backends
-
     import importlib.metadata
+
+    from hapticframe_biotac import _backends
 
     twice = [
         importlib.metadata.EntryPoint("cheetah", "a.b:C", _backends.ENTRY_POINT_GROUP),
@@ -198,7 +207,9 @@ def test_a_backend_name_registered_twice_is_refused(registry, monkeypatch):
 
 
 def test_synthetic_source_streams_trials_with_ground_truth(registry):
-    pytest.importorskip("hapticframe_biotac._synthetic", reason="the synthetic generator is not written yet")
+    pytest.importorskip(
+        "hapticframe_biotac._synthetic", reason="the synthetic generator is not written yet"
+    )
     sensor = build(registry, seed=2, source="synthetic", n_trials=2, frames_per_read=50,
                    medium="bbs", has_object=True)
     assert {"position_m", "contact"} <= set(sensor.channels)
@@ -206,9 +217,12 @@ def test_synthetic_source_streams_trials_with_ground_truth(registry):
     assert sensor.exhausted and len(batch) > 100
     assert (np.diff(batch.timestamps_s) > 0).all()
     assert set(np.unique(batch.channels["contact"])) <= {0.0, 1.0}
-    assert batch.channels["pac"].shape[1:] == (22,) and batch.channels["electrodes"].shape[1:] == (19,)
+    assert batch.channels["pac"].shape[1:] == (22,)
+    assert batch.channels["electrodes"].shape[1:] == (19,)
     again = build(registry, seed=2, source="synthetic", n_trials=2, frames_per_read=50,
                   medium="bbs", has_object=True).read_all()
     assert np.array_equal(batch.channels["pdc"], again.channels["pdc"])
-    synthetic_kit = dataclasses.replace(SPEC, check_config={"source": "synthetic", "n_trials": 1, "frames_per_read": 10})
+    synthetic_kit = dataclasses.replace(
+        SPEC, check_config={"source": "synthetic", "n_trials": 1, "frames_per_read": 10}
+    )
     assert_all_pass(synthetic_kit, registry)

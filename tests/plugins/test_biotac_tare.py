@@ -8,7 +8,6 @@ from pydantic import ValidationError
 
 import hapticframe
 from hapticframe.testing import make_component
-
 from hapticframe_biotac import BioTacSensorConfig
 from hapticframe_biotac._frame import BioTacFrames, layout_for
 from hapticframe_biotac._sensor import tare_frames, tare_in_air

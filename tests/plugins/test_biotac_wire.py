@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -35,7 +37,9 @@ def random_frames(variant: str, n: int, seed: int = 0, period: float | None = No
     )
 
 
-def decode_all(emulator: EmulatedBioTac, words_per_read: int, **decoder_kw) -> tuple[BioTacFrames, WordStreamDecoder]:
+def decode_all(
+    emulator: EmulatedBioTac, words_per_read: int, **decoder_kw
+) -> tuple[BioTacFrames, WordStreamDecoder]:
     decoder = WordStreamDecoder(emulator.variant, **decoder_kw)
     parts = []
     while not emulator.exhausted:
@@ -51,13 +55,16 @@ def test_command_bytes_match_the_reference_header():
     # Constants of the SynTouch driver header (hardware notes §5.2).
     assert command_byte(0) == 0x80 and command_byte(1) == 0x83
     assert command_byte(2) == 0x85 and command_byte(3) == 0x86
-    assert [command_byte(16 + k) for k in (1, 2, 3, 19, 20, 24)] == [0xA2, 0xA4, 0xA7, 0xC7, 0xC8, 0xD0]
+    slow_commands = [command_byte(16 + k) for k in (1, 2, 3, 19, 20, 24)]
+    assert slow_commands == [0xA2, 0xA4, 0xA7, 0xC7, 0xC8, 0xD0]
     assert has_odd_parity(np.frombuffer(schedule_for("biotac_sp").commands, dtype=np.uint8)).all()
     with pytest.raises(ValueError):
         command_byte(64)
 
 
-@pytest.mark.parametrize(("variant", "words", "pac", "ele"), [("biotac", 44, 22, 19), ("biotac_sp", 54, 27, 24)])
+@pytest.mark.parametrize(
+    ("variant", "words", "pac", "ele"), [("biotac", 44, 22, 19), ("biotac_sp", 54, 27, 24)]
+)
 def test_schedule_interleaves_pac_after_every_slow_channel(variant, words, pac, ele):
     schedule = schedule_for(variant)
     assert schedule.frame_words == words
@@ -109,9 +116,10 @@ def test_decoder_is_incremental_over_arbitrary_byte_splits(cuts):
     bounds = sorted({0, len(stream), *cuts})
     decoder = WordStreamDecoder("biotac")
     slot_s = 1 / 4400
-    parts = [decoder.feed(stream[a:b], (b // 2) * slot_s) for a, b in zip(bounds[:-1], bounds[1:])]
+    parts = [decoder.feed(stream[a:b], (b // 2) * slot_s) for a, b in itertools.pairwise(bounds)]
     decoded = BioTacFrames.concatenate(parts)
-    assert np.array_equal(decoded.pac, frames.pac) and np.array_equal(decoded.electrodes, frames.electrodes)
+    assert np.array_equal(decoded.pac, frames.pac)
+    assert np.array_equal(decoded.electrodes, frames.electrodes)
     # each frame's time is the moment its last word arrived, whatever the transfer sizes
     assert np.allclose(decoded.timestamps_s, frames.timestamps_s, atol=1e-9)
     assert decoder.stats.dropped_frames == 0
@@ -136,7 +144,9 @@ def expected_masks(variant: str, n: int, bad: set[tuple[int, int]]) -> dict[str,
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     variant=st.sampled_from(["biotac", "biotac_sp"]),
-    errors=st.sets(st.tuples(st.integers(0, 5), st.integers(0, 53), st.integers(0, 1)), max_size=25),
+    errors=st.sets(
+        st.tuples(st.integers(0, 5), st.integers(0, 53), st.integers(0, 1)), max_size=25
+    ),
     words_per_read=st.sampled_from([1, 7, 44, 54, 100]),
 )
 def test_parity_errors_never_shift_other_channels(variant, errors, words_per_read):
@@ -168,8 +178,11 @@ def test_invalid_words_hold_the_previous_valid_sample():
     schedule = schedule_for("biotac")
     pac_slots = schedule.slots_of("pac")
     e5 = schedule.slots_of("electrodes")[4]
-    plan = plan_from_positions(parity=[(1, int(pac_slots[0]), 0), (1, int(pac_slots[1]), 1), (2, int(e5), 0)])
-    decoded, _ = decode_all(EmulatedBioTac("biotac", np.random.default_rng(0), content=frames, faults=plan), 44)
+    plan = plan_from_positions(
+        parity=[(1, int(pac_slots[0]), 0), (1, int(pac_slots[1]), 1), (2, int(e5), 0)]
+    )
+    emulator = EmulatedBioTac("biotac", np.random.default_rng(0), content=frames, faults=plan)
+    decoded, _ = decode_all(emulator, 44)
     # pac is one signal: samples 0 and 1 of frame 1 hold the last pac sample of frame 0
     assert decoded.pac[1, 0] == decoded.pac[1, 1] == frames.pac[0, -1]
     assert decoded.electrodes[2, 4] == frames.electrodes[1, 4]
@@ -180,7 +193,8 @@ def test_stale_words_are_flagged_counted_and_held():
     frames = random_frames("biotac", 4, seed=8)
     pdc_slot = int(schedule_for("biotac").slots_of("pdc")[0])
     plan = plan_from_positions(stale=[(2, pdc_slot), (3, 0)])
-    decoded, decoder = decode_all(EmulatedBioTac("biotac", np.random.default_rng(0), content=frames, faults=plan), 44)
+    emulator = EmulatedBioTac("biotac", np.random.default_rng(0), content=frames, faults=plan)
+    decoded, decoder = decode_all(emulator, 44)
     assert decoder.stats.stale_words == 2 and decoder.stats.parity_errors == 0
     assert decoded.pdc[2] == frames.pdc[1]  # held, not the error word's bits
     assert not decoded.word_valid["pdc"][2] and decoded.word_valid["pdc"][[0, 1, 3]].all()
@@ -251,7 +265,9 @@ def test_a_long_gap_fills_at_most_max_fill_frames():
 def test_random_fault_rates_are_reproducible_and_counted():
     def run(seed: int) -> tuple[BioTacFrames, WordStreamDecoder, EmulatedBioTac]:
         plan = FaultPlan(parity_error_rate=0.01, stale_word_rate=0.005, dropped_frame_rate=0.05)
-        emulator = EmulatedBioTac("biotac", np.random.default_rng(seed), max_frames=300, faults=plan, jitter_s=0.001)
+        emulator = EmulatedBioTac(
+            "biotac", np.random.default_rng(seed), max_frames=300, faults=plan, jitter_s=0.001
+        )
         decoded, decoder = decode_all(emulator, 44)
         return decoded, decoder, emulator
 

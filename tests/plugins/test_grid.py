@@ -44,7 +44,7 @@ def reference_fuse(grid: OccupancyGrid, observations: Observations) -> np.ndarra
     cfg = grid.config
     log_odds = grid.log_odds.copy()
     low, high = logit(cfg.clamping_min), logit(cfg.clamping_max)
-    rows = zip(observations.points_m, observations.targets, observations.weights)
+    rows = zip(observations.points_m, observations.targets, observations.weights, strict=True)
     for (x, y), target, weight in rows:
         if not (0 <= x <= 0.75 and 0 <= y <= 0.5):
             continue

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from hapticframe import Circle, Ellipse, Scene
+from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult
 from hapticframe_jamming import (
     ForceRateJammingClassifier,
     ForceRateJammingConfig,
@@ -19,9 +22,6 @@ from hapticframe_sandbox import (
     approach_movement,
     record_movements,
 )
-
-from hapticframe import Circle, Ellipse, Scene
-from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult
 
 
 def make(config: ForceRateJammingConfig | None = None) -> ForceRateJammingClassifier:
@@ -63,7 +63,7 @@ def test_samples_objective_separates_separable_data():
     movements = synthetic_movements(np.random.default_rng(0))
     thresholds, score = F.best_and_thresholds(movements, objective="samples")
     assert score == pytest.approx(1.0)
-    f, r, y = (np.concatenate(parts) for parts in zip(*movements))
+    f, r, y = (np.concatenate(parts) for parts in zip(*movements, strict=True))
     np.testing.assert_array_equal(F.hard_states(f, r, thresholds), y)
     # Each axis alone would misclassify the decoy free samples; the AND does not.
     fj, rj, _, _ = thresholds
@@ -113,7 +113,7 @@ def test_event_objective_ignores_the_labels_hair_trigger():
     events, events_score = F.best_and_thresholds(movements, objective="events")
     samples, _ = F.best_and_thresholds(movements, objective="samples")
     assert events_score == pytest.approx(1.0)  # no false alarm, every approach caught
-    f, r, y = (np.concatenate(parts) for parts in zip(*movements))
+    f, r, y = (np.concatenate(parts) for parts in zip(*movements, strict=True))
     free = y == 0
     assert not np.any(F.hard_states(f[free], r[free], events))
     # Per-sample accuracy buys jamming recall with false alarms that would halt a run.
@@ -211,7 +211,7 @@ def simulate(seed: int, n_scenes: int, movements_per_scene: int, n_free: int):
         )
         y = rng.uniform(0.05, 0.45)
         recordings += record_movements(robot, sensor, [ExploratoryMovement((0.0, y), (0.75, y))])
-    batches, labels = zip(*recordings)
+    batches, labels = zip(*recordings, strict=True)
     return list(batches), list(labels)
 
 
@@ -251,7 +251,7 @@ def test_calibration_from_a_bad_start_classifies_held_out_runs_well(training_run
     assert report.false_alarm + report.free_false_alarms <= 2
     # Per-sample, the three states are told apart well above chance (1/3).
     truth, predicted = [], []
-    for batch, labels in zip(*held_out_runs):
+    for batch, labels in zip(*held_out_runs, strict=True):
         truth.append(labels)
         predicted.append(classifier.predict(batch))
     assert F.balanced_accuracy(np.concatenate(truth), np.concatenate(predicted)) > 0.7

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hapticframe_jamming import CLASSES, ForceRateJammingClassifier, ForceRateJammingConfig
-from hapticframe_jamming import _functional as F
-from hapticframe_jamming import plugin as jamming_plugin
 from pydantic import ValidationError
 
 from hapticframe import ClassifierSpec
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch
+from hapticframe_jamming import CLASSES, ForceRateJammingClassifier, ForceRateJammingConfig
+from hapticframe_jamming import _functional as F
+from hapticframe_jamming import plugin as jamming_plugin
 
 RATE_HZ = 100.0
 
@@ -288,7 +288,7 @@ def test_leading_and_all_nan_samples_are_uniform():
 
 
 def test_missing_channel_is_a_clear_error():
-    with pytest.raises(ValueError, match="'force_n'.*force_channel"):
+    with pytest.raises(ValueError, match=r"'force_n'.*force_channel"):
         make().update(batch_of(np.ones((3, 2)), channel="wrench"))
     ok = make(force_channel="wrench").predict_proba(batch_of(np.ones((3, 2)), channel="wrench"))
     assert len(ok) == 3

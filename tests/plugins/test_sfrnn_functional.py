@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from hapticframe.kinds import SampleBatch
 from hapticframe_sfrnn._functional import (
     FillReport,
     assemble_inputs,
@@ -16,8 +18,6 @@ from hapticframe_sfrnn._functional import (
     split_trials,
     window_starts,
 )
-
-from hapticframe.kinds import SampleBatch
 
 GROUPS = {"a_code": 3, "b_code": 2}
 

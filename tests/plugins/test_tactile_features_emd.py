@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.interpolate import CubicSpline
+
 from hapticframe_tactile_features._emd import (
     MIN_SAMPLES,
     cubic_spline,
@@ -11,7 +13,6 @@ from hapticframe_tactile_features._emd import (
     find_extrema,
     numba_available,
 )
-from scipy.interpolate import CubicSpline
 
 RATE_HZ = 2200.0
 
@@ -115,7 +116,7 @@ def test_rounding_noise_on_a_large_constant_counts_as_constant(backend: str) -> 
 def test_non_finite_input_raises_a_clear_error(bad: float, backend: str) -> None:
     x = np.sin(np.arange(100.0))
     x[37] = bad
-    with pytest.raises(ValueError, match="NaN or infinity.*sample 37"):
+    with pytest.raises(ValueError, match=r"NaN or infinity.*sample 37"):
         emd(x, backend=backend)
 
 

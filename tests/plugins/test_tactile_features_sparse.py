@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from hapticframe.kinds import BuildContext, SampleBatch
 from hapticframe_tactile_features._config import SparseCodingConfig
 from hapticframe_tactile_features._emd import numba_available
 from hapticframe_tactile_features._sparse import (
@@ -22,8 +24,6 @@ from hapticframe_tactile_features._sparse import (
 )
 from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
 from hapticframe_bench import synthetic_biotac_frames
-
-from hapticframe.kinds import BuildContext, SampleBatch
 
 pytest.importorskip("sklearn")
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
+
+from hapticframe.kinds import BuildContext, SampleBatch, concatenate_batches
 from hapticframe_tactile_features._config import EMDFeaturesConfig
 from hapticframe_tactile_features._emd import emd
 from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
