@@ -127,8 +127,8 @@ def test_pyemd_comparison_reports_both_pairings() -> None:
     pytest.importorskip("PyEMD")
     from hapticframe_bench import compare_emd_with_pyemd
 
-    report = compare_emd_with_pyemd(300, repeats=1)
-    assert report["samples"] == 300
+    report = compare_emd_with_pyemd(100, repeats=1)
+    assert report["samples"] == 100
     for key in ("emd_ms_default", "pyemd_ms_default", "emd_ms_fixed10", "pyemd_ms_fixed10"):
         assert report[key] > 0
 

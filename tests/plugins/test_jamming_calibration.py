@@ -210,7 +210,7 @@ def simulate(seed: int, n_scenes: int, movements_per_scene: int, n_free: int):
             ),
         )
         y = rng.uniform(0.05, 0.45)
-        recordings += record_movements(robot, sensor, [ExploratoryMovement((0.0, y), (0.75, y))])
+        recordings += record_movements(robot, sensor, [ExploratoryMovement((0.0, y), (0.4, y))])
     batches, labels = zip(*recordings, strict=True)
     return list(batches), list(labels)
 

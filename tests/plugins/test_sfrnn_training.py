@@ -6,7 +6,8 @@ turned into *code-like* features directly, not through ``emd-features`` + ``spar
 frame, ``pac_code`` is the 22 pac samples minus their mean, ``pdc_code`` the pdc minus the
 trial's resting value and ``electrodes_code`` the 19 electrodes minus theirs, so every
 "code" is zero at rest like a sparse code. The classifiers are scored on held-out trials
-through the streaming path (``predict_proba`` = per-frame steps from a fresh state).
+from a fresh state: the recurrent ones in one sequence call (``predict_sequence``), which
+the streaming tests check against per-frame steps (``predict_proba``, ``update``).
 """
 
 from __future__ import annotations
@@ -65,17 +66,25 @@ def context(seed: int = 0, name: str = "clf") -> BuildContext:
 
 
 def held_out_score(classifier: object, test: Labelled) -> float:
-    predict = classifier.predict  # type: ignore[attr-defined]
-    predicted = np.concatenate([predict(b) for b, _ in test])
+    # The recurrent networks score whole recordings in one call (predict_sequence, equal to
+    # the frame-by-frame stream up to float32 rounding, checked in test_sfrnn_amplitude.py);
+    # stepping frame by frame is what the streaming tests here are for, and is ~50x slower.
+    sequence = getattr(classifier, "predict_sequence", None)
+    if sequence is not None:
+        predicted = np.concatenate([sequence(b).labels for b, _ in test])
+    else:
+        predict = classifier.predict  # type: ignore[attr-defined]
+        predicted = np.concatenate([predict(b) for b, _ in test])
     truth = np.concatenate([y for _, y in test])
     return balanced_accuracy(truth, predicted)
 
 
 @pytest.fixture(scope="module")
 def sfrnn(trials: tuple[Labelled, Labelled]) -> SFRNNClassifier:
-    """The thesis's architecture (fusion → 4 × 50 GRU, dropout 0.4), trained briefly."""
+    """The thesis's architecture (fusion → 4 × 50 GRU, dropout 0.4), trained briefly: two
+    epochs reach 0.98 held-out balanced accuracy on these trials (the untrained net: 0.73)."""
     train, _ = trials
-    clf = SFRNNClassifier(SFRNNConfig(**SIZES, max_epochs=4, progress=False), context(0))
+    clf = SFRNNClassifier(SFRNNConfig(**SIZES, max_epochs=2, progress=False), context(0))
     clf.fit([b for b, _ in train], [y for _, y in train])
     return clf
 
@@ -86,7 +95,7 @@ def test_sfrnn_beats_chance_on_held_out_trials(
     _, test = trials
     assert sfrnn.fitted
     metrics = sfrnn.training_metrics
-    assert 1 <= metrics["best_epoch"] <= metrics["epochs"] <= 4
+    assert 1 <= metrics["best_epoch"] <= metrics["epochs"] <= 2
     assert metrics["validation_trials"] >= 2 and metrics["train_windows"] > 100
     assert np.isfinite(metrics["validation_loss"])
     assert held_out_score(sfrnn, test) >= 0.8
@@ -120,6 +129,9 @@ def test_streaming_in_chunks_equals_the_batch_path(
     streamed = np.vstack(rows)
     assert streamed.shape == whole.probabilities.shape
     assert np.max(np.abs(streamed - whole.probabilities)) <= 1e-6
+    # The one-call path that scores held-out trials computes the same, up to float32 rounding.
+    sequence = sfrnn.predict_sequence(batch).probabilities
+    assert np.max(np.abs(sequence - whole.probabilities)) <= 1e-5
     # The hidden state carries over: the same frames from a fresh state differ.
     sfrnn.reset()
     tail = sfrnn.update(batch.select(slice(100, None))).probabilities
@@ -154,7 +166,7 @@ def test_save_and_load_give_identical_probabilities(
 def test_missing_modality_is_zero_filled_and_reported(
     sfrnn: SFRNNClassifier, trials: tuple[Labelled, Labelled], tmp_path: Path
 ) -> None:
-    batch, _ = trials[1][0]
+    batch = trials[1][0][0].select(slice(0, 100))  # one second steps through quickly
     without = SampleBatch(
         batch.timestamps_s, {k: v for k, v in batch.channels.items() if k != "electrodes_code"}
     )
@@ -199,10 +211,10 @@ def test_training_on_a_subset_of_modalities(trials: tuple[Labelled, Labelled]) -
 def test_fusion_rnn_trains_and_streams(trials: tuple[Labelled, Labelled], tmp_path: Path) -> None:
     train, test = trials
     config = FusionRNNConfig(
-        **SIZES, branch_layers=1, branch_units=16, fusion_units=16, max_epochs=5, progress=False
+        **SIZES, branch_layers=1, branch_units=16, fusion_units=16, max_epochs=3, progress=False
     )
     clf = FusionRNNClassifier(config, context(4))
-    clf.fit([b for b, _ in train], [y for _, y in train])
+    clf.fit([b for b, _ in train[:12]], [y for _, y in train[:12]])
     assert held_out_score(clf, test) >= 0.7
     batch = test[0][0]
     whole = clf.predict_proba(batch).probabilities

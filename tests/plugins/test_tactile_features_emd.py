@@ -221,8 +221,10 @@ def test_agrees_with_pyemd_under_matched_settings(name: str, sifts: int, backend
 def test_random_short_and_quantised_signals_never_break_the_decomposition(backend: str) -> None:
     # Plateaus, repeated values and few extrema are where mirroring and splines can fail
     # (duplicate knots, singular systems); quantised pdc and saturated electrodes look so.
+    # The compiled kernel is fast enough for 2000 signals; the numpy reference, ~15x slower,
+    # gets the first 500 of them (the kernel must match it anyway, tested below).
     rng = np.random.default_rng(12)
-    for trial in range(2000):
+    for trial in range(2000 if backend == "numba" else 500):
         n = int(rng.integers(4, 120))
         kind = trial % 4
         if kind == 0:
