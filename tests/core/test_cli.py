@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from hapticframe._cli import main
-
-from tests.support.lab import lab_main, validate_lab
+from tests.support.lab import lab_main
 
 
 def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
@@ -22,7 +21,8 @@ def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "ok" and record["seed"] == 3
     assert record["resolved_config"]["sensors"][0]["config"]["chunk"] == 20
-    assert {p["type"] for p in record["plugins"]} == {"lab-sweep", "lab-threshold", "lab-point", "lab-cells"}
+    assert {p["type"] for p in record["plugins"]} == {
+        "lab-sweep", "lab-threshold", "lab-point", "lab-cells"}
     assert record["plugins"][0]["distribution"] == "<plugin-module>"
     with np.load(out / "trace.npz", allow_pickle=False) as trace:
         assert trace["sensor/sweep/force_n"].shape == (300, 2)
@@ -32,8 +32,9 @@ def test_run_writes_results_metadata_and_trace(lab_dir, capsys):
 
 def test_runs_are_reproducible(lab_dir):
     first, second = lab_dir / "a", lab_dir / "b"
+    experiment = str(lab_dir / "lab-open-loop.yaml")
     for out in (first, second):
-        assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), "--quiet"]) == 0
+        assert lab_main(["run", experiment, "--out", str(out), "--quiet"]) == 0
     with np.load(first / "trace.npz") as a, np.load(second / "trace.npz") as b:
         assert set(a.files) == set(b.files)
         for key in a.files:
@@ -88,7 +89,8 @@ def test_check_command_runs_the_kit(lab_dir, capsys, monkeypatch):
 
 
 def test_python_dash_m_and_version():
-    proc = subprocess.run([sys.executable, "-m", "hapticframe", "--version"], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "hapticframe", "--version"],
+                          capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stdout.startswith("hapticframe ")
 
 
@@ -137,9 +139,10 @@ def test_quiet_asks_every_component_to_draw_no_progress_bar(lab_dir, monkeypatch
         return built
 
     monkeypatch.setattr(assembly, "build_components", spy)
+    experiment = str(lab_dir / "lab-open-loop.yaml")
     for flags, expected in (([], True), (["--quiet"], False)):
         out = lab_dir / f"run-{len(seen)}"
-        assert lab_main(["run", str(lab_dir / "lab-open-loop.yaml"), "--out", str(out), *flags]) == 0
+        assert lab_main(["run", experiment, "--out", str(out), *flags]) == 0
         assert seen[-1] == {expected}
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import pytest
 
 from hapticframe.testing import CHECKS, parametrize_with_checks, run_checks
-
 from tests.support.broken import BROKEN, GOOD
 
 
@@ -33,7 +32,8 @@ def test_declared_expected_failures_are_xfail_and_xpass_is_reported():
     results = {r.check: r.status for r in run_checks(spec, expected_failed_checks={check: "known"})}
     assert results[check] == "XFAIL"
     good = GOOD[0]
-    results = {r.check: r.status for r in run_checks(good, expected_failed_checks={"check_builds": "?"})}
+    results = {
+        r.check: r.status for r in run_checks(good, expected_failed_checks={"check_builds": "?"})}
     assert results["check_builds"] == "XPASS"
 
 

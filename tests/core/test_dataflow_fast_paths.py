@@ -105,7 +105,7 @@ def test_pose_lookup_of_a_single_pose_and_of_none() -> None:
 
 def test_pose_batches_follow_the_same_rules() -> None:
     rng = np.random.default_rng(7)
-    t, xy, heading, _ = random_walk(rng, 50)
+    t, xy, _, _ = random_walk(rng, 50)
     t = np.sort(np.unique(t))
     xy = xy[: t.size]
     ours, reference = PoseHistory(), ReferencePoses()

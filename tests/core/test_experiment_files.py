@@ -10,15 +10,14 @@ import pytest
 
 from hapticframe import ExperimentError
 from hapticframe._cli import main
-
+from hapticframe._config import load_text
 from tests.support.lab import lab_main, validate_lab
-from hapticframe._config import load_text, validate_file
 
 GOOD = (Path(__file__).parents[1] / "support" / "lab-open-loop.yaml").read_text()
 
 BOMB = "".join(
     f"{c}: &{c} [{', '.join(['*' + p] * 9) if p else ', '.join(['x'] * 9)}]\n"
-    for p, c in zip(["", "a", "b", "c", "d", "e", "f"], "abcdefg")
+    for p, c in zip(["", "a", "b", "c", "d", "e", "f"], "abcdefg", strict=True)
 )
 
 CASES = {
@@ -29,9 +28,11 @@ CASES = {
     "only-comments": ("e.yaml", b"# nothing\n\n", "empty", None),
     "wrong-top-type": ("e.yaml", b"- a\n- b\n", "top level must be a mapping", 1),
     "wrong-value-type": ("e.yaml", GOOD.replace("seed: 3", "seed: three").encode(), "seed", 4),
-    "unknown-key": ("e.yaml", GOOD.replace("name: lab", "nmae: x\nname: lab").encode(), "did you mean 'name'", 3),
+    "unknown-key": ("e.yaml", GOOD.replace("name: lab", "nmae: x\nname: lab").encode(),
+                    "did you mean 'name'", 3),
     "unknown-config-key": ("e.yaml", GOOD.replace("samples: 300", "sampels: 300").encode(),
-                           "sensors[0].config.sampels: unknown key 'sampels'; did you mean 'samples'", 12),
+                           ("sensors[0].config.sampels: unknown key 'sampels'; "
+                            "did you mean 'samples'"), 12),
     # Suggestions at every nesting level: run settings, the scene, its material and objects.
     "unknown-run-key": ("e.yaml", (GOOD + "run:\n  evalution_map: cells\n").encode(),
                         ("run.evalution_map: unknown key 'evalution_map'; did you mean "
@@ -40,11 +41,14 @@ CASES = {
         "scene:\n", "scene:\n  material: {friction_angel_deg: 40.0}\n").encode(),
         ("scene.material.friction_angel_deg: unknown key 'friction_angel_deg'; did you mean "
          "'friction_angle_deg'"), 7),
-    "unknown-object-key": ("e.yaml", GOOD.replace("radius_m: 0.03}", "radius_m: 0.03, raduis: 1}").encode(),
-                           "scene.objects[0].raduis: unknown key 'raduis'; did you mean 'radius_m'", 8),
+    "unknown-object-key": ("e.yaml",
+                           GOOD.replace("radius_m: 0.03}", "radius_m: 0.03, raduis: 1}").encode(),
+                           ("scene.objects[0].raduis: unknown key 'raduis'; "
+                            "did you mean 'radius_m'"), 8),
     "unknown-plugin": ("e.yaml", GOOD.replace("type: lab-cells", "type: lab-celss").encode(),
                        "did you mean 'lab-cells'", 21),
-    "duplicate-id": ("e.yaml", GOOD.replace("id: cells", "id: point").encode(), "duplicate id 'point'", 20),
+    "duplicate-id": ("e.yaml", GOOD.replace("id: cells", "id: point").encode(),
+                     "duplicate id 'point'", 20),
     "dangling-input": ("e.yaml", GOOD.replace("inputs: [point]", "inputs: [pont]").encode(),
                        "input 'pont' is not the id of any component; did you mean 'point'", 22),
     "wrong-input-kind": ("e.yaml", GOOD.replace("inputs: [point]", "inputs: [sweep]").encode(),
@@ -52,10 +56,13 @@ CASES = {
     "self-input": ("e.yaml", GOOD.replace("inputs: [sweep]", "inputs: [sweep, contact]").encode(),
                    "cannot be its own input", 16),
     "alias-bomb": ("e.yaml", BOMB.encode(), "alias bomb", None),
-    "python-tag": ("e.yaml", b"schema_version: 1\nname: !!python/object/apply:os.system [ls]\nseed: 1\n",
+    "python-tag": ("e.yaml",
+                   b"schema_version: 1\nname: !!python/object/apply:os.system [ls]\nseed: 1\n",
                    "is not allowed", 2),
-    "duplicate-key": ("e.yaml", b"schema_version: 1\nname: a\nname: b\nseed: 1\n", "duplicate key 'name'", 3),
-    "bad-version": ("e.yaml", GOOD.replace("schema_version: 1", "schema_version: 7").encode(), "schema_version must be 1", 2),
+    "duplicate-key": ("e.yaml", b"schema_version: 1\nname: a\nname: b\nseed: 1\n",
+                      "duplicate key 'name'", 3),
+    "bad-version": ("e.yaml", GOOD.replace("schema_version: 1", "schema_version: 7").encode(),
+                    "schema_version must be 1", 2),
     "json-syntax": ("e.json", b'{"name": 1,,}', "JSON syntax error", 1),
     "toml-syntax": ("e.toml", b"name = [", "TOML syntax error", None),
     "unknown-suffix": ("e.ini", b"name=1", "unknown file type", None),
@@ -133,7 +140,8 @@ def test_yaml_loader_keeps_plain_data_only():
 def test_a_file_that_names_code_to_import_is_rejected_before_importing_it(lab_dir, capsys):
     (lab_dir / "payload.py").write_text("import pathlib\npathlib.Path('ran').write_text('x')\n")
     path = lab_dir / "m.yaml"
-    path.write_text(GOOD.replace("# (its plugins come", "plugin_modules: [payload]\n# (its plugins come"))
+    marker = "# (its plugins come"
+    path.write_text(GOOD.replace(marker, f"plugin_modules: [payload]\n{marker}"))
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "plugin_modules" in err and "never name code to import" in err and ":5" in err

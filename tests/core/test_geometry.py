@@ -66,7 +66,8 @@ def test_input_validation():
 def test_scene_shapes_contain_and_centroid():
     ellipse = Ellipse(center_m=(0.3, 0.2), semi_axes_m=(0.045, 0.025), orientation_deg=90)
     assert ellipse.contains([[0.3, 0.24]]).all() and not ellipse.contains([[0.34, 0.2]]).any()
-    square = Polygon(center_m=(0.5, 0.5), vertices_m=[(-0.1, -0.1), (0.1, -0.1), (0.1, 0.1), (-0.1, 0.1)])
+    square = Polygon(center_m=(0.5, 0.5),
+                     vertices_m=[(-0.1, -0.1), (0.1, -0.1), (0.1, 0.1), (-0.1, 0.1)])
     assert square.contains([[0.55, 0.45]]).all() and not square.contains([[0.65, 0.5]]).any()
     assert np.allclose(square.centroid_m, [0.5, 0.5], atol=1e-9)
     scene = Scene(objects=[ellipse, square])

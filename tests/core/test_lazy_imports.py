@@ -24,7 +24,8 @@ print("\\nMODULES=" + json.dumps(sorted(sys.modules)))
 
 
 def _modules_after(args: list[str], cwd: Path) -> set[str]:
-    proc = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+    proc = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
     line = [ln for ln in proc.stdout.splitlines() if ln.startswith("MODULES=")][-1]
     return set(json.loads(line[len("MODULES="):]))
 

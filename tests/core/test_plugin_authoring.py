@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 import zipfile
+from itertools import pairwise
 from pathlib import Path
 
 import pytest
@@ -42,14 +43,17 @@ def installed_example(tmp_path_factory) -> dict[str, str]:
     site = root / "site"
     with zipfile.ZipFile(wheel) as archive:  # "installing" a pure wheel = unpacking it
         archive.extractall(site)
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
+    pythonpath = os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])
+    env = dict(os.environ, PYTHONPATH=pythonpath)
     env.pop("HAPTICFRAME_DISABLE_PLUGIN_AUTOLOAD", None)
     return env
 
 
-def _hapticframe(env: dict[str, str], *args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "hapticframe", *args], capture_output=True, text=True,
-                          env=env, cwd=cwd, timeout=600)
+def _hapticframe(
+    env: dict[str, str], *args: str, cwd: Path | None = None
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "hapticframe", *args], capture_output=True,
+                          text=True, env=env, cwd=cwd, timeout=600)
 
 
 def test_the_example_registers_through_its_entry_point(installed_example):
@@ -78,8 +82,10 @@ def test_the_example_experiment_validates(installed_example, tmp_path):
 
 def test_the_examples_own_test_file_runs_under_pytest(installed_example, tmp_path):
     package = _write_example(tmp_path)
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(package / "tests")],
-                          capture_output=True, text=True, env=installed_example, cwd=tmp_path, timeout=600)
+    command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+               str(package / "tests")]
+    proc = subprocess.run(command, capture_output=True, text=True, env=installed_example,
+                          cwd=tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "passed" in proc.stdout
 
@@ -117,7 +123,8 @@ first = sensor.read()
 link.write(b"48\\n" + b"x" * 100)
 second = sensor.read()
 reads.update(
-    first=first.channels["force_n"][:, 0].tolist(), second=second.channels["force_n"][:, 0].tolist(),
+    first=first.channels["force_n"][:, 0].tolist(),
+    second=second.channels["force_n"][:, 0].tolist(),
     times=np.concatenate([first.timestamps_s, second.timestamps_s]).tolist(),
     garbage=sensor.transport.garbage_lines,
 )
@@ -140,5 +147,5 @@ def test_the_serial_transport_skips_garbage_and_never_waits(installed_example):
     assert reads["first"] == pytest.approx([1.0, 0.0, -1.0])
     assert reads["second"] == pytest.approx([0.0])  # the half line, completed
     assert reads["garbage"] == 3  # "#garbage", "nan" and the 100 bytes without a newline
-    assert all(b > a for a, b in zip(reads["times"], reads["times"][1:]))
+    assert all(b > a for a, b in pairwise(reads["times"]))
     assert reads["closed"]

@@ -9,10 +9,8 @@ import numpy as np
 import pytest
 
 from hapticframe._cli import main
-
-from tests.support.lab import lab_main, validate_lab
-from hapticframe._config import validate_file
 from hapticframe._errors import ExperimentError
+from tests.support.lab import lab_main, validate_lab
 
 EXPERIMENT = """\
 schema_version: 1
@@ -128,7 +126,8 @@ seed: 3
 sensors:
   - id: fingertip
     type: biotac
-    config: {source: synthetic, medium: cottonwood_beads, speed_m_per_s: 0.04, has_object: true, tare_frames: 10, tare_source: air}
+    config: {source: synthetic, medium: cottonwood_beads, speed_m_per_s: 0.04, has_object: true,
+             tare_frames: 10, tare_source: air}
   - id: training-trials
     type: biotac
     config: {source: synthetic, dataset: training, n_trials: 4, tare_frames: 10, tare_source: air}
@@ -142,11 +141,13 @@ classifiers:
   - id: sf-rnn
     type: sf-rnn
     inputs: [codes]
-    config: {max_epochs: 1, gru_units: 4, progress: false, pac_code_size: 8, pdc_code_size: 4, electrodes_code_size: 8}
+    config: {max_epochs: 1, gru_units: 4, progress: false, pac_code_size: 8, pdc_code_size: 4,
+             electrodes_code_size: 8}
   - id: fusion
     type: fusion-rnn
     inputs: [codes]
-    config: {max_epochs: 1, branch_units: 4, fusion_units: 4, progress: false, pac_code_size: 8, pdc_code_size: 4, electrodes_code_size: 8}
+    config: {max_epochs: 1, branch_units: 4, fusion_units: 4, progress: false, pac_code_size: 8,
+             pdc_code_size: 4, electrodes_code_size: 8}
   - id: svm
     type: linear-svm
     inputs: [fingertip]

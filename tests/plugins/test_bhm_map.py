@@ -13,10 +13,10 @@ from pydantic import ValidationError
 
 from hapticframe import MapSpec, RegionConfig, Scene
 from hapticframe.kinds import BuildContext, Map, Observations, Region, RunOutcome
+from hapticframe_bench import labelled_points, roc_auc, two_object_scene
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 from hapticframe_bhm import plugin as bhm_plugin
 from hapticframe_bhm._config import length_scale_from_bandwidth_per_cm2
-from hapticframe_bench import labelled_points, roc_auc, two_object_scene
 
 #: Table 3.1's map: 2.24 / 3.54 cm length scales switched per region, a zero-mean prior of
 #: variance 10 and the Monte-Carlo std of Eq. 3.8 (the defaults are calibrated, see _map).

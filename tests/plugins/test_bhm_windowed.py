@@ -8,6 +8,7 @@ import scipy.linalg as sla
 
 from hapticframe.geometry import sample_grid
 from hapticframe.kinds import BuildContext, Observations
+from hapticframe_bench import labelled_points, two_object_scene
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 from hapticframe_bhm import _functional as fn
 from hapticframe_bhm._map import _grid_axes
@@ -17,7 +18,6 @@ from hapticframe_bhm._windowed import (
     WindowedRows,
     window_half_width,
 )
-from hapticframe_bench import labelled_points, two_object_scene
 
 XS = fn.hinge_axis(0.0, 0.75, 0.05)
 YS = fn.hinge_axis(0.0, 0.50, 0.05)

@@ -194,7 +194,8 @@ def test_phase2_sweep_angles_are_30_degrees_apart() -> None:
     for i, a in enumerate(angles):
         window = angles[max(0, i - 4) : i]  # five directions always fit 30 degrees apart
         assert all(angle_gap_deg(a, b) >= 30 - 1e-9 for b in window)
-    for r, a in zip([r for r in results if r.movement.phase == "phase2"], angles[1:]):
+    phase2 = [r for r in results if r.movement.phase == "phase2"]
+    for r, a in zip(phase2, angles[1:], strict=True):
         assert angle_gap_deg(np.degrees(r.movement.heading_rad), a) == pytest.approx(0, abs=1e-6)
 
 
@@ -214,7 +215,7 @@ def test_phase2_movements_lie_in_the_shrinking_region() -> None:
     # Each side shrinks by 25 % per phase-2 movement, down to min_region_size_m = 0.1 m.
     expected = np.maximum(np.array([0.75, 0.5]) * 0.75 ** np.arange(1, 9)[:, None], 0.1)
     np.testing.assert_allclose(sizes, expected)
-    for m, b in zip(phase2, regions):
+    for m, b in zip(phase2, regions, strict=True):
         for p in (m.start_m, m.end_m):
             assert b[0] - 1e-12 <= p[0] <= b[1] + 1e-12 and b[2] - 1e-12 <= p[1] <= b[3] + 1e-12
     # The centroid estimate is the blob's centre.
@@ -223,7 +224,7 @@ def test_phase2_movements_lie_in_the_shrinking_region() -> None:
 
 def test_phase2_picks_the_line_through_the_blob() -> None:
     centre = np.array([0.45, 0.3])
-    planner, results = phase2_run(BlobMap(centre_m=centre, std=0.2), max_phase2_movements=6)
+    _, results = phase2_run(BlobMap(centre_m=centre, std=0.2), max_phase2_movements=6)
     for r in results:
         if r.movement.phase != "phase2":
             continue
@@ -305,7 +306,7 @@ def test_without_a_map_phase2_runs_to_the_cap() -> None:
 
 def test_deterministic_given_the_seed() -> None:
     def movements(seed: int) -> list[tuple[float, ...]]:
-        planner, results = phase2_run(BlobMap(), seed=seed, max_phase2_movements=5)
+        _, results = phase2_run(BlobMap(), seed=seed, max_phase2_movements=5)
         return [(*r.movement.start_m, *r.movement.end_m) for r in results]
 
     assert movements(4) == movements(4)
@@ -482,6 +483,6 @@ def test_heading_and_stop_point_met_from_agree_for_aimed_lines() -> None:
     stop_point = planners[1]
     headings = stop_point.met_from_deg
     bearings = stop_point._met_from()
-    for h, b, point in zip(headings, bearings, stop_point.interaction_points):
+    for h, b, point in zip(headings, bearings, stop_point.interaction_points, strict=True):
         if abs(point[1] - 0.25) > 1e-9 and abs(point[1] - 0.15) > 1e-9:  # not a phase-1 line
             assert min(abs(h - b), 360 - abs(h - b)) <= 15

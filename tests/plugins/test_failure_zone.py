@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -83,10 +84,14 @@ def test_empirical_gamma_at_zero_pairs() -> None:
 
 def test_analytic_side_angle_warns_once_per_instance() -> None:
     model = make_model(schedule="analytic")
-    with pytest.warns(FailureZoneAngleWarning) as caught:
+
+    def observe_three_times_then_fit() -> None:
         for i in range(3):
             model.observe(measurement([[0.01 * i, 0.0]], ["free"], t0=i))
         model.parameters()
+
+    with pytest.warns(FailureZoneAngleWarning) as caught:
+        observe_three_times_then_fit()
     assert len([w for w in caught if w.category is FailureZoneAngleWarning]) == 1
     reach, gamma, eta = model.parameters()
     assert np.isfinite([reach, gamma, eta]).all()
@@ -157,7 +162,7 @@ def test_contact_gives_range_zero() -> None:
 
 def test_free_sector_targets_and_extent() -> None:
     model = make_model(**THESIS)
-    reach, _, eta = model.parameters()
+    reach, _, _ = model.parameters()
     obs = model.observe(measurement([[0.1, 0.1]], ["free"]))
     dist = np.linalg.norm(obs.points_m - [0.1, 0.1], axis=1)
     assert dist.max() == pytest.approx(reach)
@@ -227,7 +232,7 @@ def test_streaming_equals_batch(schedule: str, mixture: str) -> None:
         model = make_model(schedule=schedule, mixture=mixture)
         cuts = [0, 7, 8, 30, 31, 60]
         chunks = Observations.concatenate(
-            [model.observe(m.select(slice(a, b))) for a, b in zip(cuts, cuts[1:])]
+            [model.observe(m.select(slice(a, b))) for a, b in pairwise(cuts)]
         )
     assert len(batch) > 0
     for other in (one_by_one, chunks):

@@ -12,9 +12,12 @@ import math
 import warnings
 from pathlib import Path
 
-import hapticframe_granular
 import numpy as np
 import pytest
+
+import hapticframe_granular
+from hapticframe import Circle, Material, Scene
+from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult
 from hapticframe_failure_zone import FailureZoneAngleWarning, FailureZoneConfig, FailureZoneKernel
 from hapticframe_granular import (
     SIDE_CRESCENT_ANGLE_CAP,
@@ -24,9 +27,6 @@ from hapticframe_granular import (
     side_crescent_angle_analytic,
 )
 from hapticframe_sandbox import SandboxRobot, SandboxRobotConfig
-
-from hapticframe import Circle, Material, Scene
-from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult
 
 RAD = math.radians
 VERTICAL = math.pi / 2
@@ -259,11 +259,12 @@ def test_the_scalar_and_array_paths_agree() -> None:
     depth = rng.uniform(0.0, 0.1, 200)
     alpha = rng.uniform(0.1, 3.0, 200)
     beta = rng.uniform(0.05, 1.5, 200)
-    scalar = [rupture_distance(float(d), float(a), float(b)) for d, a, b in zip(depth, alpha, beta)]
+    scalar = [rupture_distance(float(d), float(a), float(b))
+              for d, a, b in zip(depth, alpha, beta, strict=True)]
     np.testing.assert_allclose(rupture_distance(depth, alpha, beta), scalar, rtol=1e-14, atol=0)
     phi = rng.uniform(0.01, 1.5, 50)
     psi = rng.uniform(0.0, 1.5, 50)
-    scalar = [arthur_angle(float(p), float(q)) for p, q in zip(phi, psi)]
+    scalar = [arthur_angle(float(p), float(q)) for p, q in zip(phi, psi, strict=True)]
     np.testing.assert_allclose(arthur_angle(phi, psi), scalar, rtol=1e-15, atol=0)
     counts = np.arange(20)
     assert side_crescent_angle(counts).tolist() == [side_crescent_angle(int(n)) for n in counts]

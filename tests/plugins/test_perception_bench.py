@@ -14,7 +14,6 @@ pytest.importorskip("sklearn")
 
 import hapticframe
 from hapticframe import BenchOptions
-
 from hapticframe_bench._perception import (
     ALL,
     ARCHITECTURES,
@@ -355,8 +354,8 @@ def test_plans_keep_the_untared_vibration_amplitude_out_of_the_sfrnn(tmp_path):
 def test_job_fingerprint_follows_plan_seed_and_trials():
     from types import SimpleNamespace
 
-    from hapticframe_bench._perception_jobs import job_fingerprint
     from hapticframe_bench._perception_data import TrialFeatures
+    from hapticframe_bench._perception_jobs import job_fingerprint
 
     def data(labels):
         trial = TrialFeatures(0, "bbs", True, "train", np.asarray(labels, dtype=np.int64), {})

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 import pytest
-from hapticframe_sandbox import _functional as F
 
 from hapticframe import Circle, Scene
+from hapticframe_sandbox import _functional as F
 
 
 def test_sector_points_span_radius_and_half_angle():
@@ -32,7 +32,7 @@ def test_first_hit_distance_matches_analytic_ray_circle_intersection():
     angles = np.radians([-40.0, -10.0, 0.0, 11.3, 30.0, 80.0])
     radii = np.linspace(0.0, 0.12, 40)
     hits = F.first_hit_distances((0.0, 0.0), angles, radii, scene.occupied)
-    for angle, hit in zip(angles, hits):
+    for angle, hit in zip(angles, hits, strict=True):
         u = np.array([math.cos(angle), math.sin(angle)])
         # |t u - c|² = R²  →  t = u·c − sqrt((u·c)² − |c|² + R²)
         b = u @ centre
@@ -108,7 +108,7 @@ def test_scalar_factors_equal_the_array_factors():
             array = F.startup_factor(np.array([s]), rupture)[0]
             assert scalar == array or (math.isnan(scalar) and math.isnan(array))
     phases, amplitudes = rng.uniform(-0.5, 1.5, 200).tolist(), rng.uniform(0, 1, 200).tolist()
-    for phase, amplitude in zip(phases, amplitudes):
+    for phase, amplitude in zip(phases, amplitudes, strict=True):
         scalar = F.shear_cycle_factor(phase, amplitude)
         assert type(scalar) is float
         assert scalar == F.shear_cycle_factor(np.array([phase]), np.array(amplitude))[0]

@@ -9,6 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from hapticframe import Circle, Kind, RobotSpec, Scene, SensorSpec
+from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult, RunOutcome
 from hapticframe_granular import rupture_distance
 from hapticframe_sandbox import (
     SandboxForceSensor,
@@ -20,9 +23,6 @@ from hapticframe_sandbox import (
 )
 from hapticframe_sandbox import _functional as F
 from hapticframe_sandbox import plugin as sandbox_plugin
-
-from hapticframe import Circle, Kind, RobotSpec, Scene, SensorSpec
-from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult, RunOutcome
 
 CENTRE = (0.3, 0.25)
 RADIUS = 0.04
@@ -74,7 +74,7 @@ def run(robot: SandboxRobot, movement: ExploratoryMovement, sensor=None):
 
 
 def test_robot_needs_a_scene_and_names_itself():
-    with pytest.raises(ValueError, match="'arm'.*scene"):
+    with pytest.raises(ValueError, match=r"'arm'.*scene"):
         SandboxRobot(SandboxRobotConfig(), BuildContext(id="arm", rng=np.random.default_rng(0)))
 
 
@@ -442,7 +442,8 @@ def test_an_object_behind_the_plate_is_skipped_exactly():
     edge = F.plate_edge_points(start, 0.0, 0.02)
     assert not circle_scene().occupied(edge).any()
     # Raking towards it from the same distance in front does interact.
-    towards = ExploratoryMovement((CENTRE[0] - RADIUS - 0.002, CENTRE[1]), (CENTRE[0] - 0.2, CENTRE[1]))
+    towards = ExploratoryMovement((CENTRE[0] - RADIUS - 0.002, CENTRE[1]),
+                                  (CENTRE[0] - 0.2, CENTRE[1]))
     ahead, _ = build(noise=0.0)
     run(ahead, ExploratoryMovement(towards.start_m, towards.start_m + np.array([0.01, 0.0])))
     assert ahead.ground_truth.states[0] >= 1
@@ -459,7 +460,7 @@ def test_rewind_replays_a_movement_exactly_and_only_within_it():
     robot.rewind(snapshot[0])
     sensor.rewind(snapshot[1])
     again = [(robot.step(), sensor.read()) for _ in range(300)]
-    for (s1, b1), (s2, b2) in zip(first, again):
+    for (s1, b1), (s2, b2) in zip(first, again, strict=True):
         assert (s1 is None) == (s2 is None)
         if s1 is not None:
             assert s1.timestamp_s == s2.timestamp_s and np.array_equal(s1.position_m, s2.position_m)

@@ -272,7 +272,7 @@ def test_noise_primitives() -> None:
 def test_module_import_does_not_load_scikit_learn() -> None:
     plugins = Path(__file__).resolve().parents[2] / "plugins"
     code = (
-        "import sys; sys.path.insert(0, %r); import hapticframe_biotac._synthetic; "
-        "assert 'sklearn' not in sys.modules, 'sklearn loaded'" % str(plugins)
+        f"import sys; sys.path.insert(0, {str(plugins)!r}); import hapticframe_biotac._synthetic; "
+        "assert 'sklearn' not in sys.modules, 'sklearn loaded'"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

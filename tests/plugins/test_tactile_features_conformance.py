@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
-from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
-from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
-from hapticframe_bench import synthetic_biotac_frames
 
 import hapticframe
 from hapticframe import Kind
 from hapticframe.kinds import BuildContext
+from hapticframe_bench import synthetic_biotac_frames
+from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
+from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
+from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
 
 pytest.importorskip("sklearn")
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from hapticframe_tactile_features import emd
 from hapticframe_tactile_features._emd import numba_available
 from hapticframe_tactile_features._validation import as_count, as_real

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from hapticframe.kinds import BuildContext, SampleBatch
+from hapticframe_bench import synthetic_biotac_frames
 from hapticframe_tactile_features._config import SparseCodingConfig
 from hapticframe_tactile_features._emd import numba_available
 from hapticframe_tactile_features._sparse import (
@@ -23,7 +24,6 @@ from hapticframe_tactile_features._sparse import (
     sparsity_penalty,
 )
 from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
-from hapticframe_bench import synthetic_biotac_frames
 
 pytest.importorskip("sklearn")
 
@@ -255,7 +255,7 @@ def test_load_rejects_mismatched_files(tmp_path: Path) -> None:
         _coder().load(tmp_path / "x")
     # Before `hapticframe train` has written them: a ValueError (exit 2 from a run), naming
     # what is missing, not a FileNotFoundError.
-    with pytest.raises(ValueError, match="no dictionaries at .*nowhere"):
+    with pytest.raises(ValueError, match=r"no dictionaries at .*nowhere"):
         _coder(dictionary_file=str(tmp_path / "nowhere"))
 
 

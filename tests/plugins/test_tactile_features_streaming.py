@@ -7,14 +7,11 @@ import pytest
 from pydantic import ValidationError
 
 from hapticframe.kinds import BuildContext, SampleBatch, concatenate_batches
+from hapticframe_bench import synthetic_biotac_frames
 from hapticframe_tactile_features._config import EMDFeaturesConfig
 from hapticframe_tactile_features._emd import emd
 from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
 from hapticframe_tactile_features._streaming import RingBuffer, hold_invalid
-from hapticframe_bench import synthetic_biotac_frames
-from pydantic import ValidationError
-
-from hapticframe.kinds import BuildContext, SampleBatch, concatenate_batches
 
 
 def _extractor(**config: object) -> EMDFeatureExtractor:

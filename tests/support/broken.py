@@ -63,8 +63,9 @@ class InfiniteConfig(PluginConfig):
 class RestartingClockSensor(SweepSensor):
     def read(self) -> SampleBatch:
         batch = super().read()
-        return SampleBatch(batch.timestamps_s - batch.timestamps_s[0] if len(batch) else batch.timestamps_s,
-                           dict(batch.channels))
+        times_s = batch.timestamps_s
+        restarted_s = times_s - times_s[0] if len(batch) else times_s
+        return SampleBatch(restarted_s, dict(batch.channels))
 
 
 class WrongShapeSensor(SweepSensor):
@@ -76,7 +77,8 @@ class WrongShapeSensor(SweepSensor):
 class NanDropoutSensor(SweepSensor):
     """Every seventh force sample is lost; ``flag_dropouts`` says how the loss is reported."""
 
-    flag_dropouts: bool | None = None  # None: no validity at all; False: marked valid; True: invalid
+    # None: no validity at all; False: marked valid; True: invalid.
+    flag_dropouts: bool | None = None
 
     def read(self) -> SampleBatch:
         batch = super().read()
@@ -370,11 +372,15 @@ class LineRobot(Robot):
 
 
 GOOD = [
-    SensorSpec("lab-sweep", "ok", SweepConfig, "tests.support.labplugin:SweepSensor", capabilities=frozenset({"finite"})),
-    FeatureExtractorSpec("lab-scale", "ok", ScaleConfig, "tests.support.labplugin:ScaleExtractor", consumes={"force_n": (2,)}),
-    ClassifierSpec("lab-threshold", "ok", ThresholdConfig, "tests.support.labplugin:ThresholdClassifier", consumes={"force_n": (2,)}),
+    SensorSpec("lab-sweep", "ok", SweepConfig, "tests.support.labplugin:SweepSensor",
+               capabilities=frozenset({"finite"})),
+    FeatureExtractorSpec("lab-scale", "ok", ScaleConfig, "tests.support.labplugin:ScaleExtractor",
+                         consumes={"force_n": (2,)}),
+    ClassifierSpec("lab-threshold", "ok", ThresholdConfig,
+                   "tests.support.labplugin:ThresholdClassifier", consumes={"force_n": (2,)}),
     SensorModelSpec("lab-point", "ok", PointConfig, "tests.support.labplugin:PointSensorModel"),
-    MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap", capabilities=frozenset({"exact-update"})),
+    MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap",
+            capabilities=frozenset({"exact-update"})),
     RobotSpec("lab-line", "ok", LineRobotConfig, f"{M}:LineRobot"),
     # NaN in samples the batch marks invalid is how a sensor reports a loss: accepted.
     SensorSpec("lab-flagged-dropouts", "ok", SweepConfig, f"{M}:FlaggedDropoutSensor",
@@ -388,25 +394,34 @@ _FINITE = frozenset({"finite"})
 
 #: (spec, check that must fail, fragment of its message)
 BROKEN = [
-    (SensorSpec("not-a-component", "x", SweepConfig, f"{M}:NotAComponent"), "check_spec_record", "does not derive"),
-    (SensorSpec("missing-factory", "x", SweepConfig, f"{M}:Nowhere"), "check_builds", "does not exist"),
+    (SensorSpec("not-a-component", "x", SweepConfig, f"{M}:NotAComponent"),
+     "check_spec_record", "does not derive"),
+    (SensorSpec("missing-factory", "x", SweepConfig, f"{M}:Nowhere"),
+     "check_builds", "does not exist"),
     (SensorSpec("infinite-config", "x", InfiniteConfig, "tests.support.labplugin:SweepSensor"),
      "check_config_round_trip", "plain JSON"),
-    (SensorSpec("heavy-config", "x", HeavyConfig, "tests.support.labplugin:SweepSensor", requires=("decimal",)),
+    (SensorSpec("heavy-config", "x", HeavyConfig, "tests.support.labplugin:SweepSensor",
+                requires=("decimal",)),
      "check_lazy_import", "also imports decimal"),
-    (SensorSpec("restarting-clock", "x", SweepConfig, f"{M}:RestartingClockSensor"), "check_sensor_contract", "go back"),
-    (SensorSpec("wrong-shape", "x", SweepConfig, f"{M}:WrongShapeSensor"), "check_sensor_contract", "declared (3,)"),
-    (FeatureExtractorSpec("undeclared-feature", "x", ScaleConfig, f"{M}:UndeclaredFeature", consumes=_FORCE),
+    (SensorSpec("restarting-clock", "x", SweepConfig, f"{M}:RestartingClockSensor"),
+     "check_sensor_contract", "go back"),
+    (SensorSpec("wrong-shape", "x", SweepConfig, f"{M}:WrongShapeSensor"),
+     "check_sensor_contract", "declared (3,)"),
+    (FeatureExtractorSpec("undeclared-feature", "x", ScaleConfig, f"{M}:UndeclaredFeature",
+                          consumes=_FORCE),
      "check_stream_contract", "output_channels"),
     (FeatureExtractorSpec("nan-features", "x", ScaleConfig, f"{M}:NanFeatures", consumes=_FORCE),
      "check_numerical_extremes", "silent NaNs"),
-    (ClassifierSpec("chunk-normalised", "x", ThresholdConfig, f"{M}:ChunkNormalisedClassifier", consumes=_FORCE),
+    (ClassifierSpec("chunk-normalised", "x", ThresholdConfig, f"{M}:ChunkNormalisedClassifier",
+                    consumes=_FORCE),
      "check_streaming_matches_batch", "streaming and batch"),
-    (ClassifierSpec("nan-probabilities", "x", ThresholdConfig, f"{M}:NanProbabilityClassifier", consumes=_FORCE),
+    (ClassifierSpec("nan-probabilities", "x", ThresholdConfig, f"{M}:NanProbabilityClassifier",
+                    consumes=_FORCE),
      "check_numerical_extremes", "invalid output"),
     (ClassifierSpec("unseeded", "x", ThresholdConfig, f"{M}:UnseededClassifier", consumes=_FORCE),
      "check_deterministic", "context.rng"),
-    (ClassifierSpec("no-consumes", "x", ThresholdConfig, "tests.support.labplugin:ThresholdClassifier"),
+    (ClassifierSpec("no-consumes", "x", ThresholdConfig,
+                    "tests.support.labplugin:ThresholdClassifier"),
      "check_stream_contract", "declares no 'consumes'"),
     (SensorModelSpec("overconfident", "x", PointConfig, f"{M}:OverconfidentSensorModel"),
      "check_sensor_model_contract", "invalid output"),
@@ -414,25 +429,36 @@ BROKEN = [
      "check_sensor_model_streaming", "row-by-row"),
     (SensorModelSpec("overflowing", "x", PointConfig, f"{M}:OverflowingSensorModel"),
      "check_sensor_model_extremes", "1e6 m away"),
-    (MapSpec("empty-query", "x", CellConfig, f"{M}:EmptyQueryMap"), "check_map_contract", "empty query"),
-    (MapSpec("forgetful", "x", CellConfig, f"{M}:ForgetfulMap"), "check_map_streaming_matches_batch", "sequential updates"),
-    (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"), "check_map_extremes", "no observations"),
-    (PlannerSpec("endless", "x", EndlessConfig, f"{M}:EndlessPlanner"), "check_planner_contract", "max_movements"),
-    (RobotSpec("restarting-robot", "x", LineRobotConfig, f"{M}:LineRobot", check_config={"restart_clock": True}),
+    (MapSpec("empty-query", "x", CellConfig, f"{M}:EmptyQueryMap"),
+     "check_map_contract", "empty query"),
+    (MapSpec("forgetful", "x", CellConfig, f"{M}:ForgetfulMap"),
+     "check_map_streaming_matches_batch", "sequential updates"),
+    (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"),
+     "check_map_extremes", "no observations"),
+    (PlannerSpec("endless", "x", EndlessConfig, f"{M}:EndlessPlanner"),
+     "check_planner_contract", "max_movements"),
+    (RobotSpec("restarting-robot", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"restart_clock": True}),
      "check_robot_contract", "keep increasing"),
-    (RobotSpec("ignores-halt", "x", LineRobotConfig, f"{M}:LineRobot", check_config={"ignore_halt": True}),
+    (RobotSpec("ignores-halt", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"ignore_halt": True}),
      "check_robot_halt", "after halt()"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
     (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
      "check_sensor_valid_samples_finite", "NaN or infinity in channel 'force_n' at t = 0.07 s"),
-    (SensorSpec("nan-marked-valid", "x", SweepConfig, f"{M}:NanMarkedValidSensor", capabilities=_FINITE),
+    (SensorSpec("nan-marked-valid", "x", SweepConfig, f"{M}:NanMarkedValidSensor",
+                capabilities=_FINITE),
      "check_sensor_valid_samples_finite", "which the batch marks valid"),
-    (SensorSpec("untared-read-all", "x", SweepConfig, f"{M}:UntaredReadAllSensor", capabilities=_FINITE),
+    (SensorSpec("untared-read-all", "x", SweepConfig, f"{M}:UntaredReadAllSensor",
+                capabilities=_FINITE),
      "check_sensor_read_all_matches_reads", "read_all() and successive read()s"),
-    (SensorSpec("boundary-dropping", "x", SweepConfig, f"{M}:BoundaryDroppingSensor", capabilities=_FINITE),
-     "check_sensor_read_all_matches_reads", "iter_recordings(), joined, and read_all() differ: 399 samples against 400"),
-    (SensorSpec("looping-replay", "x", SweepConfig, f"{M}:LoopingReplaySensor", capabilities=_FINITE),
+    (SensorSpec("boundary-dropping", "x", SweepConfig, f"{M}:BoundaryDroppingSensor",
+                capabilities=_FINITE),
+     "check_sensor_read_all_matches_reads",
+     "iter_recordings(), joined, and read_all() differ: 399 samples against 400"),
+    (SensorSpec("looping-replay", "x", SweepConfig, f"{M}:LoopingReplaySensor",
+                capabilities=_FINITE),
      "check_sensor_contract", "was not exhausted"),
     (PlannerSpec("inset-lines", "x", LinePlannerConfig, f"{M}:InsetLinesPlanner"),
      "check_planner_extremes", "smaller than one line spacing): movement"),
@@ -441,7 +467,8 @@ BROKEN = [
     (PlannerSpec("until-sure", "x", LinePlannerConfig, f"{M}:UntilSurePlanner"),
      "check_planner_extremes", "on an all-unknown map (0.5 everywhere): the planner proposed more"),
     (RobotSpec("nan-on-zero-length", "x", LineRobotConfig, f"{M}:LineRobot",
-               check_config={"nan_on_zero_length": True}), "check_robot_extremes", "zero-length movement gave states with NaN"),
+               check_config={"nan_on_zero_length": True}),
+     "check_robot_extremes", "zero-length movement gave states with NaN"),
     (RobotSpec("waits-at-workspace-edge", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"wait_at_workspace_edge": True}), "check_robot_extremes",
      "a movement that leaves the workspace did not end within"),

@@ -13,11 +13,19 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import Field
 
-from hapticframe import ClassifierSpec, FeatureExtractorSpec, MapSpec, PluginConfig, SensorModelSpec, SensorSpec, hookimpl
+from hapticframe import (
+    ClassifierSpec,
+    FeatureExtractorSpec,
+    MapSpec,
+    PluginConfig,
+    SensorModelSpec,
+    SensorSpec,
+    hookimpl,
+)
 from hapticframe.kinds import (
     ChannelInfo,
-    ClassProbabilities,
     Classifier,
+    ClassProbabilities,
     FeatureExtractor,
     LocatedMeasurement,
     Map,
@@ -54,7 +62,8 @@ class SweepSensor(Sensor):
 
     @property
     def channels(self) -> Mapping[str, ChannelInfo]:
-        return {"force_n": ChannelInfo((2,), "N", 100.0), "position_m": ChannelInfo((2,), "m", 100.0),
+        return {"force_n": ChannelInfo((2,), "N", 100.0),
+                "position_m": ChannelInfo((2,), "m", 100.0),
                 "contact": ChannelInfo((), "1", 100.0)}
 
     @property
@@ -64,7 +73,8 @@ class SweepSensor(Sensor):
     def read(self) -> SampleBatch:
         rows = slice(self._next, self._next + self.config.chunk)
         self._next = min(self._next + self.config.chunk, len(self._t))
-        return SampleBatch(self._t[rows], {"force_n": self._force[rows], "position_m": self._pos[rows],
+        return SampleBatch(self._t[rows], {"force_n": self._force[rows],
+                                           "position_m": self._pos[rows],
                                            "contact": self._contact[rows]})
 
 
@@ -113,7 +123,8 @@ class ThresholdClassifier(Classifier):
         import json
         from pathlib import Path
 
-        (Path(directory) / "threshold.json").write_text(json.dumps({"threshold_n": self.threshold_n}))
+        saved = json.dumps({"threshold_n": self.threshold_n})
+        (Path(directory) / "threshold.json").write_text(saved)
 
     def load(self, directory) -> None:  # type: ignore[no-untyped-def]
         import json
