@@ -25,7 +25,6 @@ import numpy as np
 
 from hapticframe import BenchOptions
 from hapticframe.kinds import BuildContext, SampleBatch
-
 from hapticframe_tactile_features import (
     EMDFeatureExtractor,
     EMDFeaturesConfig,

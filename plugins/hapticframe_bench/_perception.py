@@ -37,7 +37,6 @@ from typing import Any
 import numpy as np
 
 from hapticframe import BenchOptions, UsageError
-
 from hapticframe_sfrnn import balanced_accuracy
 
 from ._perception_data import build_perception_data
@@ -327,7 +326,8 @@ def run_suite(
     ``best_baseline_robustness`` (mean over media), ``table_2_4_sfrnn_ahead`` (per medium:
     SF-RNN above the (d)+Linear SVM, the thesis's Table 2.4 comparison) and
     ``sfrnn_ahead_on_every_medium`` (above all five other all-modality models), ``training``
-    (train/validation diagnostics of the SF-RNN), ``dataset``, ``plan`` and ``timing_s``. ``model_dir`` receives the seed-0 all-modality SF-RNN.
+    (train/validation diagnostics of the SF-RNN), ``dataset``, ``plan`` and ``timing_s``.
+    ``model_dir`` receives the seed-0 all-modality SF-RNN.
     ``job_dir`` keeps each finished job and lets a repeated run resume (module docstring).
     """
     started = time.perf_counter()
@@ -501,8 +501,8 @@ def measure_streaming_latency(
 ) -> dict[str, Any]:
     """Per-frame time of emd-features → sparse-coding → SF-RNN on robustness trials, one thread.
 
-    Fresh robustness trials, tared in open air as in training, are streamed one frame at a time through
-    a new ``emd-features``, the run's fitted ``sparse-coding`` and the run's seed-0
+    Fresh robustness trials, tared in open air as in training, are streamed one frame at a time
+    through a new ``emd-features``, the run's fitted ``sparse-coding`` and the run's seed-0
     all-modality SF-RNN (loaded from ``model_dir``); each stage is timed.
     """
     import torch

@@ -116,8 +116,8 @@ def split_cottonwood(
     for kind in (True, False):
         ids = np.flatnonzero(flags == kind)
         ids = ids[rng.permutation(ids.size)]
-        n_train = int(round(fractions[0] * ids.size))
-        n_val = int(round(fractions[1] * ids.size))
+        n_train = round(fractions[0] * ids.size)
+        n_val = round(fractions[1] * ids.size)
         if ids.size >= 3:
             n_train = min(max(n_train, 1), ids.size - 2)
             n_val = min(max(n_val, 1), ids.size - n_train - 1)
@@ -243,7 +243,7 @@ def build_perception_data(
     splits = split_cottonwood([s.has_object for s in cotton], rng)
     robust_all = robustness_specs(rng)
     robust = []
-    k_contact = max(1, int(round(robustness_per_medium * 2 / 3)))
+    k_contact = max(1, round(robustness_per_medium * 2 / 3))
     k_free = max(0, int(robustness_per_medium) - k_contact)
     for medium in dict.fromkeys(s.medium for s in robust_all):
         with_object = [s for s in robust_all if s.medium == medium and s.has_object]

@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 
 from hapticframe.kinds import BuildContext, SampleBatch
-
 from hapticframe_sfrnn import (
     FusionRNNClassifier,
     FusionRNNConfig,

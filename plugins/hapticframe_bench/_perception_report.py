@@ -92,7 +92,8 @@ def _ablation(table: dict[str, Any], title: str) -> list[str]:
 
 
 def _robustness(table: dict[str, Any]) -> list[str]:
-    lines = ["## Table 2.4: robustness across media (trained on cottonwood, 4 cm/s; tested at 2 cm/s)",
+    lines = ["## Table 2.4: robustness across media "
+             "(trained on cottonwood, 4 cm/s; tested at 2 cm/s)",
              "", "Balanced accuracy in % (mean ± std over seeds); the thesis's in brackets. "
              "The thesis's table holds the two (d) models (\"only performed on multimodal "
              "models that ... used sparse coding and all three modalities\", §2.7.2); the "
@@ -222,9 +223,15 @@ def _amplitude_note(plan: dict[str, Any]) -> str:
 
 def render_markdown(result: dict[str, Any]) -> str:
     """The whole report as Markdown."""
-    plan, data, timing, latency = result["plan"], result["dataset"], result["timing_s"], result["latency"]
+    plan, data, timing = result["plan"], result["dataset"], result["timing_s"]
+    latency = result["latency"]
+    # Media where the SF-RNN is not ahead: of the (d)+Linear SVM, and of all five others.
+    behind_svm = ", ".join(m for m, ok in result["table_2_4_sfrnn_ahead"].items() if not ok)
+    behind_any = ", ".join(m for m, ok in result["sfrnn_ahead_on_every_medium"].items() if not ok)
+    stage_medians = ", ".join(f"{k} {v:.2f} ms" for k, v in latency["stages_ms_median"].items())
     lines = [
-        "# Perception benchmark: dissertation Tables 2.2, 2.3, 2.4 and A.1 on synthetic BioTac data",
+        "# Perception benchmark: dissertation Tables 2.2, 2.3, 2.4 and A.1 "
+        "on synthetic BioTac data",
         "",
         f"`{result['command']}` — {'quick (reduced)' if plan['quick'] else 'full'} run, "
         f"{timing['total_wall']:.0f} s wall on {result['machine']['cpus']} CPUs "
@@ -262,29 +269,30 @@ def render_markdown(result: dict[str, Any]) -> str:
            f"{plan['cottonwood_trials']} cottonwood trials; numbers vary by a few points "
            "between seeds and are not the full run's."] if plan["quick"] else []),
         f"- Time: features (EMD) {timing['emd_wall']:.0f} s wall for {timing['frames']:.0f} "
-        f"frames on {timing['workers']:.0f} workers, dictionaries {timing['dictionary_fit']:.0f} s, "
+        f"frames on {timing['workers']:.0f} workers, "
+        f"dictionaries {timing['dictionary_fit']:.0f} s, "
         f"codes {timing['coding']:.0f} s; models and scoring: the rest.",
         "",
         "## Headline",
         "",
         f"- SF-RNN, all three modalities, cottonwood test split: "
-        f"**{100 * result['sfrnn_test_accuracy']:.1f} ± {100 * result['sfrnn_test_accuracy_std']:.1f} %** "
+        f"**{100 * result['sfrnn_test_accuracy']:.1f} ± "
+        f"{100 * result['sfrnn_test_accuracy_std']:.1f} %** "
         "(thesis 98.7 %).",
         f"- Robustness set (Table 2.4's form: SF-RNN against the (d)+Linear SVM), mean over "
         f"media: SF-RNN {100 * result['sfrnn_robustness_mean']:.1f} %, (d)+Linear SVM "
         f"{100 * result['robustness_mean_by_architecture']['(d)+Linear SVM']:.1f} %; SF-RNN "
         f"ahead on every medium: {all(result['table_2_4_sfrnn_ahead'].values())} "
-        f"({', '.join(m for m, ok in result['table_2_4_sfrnn_ahead'].items() if not ok) or 'no exceptions'}).",
+        f"({behind_svm or 'no exceptions'}).",
         f"- Beyond the thesis's table, best of all five other all-modality models on the "
         f"robustness mean: {result['best_baseline_robustness']['architecture']} "
         f"{100 * result['best_baseline_robustness']['mean']:.1f} %; SF-RNN ahead of all five "
         f"on every medium: {all(result['sfrnn_ahead_on_every_medium'].values())} "
-        f"({', '.join(m for m, ok in result['sfrnn_ahead_on_every_medium'].items() if not ok) or 'no exceptions'}).",
+        f"({behind_any or 'no exceptions'}).",
         f"- Streaming chain per 10 ms frame (emd-features → sparse-coding → sf-rnn, one "
         f"thread, {latency['frames']} frames): median **{latency['latency_ms_median']:.2f} ms**, "
         f"p99 **{latency['latency_ms_p99']:.2f} ms** (max {latency['latency_ms_max']:.2f} ms); "
-        "stage medians " + ", ".join(f"{k} {v:.2f} ms" for k, v in latency["stages_ms_median"].items())
-        + "; thesis: 2.96 ms per step for the SF-RNN.",
+        f"stage medians {stage_medians}; thesis: 2.96 ms per step for the SF-RNN.",
         "",
     ]
     if "targets" in result:
@@ -297,11 +305,13 @@ def render_markdown(result: dict[str, Any]) -> str:
     lines += _table_a1(tables["table_a_1"])
     diag = result["training"]["sfrnn_all_modalities"]
     lines += ["## SF-RNN training diagnostics (all modalities)", "",
-              "| seed | train | validation | test | epochs | best epoch |", "|---|---|---|---|---|---|"]
+              "| seed | train | validation | test | epochs | best epoch |",
+              "|---|---|---|---|---|---|"]
     for s, d in enumerate(diag):
         lines.append(f"| {s} | {100 * d['train_balanced_accuracy']:.1f} | "
                      f"{100 * d['validation_balanced_accuracy']:.1f} | "
-                     f"{100 * d['test_balanced_accuracy']:.1f} | {d['epochs']} | {d['best_epoch']} |")
+                     f"{100 * d['test_balanced_accuracy']:.1f} | {d['epochs']} | "
+                     f"{d['best_epoch']} |")
     lines += ["", "![accuracy](perception.png)", ""]
     return "\n".join(lines)
 

@@ -266,7 +266,7 @@ def draw_trial_figure(summary: Mapping[str, Any]) -> Any:
     # One legend for all panels: "not found" entries may appear in any of them.
     handles: dict[str, Any] = {}
     for ax in fig.axes:
-        for handle, label in zip(*ax.get_legend_handles_labels()):
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(label, handle)
     if handles:
         fig.legend(list(handles.values()), list(handles), loc="outside lower center",

@@ -49,7 +49,7 @@ def linear_svm_separability(
     for kind in (True, False):
         ids = [i for i, tr in enumerate(trials) if tr.spec.has_object is kind]
         ids = [ids[j] for j in rng.permutation(len(ids))]
-        test_ids += ids[: max(1, int(round(test_fraction * len(ids))))] if ids else []
+        test_ids += ids[: max(1, round(test_fraction * len(ids)))] if ids else []
     test_set = set(test_ids)
     train = [tr for i, tr in enumerate(trials) if i not in test_set]
     test = [trials[i] for i in sorted(test_set)]

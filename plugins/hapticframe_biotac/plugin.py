@@ -14,7 +14,10 @@ __all__ = ["SPECS", "hapticframe_sensors"]
 SPECS = (
     SensorSpec(
         name="biotac",
-        summary="SynTouch BioTac / BioTac SP frames from synthetic trials, recordings or the SPI word stream.",
+        summary=(
+            "SynTouch BioTac / BioTac SP frames from synthetic trials, recordings or the SPI "
+            "word stream."
+        ),
         config=BioTacSensorConfig,
         factory="hapticframe_biotac._sensor:BioTacSensor",
         capabilities=frozenset({"finite"}),

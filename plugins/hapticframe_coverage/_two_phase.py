@@ -83,8 +83,8 @@ from ._functional import (
     allowed_sweep_mask,
     bearing_gap_scores_deg,
     binary_search_order,
-    outer_last_order,
     line_scores,
+    outer_last_order,
     parallel_lines,
     points_along,
     ray_exit_distance,
@@ -286,7 +286,7 @@ class TwoPhaseCoverage(LinePlanner):
         if self.config.met_from == "heading" or self.centroid_m is None:
             return list(self.met_from_deg)
         out = []
-        for stop, heading in zip(self.interaction_points, self.met_from_deg):
+        for stop, heading in zip(self.interaction_points, self.met_from_deg, strict=True):
             offset = np.asarray(stop) - self.centroid_m
             if float(np.hypot(*offset)) < 1e-9:
                 out.append(heading)

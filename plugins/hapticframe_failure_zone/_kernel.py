@@ -74,12 +74,6 @@ import warnings
 from typing import Any
 
 import numpy as np
-from hapticframe_granular import (
-    arthur_angle,
-    rupture_distance,
-    side_crescent_angle,
-    side_crescent_angle_analytic,
-)
 from numpy.typing import NDArray
 
 from hapticframe.kinds import (
@@ -88,6 +82,12 @@ from hapticframe.kinds import (
     MovementResult,
     Observations,
     SensorModel,
+)
+from hapticframe_granular import (
+    arthur_angle,
+    rupture_distance,
+    side_crescent_angle,
+    side_crescent_angle_analytic,
 )
 
 from ._config import FailureZoneConfig
@@ -316,7 +316,7 @@ class FailureZoneKernel(SensorModel):
         row = measurement.probabilities[0].tolist()
         columns = self._state_columns(tuple(measurement.classes))
         totals = [0.0, 0.0, 0.0]
-        for column, value in zip(columns, row):
+        for column, value in zip(columns, row, strict=True):
             totals[column] += value
         # The first maximum, as np.argmax picks it (the totals are finite).
         state, best = 0, totals[0]
@@ -401,12 +401,11 @@ class FailureZoneKernel(SensorModel):
         each state's region is emitted with its probability as weight.
         """
         if self.config.jamming_shape == "disc":
-            parts = [self._one_hot_sector(reach, gamma, eta, k) for k in range(3) if theta[k] > 0]
+            states = [k for k in range(3) if theta[k] > 0]
+            parts = [self._one_hot_sector(reach, gamma, eta, k) for k in states]
             local = np.concatenate([p[0] for p in parts])
             targets = np.concatenate([p[1] for p in parts])
-            weights = np.concatenate(
-                [p[2] * theta[k] for p, k in zip(parts, [k for k in range(3) if theta[k] > 0])]
-            )
+            weights = np.concatenate([p[2] * theta[k] for p, k in zip(parts, states, strict=True)])
             keep = weights > 0
             return local[keep], targets[keep], weights[keep]
         inner, outer = self.state_ranges(reach)

@@ -19,14 +19,14 @@ __all__ = [
     "balanced_accuracy",
     "best_and_thresholds",
     "butterworth_sos",
-    "sos_filter",
-    "sos_step_state",
     "candidate_thresholds",
     "first_flag_indices",
     "force_magnitude",
     "hard_states",
     "plateau_argmax",
     "quadrant_counts",
+    "sos_filter",
+    "sos_step_state",
     "state_probabilities",
 ]
 
@@ -120,7 +120,7 @@ def sos_filter(
     registers = [[float(a), float(b)] for a, b in z]
     out = np.empty(x.size)
     for i, sample in enumerate(x.tolist()):
-        for (b0, b1, b2, _, a1, a2), reg in zip(coefficients, registers):
+        for (b0, b1, b2, _, a1, a2), reg in zip(coefficients, registers, strict=True):
             y = b0 * sample + reg[0]
             reg[0] = b1 * sample - a1 * y + reg[1]
             reg[1] = b2 * sample - a2 * y
@@ -371,7 +371,7 @@ def best_and_thresholds(
         clean.append((f[keep], r[keep], y[keep]))
     if not clean:
         raise ValueError("calibration needs at least one recording")
-    f, r, y = (np.concatenate(parts) for parts in zip(*clean))
+    f, r, y = (np.concatenate(parts) for parts in zip(*clean, strict=True))
     free, engaged, contact = y == 0, y >= 1, y == 2
     if not free.any() or not engaged.any():
         raise ValueError("calibration needs both free (0) and interaction (1 or 2) samples")

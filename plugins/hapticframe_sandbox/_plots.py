@@ -63,7 +63,7 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
                 onsets[name][2].append(colour)
         if not math.isnan(truth.jamming_onset_s):
             ax_aligned.plot(t - truth.jamming_onset_s, f, color=colour, lw=1.0)
-    for (name, (xs, ys, colours)), marker in zip(onsets.items(), ("o", "X")):
+    for (name, (xs, ys, colours)), marker in zip(onsets.items(), ("o", "X"), strict=True):
         if xs:
             ax_all.scatter(xs, ys, c=colours, marker=marker, s=45, edgecolors="black",
                            linewidths=0.6, zorder=3, label=name)

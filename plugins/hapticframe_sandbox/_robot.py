@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from hapticframe_granular import arthur_angle, rupture_distance, side_crescent_angle
 from numpy.typing import NDArray
 
 from hapticframe.kinds import (
@@ -27,6 +26,7 @@ from hapticframe.kinds import (
     RobotState,
     RunOutcome,
 )
+from hapticframe_granular import arthur_angle, rupture_distance, side_crescent_angle
 
 from . import _functional as F
 from ._config import SandboxRobotConfig

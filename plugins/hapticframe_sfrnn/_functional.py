@@ -190,7 +190,7 @@ def split_trials(
     for kind in (True, False):
         ids = np.flatnonzero(flags == kind)
         ids = ids[rng.permutation(ids.size)]
-        k = int(round(fraction * ids.size))
+        k = round(fraction * ids.size)
         if fraction > 0 and ids.size >= 2:
             k = max(k, 1)
         k = min(k, ids.size - 1) if ids.size else 0

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hapticframe.kinds import BuildContext, ClassProbabilities, Classifier, RunOutcome, SampleBatch
+from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
 from ._config import CLASSES, LinearSVMConfig
 from ._functional import (

@@ -51,7 +51,7 @@ import numpy as np
 import torch
 from numpy.typing import ArrayLike
 
-from hapticframe.kinds import BuildContext, ClassProbabilities, Classifier, RunOutcome, SampleBatch
+from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
 from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, amplitude_channel
 from ._functional import (

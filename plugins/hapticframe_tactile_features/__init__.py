@@ -14,11 +14,11 @@ from typing import Any
 from ._config import MODALITIES, EMDFeaturesConfig, SparseCodingConfig
 
 __all__ = [
+    "MODALITIES",
     "EMDFeatureExtractor",
     "EMDFeaturesConfig",
     "EMDResult",
     "FeatureStream",
-    "MODALITIES",
     "RingBuffer",
     "SparseCodingConfig",
     "SparseCodingExtractor",

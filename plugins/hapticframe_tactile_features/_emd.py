@@ -51,8 +51,8 @@ from scipy.linalg.lapack import dgbsv as _dgbsv
 from ._validation import as_count, as_real
 
 __all__ = [
-    "EMDResult",
     "MIN_SAMPLES",
+    "EMDResult",
     "cubic_spline",
     "emd",
     "find_extrema",

@@ -277,7 +277,7 @@ def encode_batch(
                 total += dictionary[j, i] * z[r, i]
             q[j] = total
         u = np.zeros(k)
-        sweeps, gap = lasso_gram_cd(gram, q, yy, alpha, u, max_iter, tol)
+        _, gap = lasso_gram_cd(gram, q, yy, alpha, u, max_iter, tol)
         if gap > tol * yy:
             unconverged += 1
         codes[r] = u

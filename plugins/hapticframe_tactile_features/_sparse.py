@@ -357,7 +357,9 @@ def learn_dictionary(
         learner.fit(z)
     for warning in caught:
         if not issubclass(warning.category, ConvergenceWarning):
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+            warnings.warn_explicit(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )
     stats = {
         "samples": int(z.shape[0]),
         "epochs_run": int(learner.n_iter_),
