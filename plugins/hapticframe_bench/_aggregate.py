@@ -129,12 +129,14 @@ def trial_figures(metrics: Mapping[str, Any]) -> dict[str, Any]:
         if key != "hausdorff_m":
             out[key] = _finite(metrics.get(key)) if found else None
     directed = (out["hausdorff_est_to_true_m"], out["hausdorff_true_to_est_m"])
-    out["hausdorff_m"] = None if None in directed else max(directed)  # type: ignore[type-var]
+    out["hausdorff_m"] = None if None in directed else max(directed)
     for key in COUNT_FIGURES:
         value = _finite(metrics.get(key))
         # Counts stay ints in search.json (readable), any other number stays a float.
-        integral = key in _INTEGER_FIGURES and value is not None and value.is_integer()
-        out[key] = int(value) if integral else value
+        if value is not None and key in _INTEGER_FIGURES and value.is_integer():
+            out[key] = int(value)
+        else:
+            out[key] = value
     return out
 
 

@@ -284,12 +284,12 @@ def build_perception_data(
     stacked = {m: np.concatenate([t.tensors[m] for t in train]) for m in FEATURE_CHANNELS}
     n_rows = next(iter(stacked.values())).shape[0]
     chosen = np.sort(pick_rng.choice(n_rows, size=min(n_rows, coder_fit_frames), replace=False))
-    coder.fit([SampleBatch(np.arange(chosen.size) * 0.01,
+    coder.fit([SampleBatch(np.arange(chosen.size, dtype=np.float64) * 0.01,
                            {FEATURE_CHANNELS[m]: v[chosen] for m, v in stacked.items()})])
     fit_s = time.perf_counter() - started
     started = time.perf_counter()
     for t in trials:
-        batch = SampleBatch(np.arange(len(t)) * 0.01,
+        batch = SampleBatch(np.arange(len(t), dtype=np.float64) * 0.01,
                             {FEATURE_CHANNELS[m]: v for m, v in t.tensors.items()})
         out = coder.update(batch)
         t.codes = {m: np.asarray(out.channels[f"{m}_code"], dtype=np.float64)

@@ -88,7 +88,7 @@ def job_fingerprint(plan: Any, seed: int, data: Any) -> str:
     the BLAS threads of the coder's pass.
     """
     digest = hashlib.sha256()
-    versions = {}
+    versions: dict[str, str | None] = {}
     for name in ("numpy", "scipy", "scikit-learn", "torch"):
         try:
             versions[name] = version(name)

@@ -107,7 +107,7 @@ def _batch(
     amplitudes = stage_amplitudes(trial, modalities) if arch.stage == "d" else {}
     if amplitude_modalities is not None:
         amplitudes = {m: a for m, a in amplitudes.items() if m in amplitude_modalities}
-    times = (1 + np.arange(len(trial))) * 0.01
+    times = (1 + np.arange(len(trial), dtype=np.float64)) * 0.01
     if arch.classifier == "svm":
         # One flat vector per modality: the code, then its amplitude (if any).
         return SampleBatch(times, {

@@ -12,7 +12,7 @@ nominal placement; the axis is parallel to y at ``x = object_offset_m``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,7 +63,7 @@ _RADIUS_M = CYLINDER_DIAMETER_M / 2.0
 PATH_LENGTH_M = 0.125
 _PATH_START_M = (-0.050, -0.040)
 SPEED_RANGE_M_PER_S = (0.005, 0.2)
-_MEDIA_NAMES = tuple(MEDIA)
+_MEDIA_NAMES = cast("tuple[MediumName, ...]", tuple(MEDIA))
 
 # Sensor noise at rest (open air), counts (1σ).
 _AIR_SIGMA = {"pac": 1.6, "pdc": 1.5, "tac": 1.2, "tdc": 1.0, "electrodes": 1.5}
@@ -168,7 +168,7 @@ def contact_interval_x_m(
 
 def _kinematics(spec: TrialSpec, rng: np.random.Generator, n: int) -> tuple[FloatArray, ...]:
     """Fingertip x, y and depth per frame: position control with small tracking errors."""
-    t = np.arange(n) * FRAME_PERIOD_S
+    t = np.arange(n, dtype=np.float64) * FRAME_PERIOD_S
     speed_gain = 1.0 + float(np.clip(rng.normal(0.0, 0.02), -0.05, 0.05))
     x0 = rng.uniform(*_PATH_START_M)
     wander = colored_noise(rng, 3, n, 0.2 / FRAME_PERIOD_S)

@@ -55,14 +55,14 @@ class LinePlanner(Planner):
     @staticmethod
     def _resolve_bounds(config: CoverageConfig, maps: list[Map], scene: Scene | None) -> Bounds:
         if config.region is not None:
-            r = config.region
-            return (r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m)
+            given = config.region
+            return (given.x_min_m, given.x_max_m, given.y_min_m, given.y_max_m)
         if maps:
-            r = maps[0].region
-            return (r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m)
+            mapped = maps[0].region
+            return (mapped.x_min_m, mapped.x_max_m, mapped.y_min_m, mapped.y_max_m)
         if scene is not None:
-            r = scene.region
-            return (r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m)
+            described = scene.region
+            return (described.x_min_m, described.x_max_m, described.y_min_m, described.y_max_m)
         raise ValueError(
             "the planner needs a search region: set config.region, name a map in inputs, "
             "or describe a scene"

@@ -160,7 +160,8 @@ class TwoPhaseCoverage(LinePlanner):
         if self._phase == "done":
             return None
         if self._proposed >= self.max_movements:
-            return self._finish()
+            self._finish()
+            return None
         movement = self._propose_phase1() if self._phase == "phase1" else None
         if movement is None and self._phase == "phase2":
             movement = self._propose_phase2()
@@ -186,7 +187,6 @@ class TwoPhaseCoverage(LinePlanner):
 
     def _finish(self) -> None:
         self._phase = "done"
-        return None
 
     # --- phase 1 -------------------------------------------------------------------------------
 
@@ -199,7 +199,8 @@ class TwoPhaseCoverage(LinePlanner):
                 first.end_m, first.start_m, "phase1", f"phase 1: reverse of {first.label}"
             )
         if not self._queue:
-            return self._finish()  # every line raked without an interaction
+            self._finish()  # every line raked without an interaction
+            return None
         index = self._queue.pop(0)
         starts, ends = self.phase1_lines
         return self.make_movement(
@@ -211,7 +212,8 @@ class TwoPhaseCoverage(LinePlanner):
     def _propose_phase2(self) -> ExploratoryMovement | None:
         c = self.config
         if self._phase2_proposed >= c.max_phase2_movements:
-            return self._finish()
+            self._finish()
+            return None
         self.centroid_m = self._estimate_centroid()
         if self._phase2_proposed == 0 and c.phase2_region_size_m is not None:
             # The first phase-2 region: a square around the estimate, not the whole area.
@@ -233,7 +235,8 @@ class TwoPhaseCoverage(LinePlanner):
             )
         self._regions.append(self.current_bounds)
         if self._should_stop():
-            return self._finish()
+            self._finish()
+            return None
         if c.sweep_rule == "random":
             angle = sample_sweep_angle_deg(
                 self.context.rng, self.used_angles_deg, c.min_sweep_separation_deg
@@ -244,7 +247,8 @@ class TwoPhaseCoverage(LinePlanner):
             angle = bearing % 180.0
         starts, ends = parallel_lines(self.current_bounds, angle, c.phase2_line_spacing_m)
         if len(starts) == 0:  # cannot happen for a region of positive size; be safe
-            return self._finish()
+            self._finish()
+            return None
         best, mean_at_ends = self._best_candidate(starts, ends)
         self.used_angles_deg.append(angle)
         start, end = starts[best], ends[best]
@@ -294,6 +298,12 @@ class TwoPhaseCoverage(LinePlanner):
                 out.append(math.degrees(math.atan2(offset[1], offset[0])) % 360.0)
         return out
 
+    def _known_centroid(self) -> FloatArray:
+        """The centroid estimate, which phase 2 sets before anything that needs it runs."""
+        if self.centroid_m is None:
+            raise RuntimeError("no centroid estimate: phase 2 has not started")
+        return self.centroid_m
+
     def _open_gap_deg(self) -> float:
         """Twice the angular distance from the met-from directions to the farthest direction
         the object can still be approached from (one whose line would start at least
@@ -304,7 +314,7 @@ class TwoPhaseCoverage(LinePlanner):
         """
         c = self.config
         candidates = np.arange(0.0, 360.0, c.gap_step_deg)
-        room = ray_exit_distance(self.centroid_m, candidates, self.search_bounds)
+        room = ray_exit_distance(self._known_centroid(), candidates, self.search_bounds)
         open_ = room >= c.min_start_distance_m
         if not open_.any():
             return 0.0
@@ -321,7 +331,7 @@ class TwoPhaseCoverage(LinePlanner):
         c = self.config
         candidates = np.arange(0.0, 360.0, c.gap_step_deg)
         allowed = allowed_sweep_mask(candidates, self.used_angles_deg, c.min_sweep_separation_deg)
-        room = ray_exit_distance(self.centroid_m, candidates, self.current_bounds)
+        room = ray_exit_distance(self._known_centroid(), candidates, self.current_bounds)
         roomy = allowed & (room >= c.min_start_distance_m)
         pool = roomy if roomy.any() else allowed
         scores = np.where(pool, bearing_gap_scores_deg(candidates, self._met_from()), -np.inf)
@@ -339,7 +349,7 @@ class TwoPhaseCoverage(LinePlanner):
             mean, std = np.full(len(points), 0.5), np.zeros(len(points))
         x0, x1, y0, y1 = self.current_bounds
         scores = line_scores(
-            mean, std, points, index, self.centroid_m,
+            mean, std, points, index, self._known_centroid(),
             (c.occupancy_weight, c.uncertainty_weight, c.distance_weight),
             math.hypot(x1 - x0, y1 - y0), len(starts),
         )

@@ -151,7 +151,9 @@ class FailureZoneKernel(SensorModel):
         self._class_cache: dict[tuple[str, ...], FloatArray] = {}
         self._column_cache: dict[tuple[str, ...], list[int]] = {}
         self._sector_cache: dict[tuple[float, float], FloatArray] = {}
-        self._target_cache: dict[tuple[float, float, int, bool], tuple[FloatArray, ...]] = {}
+        self._target_cache: dict[
+            tuple[float, float, int, bool], tuple[FloatArray, FloatArray, FloatArray]
+        ] = {}
         self.reset()
 
     # --- state between movements ------------------------------------------------------------

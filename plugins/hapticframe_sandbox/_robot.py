@@ -251,7 +251,7 @@ class SandboxRobot(Robot):
             self._active = False
             self._halt_reason = str(reason)
 
-    def checkpoint(self) -> tuple[dict[str, Any], int, dict[str, Any]]:
+    def checkpoint(self) -> tuple[dict[str, Any], int, Mapping[str, Any]]:
         """The state a step changes: every attribute, the log length and the generator.
 
         Attribute values are immutable or, like the ground-truth logs, only appended to
@@ -259,7 +259,7 @@ class SandboxRobot(Robot):
         """
         return dict(self.__dict__), len(self._log_t), self._rng.bit_generator.state
 
-    def rewind(self, checkpoint: tuple[dict[str, Any], int, dict[str, Any]]) -> None:
+    def rewind(self, checkpoint: tuple[dict[str, Any], int, Mapping[str, Any]]) -> None:
         attributes, logged, generator = checkpoint
         if attributes["_index"] != self._index or logged > len(self._log_t):
             raise ValueError(f"robot {self.id!r}: the checkpoint is not from this movement")

@@ -16,6 +16,7 @@ ranges (uniform in ±1/√fan).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import cast
 
 import torch
 from torch import Tensor, nn
@@ -65,7 +66,7 @@ class GRUStack(nn.Module):
         self.units = int(units)
 
     def initial_state(self, batch: int) -> State:
-        device = self.layers[0].weight_hh_l0.device
+        device = next(self.layers[0].parameters()).device
         return tuple(torch.zeros(1, batch, self.units, device=device) for _ in self.layers)
 
     def forward(
@@ -82,6 +83,9 @@ class GRUStack(nn.Module):
 
 class RecurrentNet(nn.Module):
     """Common part: the input scale buffer and the state bookkeeping."""
+
+    # A buffer registered in __init__; declared so type checkers know it is a tensor.
+    input_scale: Tensor
 
     def __init__(self, group_sizes: Sequence[int], dropout: float) -> None:
         super().__init__()
@@ -151,14 +155,16 @@ class FusionRNNNet(RecurrentNet):
         self.readout = nn.Linear(fusion_units, n_classes)
 
     def initial_state(self, batch: int) -> State:
-        return tuple(h for branch in self.branches for h in branch.initial_state(batch))
+        # ModuleList hands out plain Modules; these are GRU stacks.
+        stacks = [cast(GRUStack, branch) for branch in self.branches]
+        return tuple(h for stack in stacks for h in stack.initial_state(batch))
 
     def forward(
         self, x: Tensor, state: State, generator: torch.Generator | None = None
     ) -> tuple[Tensor, State]:
         outputs, new_state, col, pos = [], [], 0, 0
         for branch, size in zip(self.branches, self.group_sizes, strict=True):
-            depth = len(branch.layers)
+            depth = len(cast(GRUStack, branch).layers)
             branch_in = x[..., col : col + size]
             out, branch_state = branch(branch_in, state[pos : pos + depth], generator)
             outputs.append(out)
