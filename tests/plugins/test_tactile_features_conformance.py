@@ -1,4 +1,8 @@
-"""The conformance kit on emd-features and sparse-coding, and the chain."""
+"""The specs of emd-features and sparse-coding, and the chain from BioTac frames to codes.
+
+The conformance kit runs on these two components with the other bundled plugins, in
+tests/test_bundled_conformance.py.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +13,12 @@ import hapticframe
 from hapticframe import Kind
 from hapticframe.kinds import BuildContext
 from hapticframe_bench import synthetic_biotac_frames
-from hapticframe_tactile_features._config import EMDFeaturesConfig, SparseCodingConfig
-from hapticframe_tactile_features._emd_features import EMDFeatureExtractor
-from hapticframe_tactile_features._sparse_coding import SparseCodingExtractor
+from hapticframe_tactile_features import (
+    EMDFeatureExtractor,
+    EMDFeaturesConfig,
+    SparseCodingConfig,
+    SparseCodingExtractor,
+)
 
 pytest.importorskip("sklearn")
 
