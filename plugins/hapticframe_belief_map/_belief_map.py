@@ -444,7 +444,8 @@ class BeliefMap(Map):
                 )
             xs, ys, mean = self.snapshot_grid(None, _FIGURE_CELLS)
             save_belief_figure(
-                out_dir / "belief_final.png", xs, ys, mean, title="Belief map at the end of the run",
+                out_dir / "belief_final.png", xs, ys, mean,
+                title="Belief map at the end of the run",
                 path_m=self.fingertip_path(), outlines=outlines,
                 outline_level=outcome.outline_level,
             )
