@@ -16,6 +16,7 @@ import pytest
 from hapticframe import RunSettings, run_experiment, validate_mapping
 from hapticframe.kinds import BuildContext, SampleBatch
 from hapticframe_bench import search_experiment
+from hapticframe_bhm import BayesianHilbertMap
 from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_sandbox import SandboxRobot
 
@@ -23,10 +24,12 @@ ROOT = Path(__file__).resolve().parents[1]
 CIRCLE = [{"shape": "circle", "center_m": [0.22, 0.31], "radius_m": 0.04}]
 
 
-def _experiment(planner: str, lookahead: int, every: int = 0) -> dict:
-    data = search_experiment(CIRCLE, planner, 3, f"lookahead-{lookahead}")
+def _experiment(
+    planner: str, lookahead: int, every: int = 0, movements: int = 8, objects: list = CIRCLE
+) -> dict:
+    data = search_experiment(objects, planner, 3, f"lookahead-{lookahead}")
     data["run"].update(figures=False, lookahead_steps=lookahead, map_update_every_steps=every,
-                       max_movements=8)
+                       max_movements=movements)
     return data
 
 
@@ -70,27 +73,47 @@ def counted_rewinds(monkeypatch):
 
 
 def test_two_phase_search_is_the_same_with_and_without_lookahead(tmp_path, counted_rewinds):
-    stepwise = _run(tmp_path, "one", _experiment("two-phase-coverage", 1))
+    # Four movements: phase 1's halted line and its reverse, two halted phase-2 sweeps.
+    stepwise = _run(tmp_path, "one", _experiment("two-phase-coverage", 1, movements=4))
     assert max(counted_rewinds["batch_rows"]) == 1 and counted_rewinds["rewind"] == 0
     counted_rewinds["batch_rows"].clear()
-    ahead = _run(tmp_path, "ahead", _experiment("two-phase-coverage", 64))
+    ahead = _run(tmp_path, "ahead", _experiment("two-phase-coverage", 64, movements=4))
     _assert_same_run(stepwise, ahead)
     # The batched path really ran, and interactions were found inside batches and replayed.
     assert max(counted_rewinds["batch_rows"]) == 64
     assert counted_rewinds["rewind"] >= 1 and stepwise[0]["object_interactions"] >= 1
+    assert sum(" phase2 " in line for line in stepwise[2]) == 2
 
 
-def test_batches_end_where_maps_are_updated_mid_movement(tmp_path):
-    stepwise = _run(tmp_path, "one", _experiment("coverage", 1, every=25))
-    ahead = _run(tmp_path, "ahead", _experiment("coverage", 16, every=25))
+def test_batches_end_where_maps_are_updated_mid_movement(tmp_path, monkeypatch):
+    # Three coverage lines, the second and third halted by a circle on them (batches holding
+    # the interaction are rewound): maps are updated every 25 steps inside each movement,
+    # so batches of 16 must stop short at 25, 50, ... for the maps to get the same updates.
+    # The maps' results alone do not show it (grouped updates gave the same trace).
+    updates: list[int] = []
+    update = BayesianHilbertMap.update
+
+    def recording_update(self, observations):  # type: ignore[no-untyped-def]
+        updates.append(len(observations))
+        return update(self, observations)
+
+    monkeypatch.setattr(BayesianHilbertMap, "update", recording_update)
+    on_lines = [{"shape": "circle", "center_m": [0.40, 0.10], "radius_m": 0.04}]
+    stepwise = _run(tmp_path, "one", _experiment("coverage", 1, 25, 3, on_lines))
+    stepwise_updates = updates.copy()
+    updates.clear()
+    ahead = _run(tmp_path, "ahead", _experiment("coverage", 16, 25, 3, on_lines))
     _assert_same_run(stepwise, ahead)
+    assert updates == stepwise_updates
+    assert len(updates) > 20 * stepwise[0]["movements"]  # many updates inside movements
+    assert stepwise[0]["object_interactions"] >= 1
 
 
 def test_a_component_that_cannot_rewind_keeps_the_loop_one_step_at_a_time(
     tmp_path, monkeypatch, counted_rewinds
 ):
     monkeypatch.setattr(ForceRateJammingClassifier, "checkpoint", lambda self: None)
-    _run(tmp_path, "no-rewind", _experiment("two-phase-coverage", 64))
+    _run(tmp_path, "no-rewind", _experiment("two-phase-coverage", 64, movements=4))
     assert set(counted_rewinds["batch_rows"]) == {1} and counted_rewinds["rewind"] == 0
 
 

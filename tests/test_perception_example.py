@@ -111,9 +111,12 @@ def test_the_example_trains_first_and_writes_the_timeline_and_snapshots(fit_run)
     # The core scores the SF-RNN against the streamed trial's contact labels (Figure 2.5).
     assert metrics["contact_labels_from"] == "fingertip" and metrics["contact_frames"] > 200
     assert 0.0 <= metrics["contact_balanced_accuracy"] <= 1.0
+    # The scene's cylinder: with no planner the core scores the last map against it.
+    assert metrics["evaluated_map"] == "belief" and metrics["object_found"]
+    assert metrics["centroid_error_m"] < 0.03
     names = {p.name for p in out.glob("*.png")}
     assert {"labels.png", "timeline.png", "belief_first_contact.png", "belief_mid_contact.png",
-            "belief_last_contact.png"} <= names
+            "belief_last_contact.png", "belief_final.png", "outline.png"} <= names
     with np.load(out / "trace.npz", allow_pickle=False) as trace:
         assert not any(key.startswith("sensor/training-trials/") for key in trace.files)
         frames = len(trace["sensor/fingertip/timestamps_s"])
@@ -141,3 +144,34 @@ def test_saved_artifacts_reproduce_the_run_time_fit(fit_run, artifacts_run):
     # Not a constant output, which any two untrained-alike networks would share.
     assert np.ptp(probabilities["fit"][:, 1]) > 0.1
     np.testing.assert_allclose(probabilities["files"], probabilities["fit"], rtol=0, atol=1e-6)
+
+
+def test_both_examples_place_the_streamed_trials_cylinder(fit_run):
+    # The scene is the truth the belief maps draw and are scored against: the same in both
+    # examples, a 9.1 cm footprint (the cylinder's diameter across the rake, the sensor's
+    # contact interval at the depth of its axis) holding every labelled contact position,
+    # in a region that holds the whole rake.
+    import yaml
+
+    from hapticframe import Scene
+    from hapticframe_biotac import TrialSpec, contact_interval_x_m
+
+    scenes = [yaml.safe_load(p.read_text())["scene"] for p in (EXAMPLE, FROM_TRAINED)]
+    assert scenes[0] == scenes[1]
+    scene = Scene.model_validate(scenes[0])
+    (footprint,) = scene.objects
+    spec = TrialSpec(medium="cottonwood_beads", speed_m_per_s=0.04, orientation_deg=0.0,
+                     object_offset_m=0.0, has_object=True)
+    axis_depth_m = 0.04 + 0.091 / 2  # the top 4 cm deep, plus the radius
+    across = contact_interval_x_m(spec, depth_m=axis_depth_m)
+    assert across is not None
+    outline = footprint.outline(400)
+    np.testing.assert_allclose([outline[:, 0].min(), outline[:, 0].max()], across, atol=1e-9)
+    with np.load(fit_run[0] / "trace.npz", allow_pickle=False) as trace:
+        positions = trace["sensor/fingertip/position_m"]
+        contact = trace["sensor/fingertip/contact"] > 0.5
+    assert contact.sum() > 100
+    assert scene.occupied(positions[contact]).all()
+    region = scene.region
+    assert region.x_min_m < positions[:, 0].min() and positions[:, 0].max() < region.x_max_m
+    assert region.y_min_m < positions[:, 1].min() and positions[:, 1].max() < region.y_max_m

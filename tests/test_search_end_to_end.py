@@ -49,10 +49,14 @@ def test_an_object_touching_the_region_edge_is_searched_without_failure(tmp_path
         "- {shape: circle, center_m: [0.04, 0.30], radius_m: 0.04}",
     )
     assert "shape: circle" in text
+    # It checks no figure: drawing them would only cost time.
+    assert text.count("\nrun:\n") == 1 and "figures:" not in text
+    text = text.replace("\nrun:\n", "\nrun:\n  figures: false\n")
     path = tmp_path / "edge.yaml"
     path.write_text(text.replace("../schemas/", str(ROOT / "schemas") + "/"))
     out = tmp_path / "edge"
     assert main(["run", str(path), "--out", str(out), "--quiet"]) == 0
+    assert not list(out.glob("*.png"))
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["max_force_n"] <= 80.0 and metrics["movements"] >= 1
     if metrics["object_found"]:

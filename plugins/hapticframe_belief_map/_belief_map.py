@@ -396,10 +396,16 @@ class BeliefMap(Map):
             out["last_contact"] = self._last_snapshot
         return out
 
-    def probability_grid(
+    def snapshot_grid(
         self, snapshot: BeliefSnapshot | None = None, cells_long_side: int = 150
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """``(xs, ys, mean)`` on a grid over :attr:`region`; ``mean`` has shape ``(ny, nx)``."""
+        """``(xs, ys, mean)`` of ``snapshot`` (the current map when None) on a grid of
+        ``cells_long_side`` cells along the long side of :attr:`region`; ``mean`` has shape
+        ``(ny, nx)``.
+
+        Not :meth:`~hapticframe.kinds.GridQueryable.probability_grid`: the belief map has no
+        faster path than :meth:`query` on a grid, so it does not offer that protocol.
+        """
         region = self.region
         width, height = region.size_m
         spacing = max(width, height) / cells_long_side
@@ -429,14 +435,14 @@ class BeliefMap(Map):
                 "last_contact": "(c) last decided contact",
             }
             for moment, snapshot in snapshots.items():
-                xs, ys, mean = self.probability_grid(snapshot, _FIGURE_CELLS)
+                xs, ys, mean = self.snapshot_grid(snapshot, _FIGURE_CELLS)
                 save_belief_figure(
                     out_dir / f"belief_{moment}.png", xs, ys, mean,
                     title=f"Belief map at {titles[moment]}",
                     path_m=self.fingertip_path(snapshot.observations_seen), outlines=outlines,
                     outline_level=outcome.outline_level,
                 )
-            xs, ys, mean = self.probability_grid(None, _FIGURE_CELLS)
+            xs, ys, mean = self.snapshot_grid(None, _FIGURE_CELLS)
             save_belief_figure(
                 out_dir / "belief_final.png", xs, ys, mean,
                 title="Belief map at the end of the run",

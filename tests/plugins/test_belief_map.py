@@ -311,6 +311,28 @@ def test_snapshots_at_first_mid_and_last_contact(tmp_path) -> None:
     assert not quiet.exists()
 
 
+def test_snapshot_grid_is_the_map_on_a_grid_and_no_grid_queryable() -> None:
+    from hapticframe.kinds import GridQueryable
+
+    model, the_map = build_model(), build_map()
+    measurement = sweep(200, (63, 127))
+    for i in range(200):
+        the_map.update(model.observe(measurement.select(slice(i, i + 1))))
+    # Its grid takes a snapshot and a cell count, not GridQueryable's spacing: a planner that
+    # checks for the protocol must not take the belief map for one and call it wrongly.
+    assert not isinstance(the_map, GridQueryable)
+    assert not hasattr(the_map, "probability_grid")
+    xs, ys, mean = the_map.snapshot_grid(None, 40)
+    assert len(xs) == 40 and mean.shape == (len(ys), len(xs))
+    gx, gy = np.meshgrid(xs, ys)
+    points = np.column_stack([gx.ravel(), gy.ravel()])
+    np.testing.assert_array_equal(mean.ravel(), the_map.query(points).mean)
+    first = the_map.snapshots()["first_contact"]
+    _, _, early = the_map.snapshot_grid(first, 40)
+    np.testing.assert_array_equal(early.ravel(), first.probability(points))
+    assert np.abs(early - mean).max() > 0.2  # the first-contact map, not the final one
+
+
 def test_no_contact_gives_no_contact_snapshots(tmp_path) -> None:
     model, the_map = build_model(), build_map()
     the_map.update(model.observe(sweep(100, (0, 0))))
