@@ -16,21 +16,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._components import Components
 from ._config import ComponentEntry, Experiment
 from ._errors import RunError
 from ._kind import Kind
 from .kinds import (
     ClassProbabilities,
-    Classifier,
-    Component,
-    FeatureExtractor,
     LocatedMeasurement,
-    Map,
     Observations,
     RobotState,
     SampleBatch,
     Sensor,
-    SensorModel,
 )
 
 __all__ = ["Dataflow", "PoseHistory", "TraceRecorder"]
@@ -223,7 +219,7 @@ class Dataflow:
     def __init__(
         self,
         experiment: Experiment,
-        components: Mapping[str, Component],
+        components: Components,
         recorder: TraceRecorder,
         training_only: frozenset[str] = frozenset(),
     ) -> None:
@@ -246,7 +242,7 @@ class Dataflow:
         self._recorded_classes: dict[str, tuple[str, ...]] = {}
         self._plan_sensor_models()
         for sensor_id in self.sensors:
-            channels = components[sensor_id].channels  # type: ignore[attr-defined]
+            channels = components.sensors[sensor_id].channels
             for name, info in channels.items():
                 recorder.set(f"sensor/{sensor_id}/{name}/unit", np.array(info.unit))
 
@@ -265,7 +261,7 @@ class Dataflow:
                 self.sm_pose_source[sm] = robots[0]
                 continue
             for sensor_id in [i for i in entry.inputs if self.entries[i].kind is Kind.SENSOR] + self.sensors:
-                if "position_m" in self.components[sensor_id].channels:  # type: ignore[attr-defined]
+                if "position_m" in self.components.sensors[sensor_id].channels:
                     self.sm_pose_source[sm] = sensor_id
                     break
             else:
@@ -316,16 +312,16 @@ class Dataflow:
         rewind the components that made them.
         """
         outputs: dict[str, SampleBatch] = {}
+        sensors = self.components.sensors
         for sensor_id in self.sensors:
-            sensor: Sensor = self.components[sensor_id]  # type: ignore[assignment]
-            outputs[sensor_id] = sensor.read()
+            outputs[sensor_id] = sensors[sensor_id].read()
+        extractors = self.components.feature_extractors
         for fe_id in self.extractors:
-            extractor: FeatureExtractor = self.components[fe_id]  # type: ignore[assignment]
-            outputs[fe_id] = extractor.update(self._inputs(fe_id, outputs))
+            outputs[fe_id] = extractors[fe_id].update(self._inputs(fe_id, outputs))
         classified: dict[str, ClassProbabilities] = {}
+        classifiers = self.components.classifiers
         for clf_id in self.classifiers:
-            classifier: Classifier = self.components[clf_id]  # type: ignore[assignment]
-            classified[clf_id] = classifier.update(self._inputs(clf_id, outputs))
+            classified[clf_id] = classifiers[clf_id].update(self._inputs(clf_id, outputs))
         return outputs, classified
 
     def commit(
@@ -339,7 +335,7 @@ class Dataflow:
             if len(batch):
                 arrived = True
                 self._record_batch("sensor", sensor_id, batch)
-                self._track_force(self.components[sensor_id], batch)  # type: ignore[arg-type]
+                self._track_force(self.components.sensors[sensor_id], batch)
                 if sensor_id in self.poses:
                     self.poses[sensor_id].add_batch(batch)
         for fe_id in self.extractors:
@@ -380,12 +376,11 @@ class Dataflow:
             positions, headings, depths = self.poses[self.sm_pose_source[sm_id]].at(probs.timestamps_s)
             # probs passed its checks when the classifier made it; the poses are built here.
             located = LocatedMeasurement._from_checked(probs, positions, headings, depths)
-            model: SensorModel = self.components[sm_id]  # type: ignore[assignment]
-            obs = model.observe(located)
+            obs = self.components.sensor_models[sm_id].observe(located)
             if len(obs):
                 self.recorder.add(f"sensor_model/{sm_id}/points_m", obs.points_m)
                 self.recorder.add(f"sensor_model/{sm_id}/targets", obs.targets)
-                self.recorder.add(f"sensor_model/{sm_id}/weights", obs.weights)  # type: ignore[arg-type]
+                self.recorder.add(f"sensor_model/{sm_id}/weights", obs.weights)
                 for map_id in self.maps:
                     if sm_id in self.entries[map_id].inputs:
                         self.pending[map_id].append(obs)
@@ -396,8 +391,7 @@ class Dataflow:
             if parts:
                 merged = Observations.concatenate(parts)
                 self.pending[map_id] = []
-                the_map: Map = self.components[map_id]  # type: ignore[assignment]
-                the_map.update(merged)
+                self.components.maps[map_id].update(merged)
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):

@@ -149,7 +149,7 @@ def run_record(
         "status": session.status,
         "error": error,
         "experiment_file": str(session.experiment.file),
-        "name": session.experiment.model.name,  # type: ignore[attr-defined]
+        "name": session.experiment.model.name,
         "seed": session.experiment.seed,
         "started_utc": session.started_utc,
         "wall_time_s": wall_time_s,

@@ -11,7 +11,13 @@ from .._registry import Registry
 from .._scene import Scene
 from .._specs import PluginSpec
 
-__all__ = ["ID_PATTERN", "RunSettings", "SCHEMA_VERSION", "build_experiment_model"]
+__all__ = [
+    "ID_PATTERN",
+    "SCHEMA_VERSION",
+    "ExperimentRoot",
+    "RunSettings",
+    "build_experiment_model",
+]
 
 SCHEMA_VERSION = 1
 ID_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]{0,63}$"
@@ -105,27 +111,41 @@ def _section_type(registry: Registry, kind: Kind) -> Any:
     return (list[union], Field(default_factory=list))  # type: ignore[valid-type]
 
 
-_CACHE: dict[str, type[BaseModel]] = {}
+class ExperimentRoot(BaseModel):
+    """The sections of an experiment file that every registry shares.
+
+    :func:`build_experiment_model` adds one list per plugin kind (``sensors``, ``maps``, ...),
+    typed by the installed plugins; the core reads components from
+    :attr:`Experiment.components <hapticframe.Experiment.components>`, and these fields
+    from ``experiment.model``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment")
+
+    # Literal[SCHEMA_VERSION]: a type checker accepts only a literal value here.
+    schema_version: Literal[1] = Field(description="Experiment file format version.")
+    name: str = Field(min_length=1, max_length=200, description="Name of the experiment.")
+    description: str = Field("", description="Free text.")
+    seed: int = Field(ge=0, lt=2**63, description="Seeds every component's random generator.")
+    scene: Scene | None = Field(None, description="What the simulated world contains.")
+    run: RunSettings = Field(default_factory=RunSettings)
 
 
-def build_experiment_model(registry: Registry) -> type[BaseModel]:
+_CACHE: dict[str, type[ExperimentRoot]] = {}
+
+
+def build_experiment_model(registry: Registry) -> type[ExperimentRoot]:
     """The root model of an experiment file for the plugins in ``registry`` (cached)."""
     key = registry.fingerprint()
     cached = _CACHE.get(key)
     if cached is not None:
         return cached
     sections = {kind.section: _section_type(registry, kind) for kind in Kind}
-    model = create_model(  # type: ignore[call-overload]
+    model = create_model(
         "Experiment",
-        __config__=ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment"),
+        __base__=ExperimentRoot,
         __doc__="A hapticframe experiment: the components to build and how to run them.",
-        schema_version=(Literal[SCHEMA_VERSION], Field(description="Experiment file format version.")),
-        name=(str, Field(min_length=1, max_length=200, description="Name of the experiment.")),
-        description=(str, Field("", description="Free text.")),
-        seed=(int, Field(ge=0, lt=2**63, description="Seeds every component's random generator.")),
-        scene=(Scene | None, Field(None, description="What the simulated world contains.")),
-        run=(RunSettings, Field(default_factory=RunSettings)),
         **sections,
     )
     _CACHE[key] = model
-    return model  # type: ignore[no-any-return]
+    return model

@@ -20,7 +20,7 @@ from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
 from ._load import LoadedFile, join_path, load_file
-from ._model import build_experiment_model
+from ._model import ExperimentRoot, build_experiment_model
 
 __all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
 
@@ -46,14 +46,14 @@ class Experiment:
     """A validated experiment: the root model and its components in build order."""
 
     file: str
-    model: BaseModel
+    model: ExperimentRoot
     components: tuple[ComponentEntry, ...]
     registry: Registry
     plugin_manager: PluginManager
 
     @property
     def seed(self) -> int:
-        return int(self.model.seed)  # type: ignore[attr-defined]
+        return self.model.seed
 
     def resolved_config(self) -> dict[str, Any]:
         """The experiment with every default filled in, as JSON-ready data."""
@@ -151,7 +151,7 @@ def validate_data(
     if model is not None and not issues:
         entries = _entries(model, registry)
         issues.extend(_check_graph(entries, loaded))
-        issues.extend(_check_train_from(model.run.train_from, entries, loaded))  # type: ignore[attr-defined]
+        issues.extend(_check_train_from(model.run.train_from, entries, loaded))
         if not issues:
             return Experiment(file, model, tuple(_build_order(entries)), registry, pm)
     issues.sort(key=lambda i: (i.line or 0, i.path))

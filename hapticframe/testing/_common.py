@@ -8,6 +8,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
@@ -39,10 +40,8 @@ def check(*kinds: Kind) -> Callable[[CheckFunction], CheckFunction]:
 @check()
 def check_spec_record(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """The factory resolves to a component class of the spec's kind."""
-    from .._session import _INTERFACES
-
     factory = spec.load_factory()
-    interface = _INTERFACES[spec.kind]
+    interface = INTERFACES[spec.kind]
     if isinstance(factory, type) and not issubclass(factory, interface):
         raise CheckFailure(
             f"factory {spec.factory!r} is {factory.__name__}, which does not derive from "
