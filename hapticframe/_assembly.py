@@ -43,7 +43,7 @@ def _closer(component: Component, on_error: CloseErrorHandler) -> Callable[[], N
     def close() -> None:
         try:
             component.close()
-        except Exception as exc:  # noqa: BLE001  (one failing close must not keep the others open)
+        except Exception as exc:  # one failing close must not keep the others open
             on_error(component.id, exc)
 
     return close

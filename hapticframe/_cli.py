@@ -54,7 +54,7 @@ class _StderrHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         try:
             _err(f"{record.levelname.lower()}: {record.getMessage()}")
-        except Exception:  # noqa: BLE001  (logging's own policy for a failing handler)
+        except Exception:  # logging's own policy for a failing handler
             self.handleError(record)
 
 

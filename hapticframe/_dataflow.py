@@ -182,12 +182,12 @@ class PoseHistory:
             return pose[:, :2], pose[0, 2:3], pose[0, 3:4]
         n = self._n
         t = self._columns[0][:n]
-        x, y, heading = (np.interp(times, t, self._columns[k][:n]) for k in (1, 2, 3))
+        xs, ys, headings = (np.interp(times, t, self._columns[k][:n]) for k in (1, 2, 3))
         if self._nonfinite_depths:
-            depth = np.full(len(times), np.nan)
+            depths = np.full(len(times), np.nan)
         else:
-            depth = np.interp(times, t, self._columns[4][:n])
-        return np.column_stack([x, y]), heading, depth
+            depths = np.interp(times, t, self._columns[4][:n])
+        return np.column_stack([xs, ys]), headings, depths
 
 
 def merge_batches(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
@@ -449,5 +449,5 @@ class Dataflow:
 def _last_label(probs: ClassProbabilities) -> int:
     """``int(probs.labels[-1])`` without an arg-max over every row: the first largest entry
     of the last row (rows are finite, checked by the record)."""
-    row = probs.probabilities[-1].tolist()
+    row: list[float] = probs.probabilities[-1].tolist()
     return row.index(max(row))

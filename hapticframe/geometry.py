@@ -144,12 +144,13 @@ def blob_centroid(
     mass = ndimage.sum(weights, labels, index)
     cx = ndimage.sum(weights * gx, labels, index) / mass
     cy = ndimage.sum(weights * gy, labels, index) / mass
-    centres = np.column_stack([cx, cy])
+    centres: NDArray[np.float64] = np.column_stack([cx, cy])
     if near_m is not None:
         chosen = int(np.argmin(np.linalg.norm(centres - np.asarray(near_m, dtype=float), axis=1)))
     else:
         chosen = int(np.argmax(mass))
-    return centres[chosen]
+    centre: NDArray[np.float64] = centres[chosen]
+    return centre
 
 
 def directed_hausdorff_both(estimate: ArrayLike, truth: ArrayLike) -> tuple[float, float]:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+import functools
+import operator
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
@@ -24,6 +26,9 @@ ID_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]{0,63}$"
 MODULE_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
 
 _STRICT = ConfigDict(extra="forbid", frozen=True)
+
+#: A component id as experiment files write it.
+_ComponentId = Annotated[str, Field(pattern=ID_PATTERN)]
 
 
 class RunSettings(BaseModel):
@@ -63,7 +68,7 @@ class RunSettings(BaseModel):
         description="Sensor channel holding per-sample class labels for `hapticframe train` "
         "and `train_from`.",
     )
-    train_from: dict[Annotated[str, Field(pattern=ID_PATTERN)], Annotated[str, Field(pattern=ID_PATTERN)]] = Field(
+    train_from: dict[_ComponentId, _ComponentId] = Field(
         default_factory=dict,
         description="Fit the feature extractors and classifiers before the run, as `hapticframe "
         "train` would: maps the id of a sensor the run streams to the id of a finite sensor "
@@ -90,14 +95,16 @@ def _variant(spec: PluginSpec) -> type[BaseModel]:
     title = "".join(part.capitalize() for part in spec.name.replace("_", "-").split("-"))
     default = _default_factory(spec.config)
     config_field: Any = (spec.config, default)
-    return create_model(  # type: ignore[call-overload,no-any-return]
+    # The tag's value is known only at run time: a type built from it is a value to mypy.
+    tag: Any = Literal[spec.name]
+    return create_model(
         f"{title}{''.join(p.capitalize() for p in spec.kind.value.split('_'))}Component",
         __config__=_STRICT,
         __doc__=spec.summary,
         id=(str, Field(pattern=ID_PATTERN, description="Unique instance name.")),
-        type=(Literal[spec.name], Field(description=spec.summary)),  # type: ignore[valid-type]
+        type=(tag, Field(description=spec.summary)),
         config=config_field,
-        inputs=(list[Annotated[str, Field(pattern=ID_PATTERN)]],
+        inputs=(list[_ComponentId],
                 Field(default_factory=list, description="Ids of the components this one reads.")),
     )
 
@@ -107,8 +114,11 @@ def _section_type(registry: Registry, kind: Kind) -> Any:
     if not variants:
         # No plugin of this kind is installed: the section must stay empty.
         return (list[dict[str, Any]], Field(default_factory=list, max_length=0))
-    union = Annotated[Union[tuple(variants)], Field(discriminator="type")]  # type: ignore[valid-type]
-    return (list[union], Field(default_factory=list))  # type: ignore[valid-type]
+    # Built from the installed plugins at run time: to mypy a value, not a type.
+    members: Any = functools.reduce(operator.or_, variants)
+    union: Any = Annotated[members, Field(discriminator="type")]
+    section: Any = list[union]
+    return (section, Field(default_factory=list))
 
 
 class ExperimentRoot(BaseModel):

@@ -348,8 +348,10 @@ def _check_graph(entries: list[ComponentEntry], loaded: LoadedFile) -> list[Issu
             source = by_id[name]
             if name == entry.id:
                 issues.append(Issue(where, f"{entry.id!r} cannot be its own input", line))
-            elif source.kind not in entry.registered.spec.inputs:
-                allowed = ", ".join(str(k) for k in entry.registered.spec.inputs) or "nothing"
+                continue
+            accepted = entry.registered.spec.inputs or ()  # never None once the spec is built
+            if source.kind not in accepted:
+                allowed = ", ".join(str(k) for k in accepted) or "nothing"
                 issues.append(Issue(
                     where,
                     f"{entry.id!r} ({entry.kind} {entry.type!r}) cannot read {name!r}, a "

@@ -80,10 +80,10 @@ from ._streams import (
 
 __all__ = [
     "CHECKS",
-    "CheckFailure",
-    "CheckResult",
     "DEFAULT_SCENE",
     "HEAVY_MODULES",
+    "CheckFailure",
+    "CheckResult",
     "KitMap",
     "check_builds",
     "check_config_round_trip",

@@ -12,7 +12,6 @@ from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
-from ..kinds import Component
 from ._harness import CheckFailure, make_component
 from ._import_probe import modules_loaded_by
 
@@ -76,8 +75,8 @@ def check_config_round_trip(spec: PluginSpec, *, registry: Registry | None = Non
     try:
         import jsonschema
     except ImportError:  # pragma: no cover - part of the test extra
-        jsonschema = None
-    if jsonschema is not None:
+        pass
+    else:
         try:
             jsonschema.validate(dumped, schema)
         except jsonschema.ValidationError as exc:
@@ -129,9 +128,9 @@ def check_lazy_import(spec: PluginSpec, *, registry: Registry | None = None) -> 
 @check()
 def check_builds(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """The factory builds a component of the right kind from the check config."""
-    component = make_component(spec, registry=registry)
+    component = make_component(spec, registry=registry, interface=INTERFACES[spec.kind])
     try:
-        if not isinstance(component, Component) or component.kind is not spec.kind:
+        if component.kind is not spec.kind:
             raise CheckFailure(
                 f"{spec.factory!r} built {type(component).__name__}, not a {spec.kind} component"
             )

@@ -11,8 +11,8 @@ from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
 from ..kinds import (
-    ClassProbabilities,
     Classifier,
+    ClassProbabilities,
     FeatureExtractor,
     Robot,
     SampleBatch,
@@ -128,7 +128,7 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
     A ``finite`` sensor is read to its end (bounded: see :func:`drive_sensor`), a live one
     30 times.
     """
-    sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
         channels = dict(sensor.channels)
         for name, info in channels.items():
@@ -170,7 +170,7 @@ def check_sensor_valid_samples_finite(spec: PluginSpec, *, registry: Registry | 
     A sensor that cannot measure a sample (a corrupted word, a stale reading) marks it
     invalid in ``batch.valid``; a NaN or infinity it calls valid would reach the models.
     """
-    sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
         batches = _drive(spec, sensor)
     finally:
@@ -239,12 +239,12 @@ def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry 
     """
     if "finite" not in spec.capabilities:
         return
-    streamed: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    streamed = make_component(spec, registry=registry, interface=Sensor)
     try:
         reads = _whole(_drive(spec, streamed), streamed, "the successive read()s")
     finally:
         streamed.close()
-    drained: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    drained = make_component(spec, registry=registry, interface=Sensor)
     try:
         whole = drained.read_all()
     except RuntimeError as exc:
@@ -258,7 +258,7 @@ def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry 
             f"differ: {difference} ({len(reads)} samples read one batch at a time). Batch "
             "and streaming use must deliver the same samples"
         )
-    split: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    split = make_component(spec, registry=registry, interface=Sensor)
     try:
         recordings = list(itertools.islice(split.iter_recordings(), MAX_FINITE_READS))
     finally:
