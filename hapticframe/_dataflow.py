@@ -161,7 +161,10 @@ class PoseHistory:
             prev = latest[1:3] if latest is not None else (pos[0] if len(pos) else np.zeros(2))
             steps = np.diff(np.vstack([prev, pos]), axis=0)
             heading = np.arctan2(steps[:, 1], steps[:, 0])
-        depth = batch.channels["depth_m"].reshape(-1) if "depth_m" in batch.channels else np.full(len(batch), np.nan)
+        if "depth_m" in batch.channels:
+            depth = batch.channels["depth_m"].reshape(-1)
+        else:
+            depth = np.full(len(batch), np.nan)
         for i in range(len(batch)):
             self.add(batch.timestamps_s[i], pos[i], heading[i], depth[i])
 
@@ -260,7 +263,8 @@ class Dataflow:
             if robots:
                 self.sm_pose_source[sm] = robots[0]
                 continue
-            for sensor_id in [i for i in entry.inputs if self.entries[i].kind is Kind.SENSOR] + self.sensors:
+            own = [i for i in entry.inputs if self.entries[i].kind is Kind.SENSOR]
+            for sensor_id in own + self.sensors:
                 if "position_m" in self.components.sensors[sensor_id].channels:
                     self.sm_pose_source[sm] = sensor_id
                     break
@@ -373,7 +377,8 @@ class Dataflow:
         for sm_id in self.sensor_models:
             if self.sm_classifier[sm_id] != clf_id:
                 continue
-            positions, headings, depths = self.poses[self.sm_pose_source[sm_id]].at(probs.timestamps_s)
+            poses = self.poses[self.sm_pose_source[sm_id]]
+            positions, headings, depths = poses.at(probs.timestamps_s)
             # probs passed its checks when the classifier made it; the poses are built here.
             located = LocatedMeasurement._from_checked(probs, positions, headings, depths)
             obs = self.components.sensor_models[sm_id].observe(located)

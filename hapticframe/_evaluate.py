@@ -171,7 +171,9 @@ def _rectangle(region: Region) -> Any:
     return Rectangle((region.x_min_m, region.y_min_m), *region.size_m, fill=False, color="0.3")
 
 
-def _events(flags: NDArray[np.bool_], times: NDArray[np.float64]) -> tuple[float | None, float | None]:
+def _events(
+    flags: NDArray[np.bool_], times: NDArray[np.float64]
+) -> tuple[float | None, float | None]:
     """Times of the first and last True, or None."""
     hits = np.flatnonzero(flags)
     if hits.size == 0:
@@ -214,7 +216,9 @@ def evaluate_labels(
     t, p, truth_values = t[keep], p[keep], lv[index[keep]]
     decided = np.argmax(p, axis=1) != 0 if t.size else np.zeros(0, dtype=bool)
     truth = np.rint(truth_values) != 0
-    recalls = [float(np.mean(decided[truth == c] == c)) for c in (False, True) if np.any(truth == c)]
+    recalls = [
+        float(np.mean(decided[truth == c] == c)) for c in (False, True) if np.any(truth == c)
+    ]
     true_first, true_last = _events(truth, t)
     est_first, est_last = _events(decided, t)
 

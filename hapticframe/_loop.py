@@ -109,7 +109,7 @@ def _movement(
                 break
             outputs, classified = flow.read_and_classify()
             if halt_on_interaction and flow.holds_interaction(classified):
-                for component, snapshot in zip(chain, snapshots):
+                for component, snapshot in zip(chain, snapshots, strict=True):
                     component.rewind(snapshot)
                 replay_until = steps + len(states)
                 continue
@@ -141,7 +141,8 @@ def _open_loop(session: Session, flow: Dataflow) -> None:
         raise RunError("nothing to run: the experiment has no sensors and no robot")
     max_reads = session.settings.max_reads
     reads = 0
-    for reads in range(1, max_reads + 1):
+    while reads < max_reads:
+        reads += 1
         if all(s.exhausted for s in sensors):
             break
         flow.tick()

@@ -146,7 +146,7 @@ class Polygon(_Shape):
         v = np.asarray(self.vertices_m, dtype=np.float64)
         inside = np.zeros(len(p), dtype=bool)
         x, y = p[:, 0], p[:, 1]
-        for (x0, y0), (x1, y1) in zip(v, np.roll(v, -1, axis=0)):
+        for (x0, y0), (x1, y1) in zip(v, np.roll(v, -1, axis=0), strict=True):
             crosses = (y0 > y) != (y1 > y)
             with np.errstate(divide="ignore", invalid="ignore"):
                 x_at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)

@@ -188,7 +188,8 @@ def train_experiment(
             "versions": environment(),
             "plugins": [
                 {"id": e.id, "kind": e.kind.value, "type": e.type,
-                 "distribution": e.registered.source.distribution, "version": e.registered.source.version}
+                 "distribution": e.registered.source.distribution,
+                 "version": e.registered.source.version}
                 for e in experiment.components
             ],
             "resolved_config": experiment.resolved_config(),
@@ -198,7 +199,9 @@ def train_experiment(
         return record
 
 
-def _label_source(recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str) -> SampleBatch:
+def _label_source(
+    recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str
+) -> SampleBatch:
     for sid in sensor_ids:
         if channel in recording[sid].channels:
             return recording[sid]

@@ -232,7 +232,10 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
     elif kind == "missing":
         message = "required key is missing"
     elif kind == "literal_error" and parts == ["schema_version"]:
-        message = f"schema_version must be 1 (this hapticframe reads version 1), got {error.get('input')!r}"
+        message = (
+            "schema_version must be 1 (this hapticframe reads version 1), got "
+            f"{error.get('input')!r}"
+        )
     elif "input" in error and kind not in ("model_type", "dict_type", "list_type"):
         shown = repr(error["input"])
         message = f"{message} (got {shown[:60]}{'...' if len(shown) > 60 else ''})"
@@ -343,7 +346,9 @@ def _check_graph(entries: list[ComponentEntry], loaded: LoadedFile) -> list[Issu
             if name not in by_id:
                 close = difflib.get_close_matches(name, list(by_id), n=3, cutoff=0.5)
                 hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
-                issues.append(Issue(where, f"input {name!r} is not the id of any component{hint}", line))
+                issues.append(
+                    Issue(where, f"input {name!r} is not the id of any component{hint}", line)
+                )
                 continue
             source = by_id[name]
             if name == entry.id:
@@ -384,7 +389,9 @@ def _check_train_from(
             if name not in sensors:
                 close = difflib.get_close_matches(name, sorted(sensors), n=3, cutoff=0.5)
                 hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
-                issues.append(Issue(where, f"{role} {name!r} is not the id of a sensor{hint}", line))
+                issues.append(
+                    Issue(where, f"{role} {name!r} is not the id of a sensor{hint}", line)
+                )
         if source == target:
             issues.append(Issue(where, f"sensor {target!r} cannot stand in for itself", line))
         elif source in train_from:

@@ -217,7 +217,9 @@ class ClassProbabilities:
         object.__setattr__(self, "classes", tuple(self.classes))
         _check_rows("probabilities", p, t.size)
         if p.shape[1] != len(self.classes):
-            raise ValueError(f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes")
+            raise ValueError(
+                f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes"
+            )
         # One clearly valid row (a closed loop's tick) skips the array checks below.
         clearly_valid = p.shape[0] == 1 and p.size > 0 and _clearly_valid_row(p[0].tolist())
         if p.size and not clearly_valid:

@@ -57,7 +57,9 @@ class Robot(Component):
         """Why the last movement stopped early (``""`` if it did not)."""
         return ""
 
-    def execute(self, movement: ExploratoryMovement, max_steps: int = 1_000_000) -> list[RobotState]:
+    def execute(
+        self, movement: ExploratoryMovement, max_steps: int = 1_000_000
+    ) -> list[RobotState]:
         """Run ``movement`` to its end without interruption and return every state."""
         self.begin(movement)
         states: list[RobotState] = []

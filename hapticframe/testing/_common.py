@@ -51,7 +51,9 @@ def check_spec_record(spec: PluginSpec, *, registry: Registry | None = None) -> 
     try:
         spec.config.model_validate(spec.check_config or {})
     except ValidationError as exc:
-        raise CheckFailure(f"check_config does not validate against {spec.config.__name__}: {exc}") from exc
+        raise CheckFailure(
+            f"check_config does not validate against {spec.config.__name__}: {exc}"
+        ) from exc
 
 
 @check()
@@ -62,7 +64,9 @@ def check_config_round_trip(spec: PluginSpec, *, registry: Registry | None = Non
         dumped = config.model_dump(mode="json")
         text = json.dumps(dumped, allow_nan=False)
     except (TypeError, ValueError) as exc:
-        raise CheckFailure(f"config of {spec.name!r} does not serialise to plain JSON: {exc}") from exc
+        raise CheckFailure(
+            f"config of {spec.name!r} does not serialise to plain JSON: {exc}"
+        ) from exc
     again = spec.config.model_validate_json(text)
     if again != config:
         raise CheckFailure(
@@ -144,7 +148,7 @@ def outputs_equal(a: Any, b: Any) -> bool:
     import numpy as np
 
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(outputs_equal(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(outputs_equal(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(outputs_equal(a[k], b[k]) for k in a)
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):

@@ -144,7 +144,8 @@ def make_component(
     if _depth > 5:
         raise CheckFailure(f"check_inputs of {spec.name!r} nest too deeply (a cycle?)")
     registry = registry or get_registry()
-    cfg = spec.config.model_validate(dict(config if config is not None else (spec.check_config or {})))
+    given = config if config is not None else (spec.check_config or {})
+    cfg = spec.config.model_validate(dict(given))
     inputs: dict[str, Component] = {}
     for ref in spec.check_inputs:
         kind_name, _, name = ref.partition("/")

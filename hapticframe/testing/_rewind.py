@@ -66,7 +66,7 @@ def _checkpoints(components: list[Component]) -> list[Any] | None:
 
 def _rewound(components: list[Component], snapshots: list[Any], what: str) -> None:
     try:
-        for component, snapshot in zip(components, snapshots):
+        for component, snapshot in zip(components, snapshots, strict=True):
             component.rewind(snapshot)
     except Exception as exc:
         raise CheckFailure(f"rewind() raised {type(exc).__name__}: {exc} ({what})") from exc

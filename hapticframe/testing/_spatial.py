@@ -53,7 +53,9 @@ __all__ = [
 CLASSES = ("free", "jamming", "contact")
 
 
-def located_measurement(n: int = 60, *, y: float = 0.25, depth: float = 0.044) -> LocatedMeasurement:
+def located_measurement(
+    n: int = 60, *, y: float = 0.25, depth: float = 0.044
+) -> LocatedMeasurement:
     """A fingertip moving along +x: free movement, then jamming, then contact."""
     t = np.asarray(0.01 * (1 + np.arange(n)), dtype=np.float64)
     x = 0.10 + 0.0005 * np.arange(n)
@@ -82,12 +84,17 @@ def map_observations(seed: int, n: int = 400, scene: Scene = DEFAULT_SCENE) -> O
 
 def _query_grid(the_map: Map) -> np.ndarray:
     r = the_map.region
-    gx, gy = np.meshgrid(np.linspace(r.x_min_m, r.x_max_m, 31), np.linspace(r.y_min_m, r.y_max_m, 21))
+    gx, gy = np.meshgrid(
+        np.linspace(r.x_min_m, r.x_max_m, 31), np.linspace(r.y_min_m, r.y_max_m, 21)
+    )
     return np.column_stack([gx.ravel(), gy.ravel()])
 
 
 def _invalid(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
-    origin = "produced invalid output" if raised_by_record_validation(exc) else f"raised {type(exc).__name__}"
+    origin = (
+        "produced invalid output" if raised_by_record_validation(exc)
+        else f"raised {type(exc).__name__}"
+    )
     return CheckFailure(f"{spec.kind} {spec.name!r} {origin} on {what}: {exc}")
 
 
@@ -123,7 +130,10 @@ def check_sensor_model_streaming(spec: PluginSpec, *, registry: Registry | None 
     stream_model = make_component(spec, registry=registry, interface=SensorModel)
     try:
         whole = batch_model.observe(measurement)
-        parts = [stream_model.observe(measurement.select(slice(i, i + 1))) for i in range(len(measurement))]
+        parts = [
+            stream_model.observe(measurement.select(slice(i, i + 1)))
+            for i in range(len(measurement))
+        ]
     finally:
         batch_model.close()
         stream_model.close()
@@ -184,7 +194,9 @@ def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) ->
                 the_map.update(map_observations(5))
             estimate = the_map.query(grid)
             if estimate.mean.shape != (len(grid),):
-                raise CheckFailure(f"query of {len(grid)} points returned shape {estimate.mean.shape} {stage}")
+                raise CheckFailure(
+                    f"query of {len(grid)} points returned shape {estimate.mean.shape} {stage}"
+                )
             if the_map.query(np.empty((0, 2))).mean.shape != (0,):
                 raise CheckFailure(f"an empty query did not return an empty estimate {stage}")
             the_map.query(grid.astype(np.float32))
@@ -198,7 +210,9 @@ def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) ->
 
 
 @check(Kind.MAP)
-def check_map_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+def check_map_streaming_matches_batch(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
     """Two updates give (close to) the map fitted on both batches at once."""
     first, second = map_observations(6), map_observations(7)
     streamed = make_component(spec, registry=registry, interface=Map)
@@ -273,7 +287,9 @@ def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[Expl
         if movement is None:
             return movements
         if not isinstance(movement, ExploratoryMovement):
-            raise CheckFailure(f"propose() returned {type(movement).__name__}, not ExploratoryMovement")
+            raise CheckFailure(
+                f"propose() returned {type(movement).__name__}, not ExploratoryMovement"
+            )
         movements.append(movement)
         distance, nearest = _segment_distance(center, movement.start_m, movement.end_m)
         hit = distance < 0.06
@@ -286,7 +302,9 @@ def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[Expl
             index, movement, hit, "interaction" if hit else "", state,
             "jamming" if hit else "free",
         ))
-    raise CheckFailure(f"the planner proposed more than max_movements={planner.max_movements} movements")
+    raise CheckFailure(
+        f"the planner proposed more than max_movements={planner.max_movements} movements"
+    )
 
 
 def _outside(movements: list[ExploratoryMovement], region: Region, tolerance: float) -> str:
@@ -412,7 +430,10 @@ def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) 
         if not np.all(np.isfinite(pos)):
             raise CheckFailure("states contain NaN positions")
         if np.linalg.norm(pos[0] - movement.start_m) > 0.01:
-            raise CheckFailure(f"the first state {pos[0].tolist()} is not at the start {movement.start_m.tolist()}")
+            raise CheckFailure(
+                f"the first state {pos[0].tolist()} is not at the start "
+                f"{movement.start_m.tolist()}"
+            )
         step_max = movement.speed_m_per_s / robot.control_rate_hz * 1.5 + 1e-9
         if len(pos) > 1 and np.max(np.linalg.norm(np.diff(pos, axis=0), axis=1)) > step_max:
             raise CheckFailure("the fingertip moves faster than the commanded speed")
@@ -467,7 +488,8 @@ def check_robot_extremes(spec: PluginSpec, *, registry: Registry | None = None) 
     last_t = -np.inf
     try:
         for what, (movement, margin) in _robot_cases().items():
-            budget = int(movement.length_m / movement.speed_m_per_s * robot.control_rate_hz) + margin
+            duration_s = movement.length_m / movement.speed_m_per_s
+            budget = int(duration_s * robot.control_rate_hz) + margin
             try:
                 states = robot.execute(movement, max_steps=budget)
             except ValueError as exc:
