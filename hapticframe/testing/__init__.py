@@ -80,10 +80,10 @@ from ._streams import (
 
 __all__ = [
     "CHECKS",
-    "DEFAULT_SCENE",
-    "HEAVY_MODULES",
     "CheckFailure",
     "CheckResult",
+    "DEFAULT_SCENE",
+    "HEAVY_MODULES",
     "KitMap",
     "check_builds",
     "check_config_round_trip",

@@ -28,8 +28,8 @@ from ..kinds import (
 )
 
 __all__ = [
-    "DEFAULT_SCENE",
     "CheckFailure",
+    "DEFAULT_SCENE",
     "KitMap",
     "crossing_movement",
     "make_component",
