@@ -8,6 +8,8 @@ from hapticframe._components import INTERFACES, Components
 from hapticframe.kinds import BuildContext, Observations
 from hapticframe.testing import KitMap, make_component
 
+from tests.support.lab import lab_main
+
 
 class _Echo:
     """Not a component at all."""
@@ -80,3 +82,12 @@ def test_make_component_checks_the_interface_it_is_asked_for():
         built.close()
     with pytest.raises(CheckFailure, match=r"not a hapticframe\.kinds\.Sensor"):
         make_component(spec, registry=registry, interface=Sensor)
+
+
+@pytest.mark.parametrize(("chosen", "said"), [("sweep", "a sensor"), ("nothing", "no component")])
+def test_run_evaluation_map_must_name_a_map(lab_dir, capsys, chosen, said):
+    path = lab_dir / "lab-open-loop.yaml"
+    setting = f"seed: 3\nrun: {{evaluation_map: {chosen}}}"
+    path.write_text(path.read_text().replace("seed: 3", setting))
+    assert lab_main(["run", str(path), "--out", str(lab_dir / "run"), "--quiet"]) == 1
+    assert f"run.evaluation_map {chosen!r} names {said}, not a map" in capsys.readouterr().err
