@@ -7,7 +7,6 @@ from hapticframe import Kind, RunError
 from hapticframe._components import INTERFACES, Components
 from hapticframe.kinds import BuildContext, Observations
 from hapticframe.testing import KitMap, make_component
-
 from tests.support.lab import lab_main
 
 
