@@ -126,14 +126,35 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # static type checkers see the real imports
     from ._bench import BenchOptions
     from ._config import Experiment, RunSettings, validate_file, validate_mapping
-    from ._errors import ExperimentError, HapticframeError, Issue, PluginConflictError, PluginError, PluginImportError, RunError, RunInterrupted, UsageError
+    from ._errors import (
+        ExperimentError,
+        HapticframeError,
+        Issue,
+        PluginConflictError,
+        PluginError,
+        PluginImportError,
+        RunError,
+        RunInterrupted,
+        UsageError,
+    )
     from ._kind import Kind
     from ._manager import get_plugin_manager, get_registry, make_plugin_manager
     from ._registry import BrokenPlugin, Registered, Registry, Source
-    from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
     from ._results import RunSummary
     from ._run import run_experiment
+    from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
     from ._session import SessionView
-    from ._specs import BenchSpec, ClassifierSpec, FeatureExtractorSpec, MapSpec, PlannerSpec, PluginConfig, PluginSpec, RobotSpec, SensorModelSpec, SensorSpec
+    from ._specs import (
+        BenchSpec,
+        ClassifierSpec,
+        FeatureExtractorSpec,
+        MapSpec,
+        PlannerSpec,
+        PluginConfig,
+        PluginSpec,
+        RobotSpec,
+        SensorModelSpec,
+        SensorSpec,
+    )
     from ._version import __version__
     from .hookspecs import hookimpl

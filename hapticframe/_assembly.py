@@ -15,34 +15,14 @@ from contextlib import ExitStack
 
 import numpy as np
 
+from ._components import Components
 from ._config import ComponentEntry, Experiment
 from ._errors import ExperimentError, HapticframeError, Issue, RunError
-from ._kind import Kind
-from .kinds import (
-    BuildContext,
-    Classifier,
-    Component,
-    FeatureExtractor,
-    Map,
-    Planner,
-    Robot,
-    Sensor,
-    SensorModel,
-)
+from .kinds import BuildContext, Component
 
 __all__ = ["build_components", "component_rng"]
 
 _log = logging.getLogger(__name__)
-
-_INTERFACES: dict[Kind, type[Component]] = {
-    Kind.SENSOR: Sensor,
-    Kind.FEATURE_EXTRACTOR: FeatureExtractor,
-    Kind.CLASSIFIER: Classifier,
-    Kind.SENSOR_MODEL: SensorModel,
-    Kind.MAP: Map,
-    Kind.PLANNER: Planner,
-    Kind.ROBOT: Robot,
-}
 
 #: Receives ``(component id, exception)`` for each ``close()`` that raised.
 CloseErrorHandler = Callable[[str, BaseException], None]
@@ -63,7 +43,7 @@ def _closer(component: Component, on_error: CloseErrorHandler) -> Callable[[], N
     def close() -> None:
         try:
             component.close()
-        except Exception as exc:  # noqa: BLE001  (one failing close must not keep the others open)
+        except Exception as exc:  # one failing close must not keep the others open
             on_error(component.id, exc)
 
     return close
@@ -75,7 +55,7 @@ def build_components(
     *,
     progress: bool = True,
     on_close_error: CloseErrorHandler = _log_close_error,
-) -> dict[str, Component]:
+) -> Components:
     """Import and construct every component, inputs first; ``stack`` closes them.
 
     Each built component's ``close()`` is pushed onto ``stack`` as soon as it is built;
@@ -94,8 +74,8 @@ def build_components(
     PluginImportError
         When an implementation cannot be imported.
     """
-    scene = experiment.model.scene  # type: ignore[attr-defined]
-    built: dict[str, Component] = {}
+    scene = experiment.model.scene
+    built = Components()
     for entry in experiment.components:
         factory = entry.registered.spec.load_factory()
         context = BuildContext(
@@ -117,13 +97,7 @@ def build_components(
             raise RunError(f"cannot build {_named(entry)}: {type(exc).__name__}: {exc}") from exc
         if isinstance(component, Component):
             stack.callback(_closer(component, on_close_error))
-        interface = _INTERFACES[entry.kind]
-        if not isinstance(component, interface):
-            raise RunError(
-                f"{entry.kind} plugin {entry.type!r} built a {type(component).__name__}, which "
-                f"is not a hapticframe.kinds.{interface.__name__}"
-            )
-        built[entry.id] = component
+        built.add(entry.id, entry.kind, component, plugin=entry.type)
     return built
 
 

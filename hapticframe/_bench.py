@@ -68,6 +68,8 @@ def run_bench(name: str, options: BenchOptions) -> Any:
         if (conflict.kind, conflict.name) == (BENCHMARK, name):
             raise PluginConflictError(conflict.message())
     spec, _source = registry.benchmarks[name]
-    suite = resolve_reference(spec.factory, what=f"benchmark {name!r}", install_hint=spec.install_hint)
+    suite = resolve_reference(
+        spec.factory, what=f"benchmark {name!r}", install_hint=spec.install_hint
+    )
     options.out_dir.mkdir(parents=True, exist_ok=True)
     return suite(options)

@@ -54,7 +54,7 @@ class _StderrHandler(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         try:
             _err(f"{record.levelname.lower()}: {record.getMessage()}")
-        except Exception:  # noqa: BLE001  (logging's own policy for a failing handler)
+        except Exception:  # logging's own policy for a failing handler
             self.handleError(record)
 
 
@@ -130,8 +130,11 @@ def cmd_plugins(args: argparse.Namespace) -> int:
         import json
 
         data = {
-            "plugins": [dict(zip(("kind", "name", "distribution", "version", "status", "summary"), r))
-                        for r in rows],
+            "plugins": [
+                dict(zip(("kind", "name", "distribution", "version", "status", "summary"), r,
+                         strict=True))
+                for r in rows
+            ],
             "benchmarks": sorted(registry.benchmarks),
             "broken": [{"name": b.name, "source": str(b.source), "error": b.error}
                        for b in registry.broken],
@@ -142,7 +145,8 @@ def cmd_plugins(args: argparse.Namespace) -> int:
     header = ("KIND", "NAME", "DISTRIBUTION", "VERSION", "STATUS", "SUMMARY")
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(5)]
     for row in [header, *rows]:
-        _out("  ".join(str(c).ljust(w) for c, w in zip(row, widths)) + "  " + row[5])
+        padded = "  ".join(str(c).ljust(w) for c, w in zip(row[:5], widths, strict=True))
+        _out(padded + "  " + row[5])
     for broken in registry.broken:
         _out(f"broken   {broken.name}  from {broken.source}: {broken.error}")
     for conflict in registry.conflicts:

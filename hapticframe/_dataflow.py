@@ -16,21 +16,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._components import Components
 from ._config import ComponentEntry, Experiment
 from ._errors import RunError
 from ._kind import Kind
 from .kinds import (
     ClassProbabilities,
-    Classifier,
-    Component,
-    FeatureExtractor,
     LocatedMeasurement,
-    Map,
     Observations,
     RobotState,
     SampleBatch,
     Sensor,
-    SensorModel,
 )
 
 __all__ = ["Dataflow", "PoseHistory", "TraceRecorder"]
@@ -165,7 +161,10 @@ class PoseHistory:
             prev = latest[1:3] if latest is not None else (pos[0] if len(pos) else np.zeros(2))
             steps = np.diff(np.vstack([prev, pos]), axis=0)
             heading = np.arctan2(steps[:, 1], steps[:, 0])
-        depth = batch.channels["depth_m"].reshape(-1) if "depth_m" in batch.channels else np.full(len(batch), np.nan)
+        if "depth_m" in batch.channels:
+            depth = batch.channels["depth_m"].reshape(-1)
+        else:
+            depth = np.full(len(batch), np.nan)
         for i in range(len(batch)):
             self.add(batch.timestamps_s[i], pos[i], heading[i], depth[i])
 
@@ -186,12 +185,12 @@ class PoseHistory:
             return pose[:, :2], pose[0, 2:3], pose[0, 3:4]
         n = self._n
         t = self._columns[0][:n]
-        x, y, heading = (np.interp(times, t, self._columns[k][:n]) for k in (1, 2, 3))
+        xs, ys, headings = (np.interp(times, t, self._columns[k][:n]) for k in (1, 2, 3))
         if self._nonfinite_depths:
-            depth = np.full(len(times), np.nan)
+            depths = np.full(len(times), np.nan)
         else:
-            depth = np.interp(times, t, self._columns[4][:n])
-        return np.column_stack([x, y]), heading, depth
+            depths = np.interp(times, t, self._columns[4][:n])
+        return np.column_stack([xs, ys]), headings, depths
 
 
 def merge_batches(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
@@ -223,7 +222,7 @@ class Dataflow:
     def __init__(
         self,
         experiment: Experiment,
-        components: Mapping[str, Component],
+        components: Components,
         recorder: TraceRecorder,
         training_only: frozenset[str] = frozenset(),
     ) -> None:
@@ -246,7 +245,7 @@ class Dataflow:
         self._recorded_classes: dict[str, tuple[str, ...]] = {}
         self._plan_sensor_models()
         for sensor_id in self.sensors:
-            channels = components[sensor_id].channels  # type: ignore[attr-defined]
+            channels = components.sensors[sensor_id].channels
             for name, info in channels.items():
                 recorder.set(f"sensor/{sensor_id}/{name}/unit", np.array(info.unit))
 
@@ -264,8 +263,9 @@ class Dataflow:
             if robots:
                 self.sm_pose_source[sm] = robots[0]
                 continue
-            for sensor_id in [i for i in entry.inputs if self.entries[i].kind is Kind.SENSOR] + self.sensors:
-                if "position_m" in self.components[sensor_id].channels:  # type: ignore[attr-defined]
+            own = [i for i in entry.inputs if self.entries[i].kind is Kind.SENSOR]
+            for sensor_id in own + self.sensors:
+                if "position_m" in self.components.sensors[sensor_id].channels:
                     self.sm_pose_source[sm] = sensor_id
                     break
             else:
@@ -316,16 +316,16 @@ class Dataflow:
         rewind the components that made them.
         """
         outputs: dict[str, SampleBatch] = {}
+        sensors = self.components.sensors
         for sensor_id in self.sensors:
-            sensor: Sensor = self.components[sensor_id]  # type: ignore[assignment]
-            outputs[sensor_id] = sensor.read()
+            outputs[sensor_id] = sensors[sensor_id].read()
+        extractors = self.components.feature_extractors
         for fe_id in self.extractors:
-            extractor: FeatureExtractor = self.components[fe_id]  # type: ignore[assignment]
-            outputs[fe_id] = extractor.update(self._inputs(fe_id, outputs))
+            outputs[fe_id] = extractors[fe_id].update(self._inputs(fe_id, outputs))
         classified: dict[str, ClassProbabilities] = {}
+        classifiers = self.components.classifiers
         for clf_id in self.classifiers:
-            classifier: Classifier = self.components[clf_id]  # type: ignore[assignment]
-            classified[clf_id] = classifier.update(self._inputs(clf_id, outputs))
+            classified[clf_id] = classifiers[clf_id].update(self._inputs(clf_id, outputs))
         return outputs, classified
 
     def commit(
@@ -339,7 +339,7 @@ class Dataflow:
             if len(batch):
                 arrived = True
                 self._record_batch("sensor", sensor_id, batch)
-                self._track_force(self.components[sensor_id], batch)  # type: ignore[arg-type]
+                self._track_force(self.components.sensors[sensor_id], batch)
                 if sensor_id in self.poses:
                     self.poses[sensor_id].add_batch(batch)
         for fe_id in self.extractors:
@@ -377,15 +377,15 @@ class Dataflow:
         for sm_id in self.sensor_models:
             if self.sm_classifier[sm_id] != clf_id:
                 continue
-            positions, headings, depths = self.poses[self.sm_pose_source[sm_id]].at(probs.timestamps_s)
+            poses = self.poses[self.sm_pose_source[sm_id]]
+            positions, headings, depths = poses.at(probs.timestamps_s)
             # probs passed its checks when the classifier made it; the poses are built here.
             located = LocatedMeasurement._from_checked(probs, positions, headings, depths)
-            model: SensorModel = self.components[sm_id]  # type: ignore[assignment]
-            obs = model.observe(located)
+            obs = self.components.sensor_models[sm_id].observe(located)
             if len(obs):
                 self.recorder.add(f"sensor_model/{sm_id}/points_m", obs.points_m)
                 self.recorder.add(f"sensor_model/{sm_id}/targets", obs.targets)
-                self.recorder.add(f"sensor_model/{sm_id}/weights", obs.weights)  # type: ignore[arg-type]
+                self.recorder.add(f"sensor_model/{sm_id}/weights", obs.weights)
                 for map_id in self.maps:
                     if sm_id in self.entries[map_id].inputs:
                         self.pending[map_id].append(obs)
@@ -396,8 +396,7 @@ class Dataflow:
             if parts:
                 merged = Observations.concatenate(parts)
                 self.pending[map_id] = []
-                the_map: Map = self.components[map_id]  # type: ignore[assignment]
-                the_map.update(merged)
+                self.components.maps[map_id].update(merged)
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):
@@ -455,5 +454,5 @@ class Dataflow:
 def _last_label(probs: ClassProbabilities) -> int:
     """``int(probs.labels[-1])`` without an arg-max over every row: the first largest entry
     of the last row (rows are finite, checked by the record)."""
-    row = probs.probabilities[-1].tolist()
+    row: list[float] = probs.probabilities[-1].tolist()
     return row.index(max(row))

@@ -9,6 +9,7 @@ as such (``--debug`` shows the traceback).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 __all__ = [
     "ExperimentError",
@@ -65,7 +66,7 @@ class RunInterrupted(HapticframeError):
     and the signal's name.
     """
 
-    _EXIT_CODES = {"SIGINT": 130, "SIGTERM": 143}
+    _EXIT_CODES: ClassVar[dict[str, int]] = {"SIGINT": 130, "SIGTERM": 143}
 
     def __init__(self, signal_name: str) -> None:
         self.signal_name = signal_name

@@ -171,7 +171,9 @@ def _rectangle(region: Region) -> Any:
     return Rectangle((region.x_min_m, region.y_min_m), *region.size_m, fill=False, color="0.3")
 
 
-def _events(flags: NDArray[np.bool_], times: NDArray[np.float64]) -> tuple[float | None, float | None]:
+def _events(
+    flags: NDArray[np.bool_], times: NDArray[np.float64]
+) -> tuple[float | None, float | None]:
     """Times of the first and last True, or None."""
     hits = np.flatnonzero(flags)
     if hits.size == 0:
@@ -214,7 +216,9 @@ def evaluate_labels(
     t, p, truth_values = t[keep], p[keep], lv[index[keep]]
     decided = np.argmax(p, axis=1) != 0 if t.size else np.zeros(0, dtype=bool)
     truth = np.rint(truth_values) != 0
-    recalls = [float(np.mean(decided[truth == c] == c)) for c in (False, True) if np.any(truth == c)]
+    recalls = [
+        float(np.mean(decided[truth == c] == c)) for c in (False, True) if np.any(truth == c)
+    ]
     true_first, true_last = _events(truth, t)
     est_first, est_last = _events(decided, t)
 
@@ -303,13 +307,13 @@ def score_run(session: Session) -> dict[str, Any]:
     """
     settings = session.settings
     out: dict[str, Any] = {"movements": len(session.movements)}
-    scene = session.experiment.model.scene  # type: ignore[attr-defined]
+    scene = session.experiment.model.scene
     map_id = _evaluation_map(session)
     if scene is not None and scene.objects and map_id is not None:
         # The robot knows where it met the object: the estimate is the blob nearest there.
         met = [r.final_state.position_m for r in session.movements
                if r.interacted and r.final_state is not None]
-        the_map: Map = session.components[map_id]  # type: ignore[assignment]
+        the_map = session.components.maps[map_id]
         out.update(evaluate_map(
             the_map,
             scene,
@@ -345,7 +349,7 @@ def primary_classifier(session: Session) -> str | None:
     feeding the first sensor model, else the first classifier."""
     for entry in session.experiment.of_kind(Kind.SENSOR_MODEL):
         for name in entry.inputs:
-            if session.components[name].kind is Kind.CLASSIFIER:
+            if name in session.components.classifiers:
                 return name
     classifiers = session.experiment.of_kind(Kind.CLASSIFIER)
     return classifiers[0].id if classifiers else None
@@ -362,7 +366,7 @@ def _label_metrics(session: Session) -> dict[str, Any]:
     sources = [
         e.id for e in session.experiment.of_kind(Kind.SENSOR)
         if e.id not in training
-        and name in session.components[e.id].channels  # type: ignore[attr-defined]
+        and name in session.components.sensors[e.id].channels
     ]
     if clf is None or not sources:
         return {}
@@ -376,7 +380,7 @@ def _label_metrics(session: Session) -> dict[str, Any]:
     result = evaluate_labels(times, probabilities, label_times, labels, name)
     events = result.pop("_events")
     if settings.figures and result[f"{name}_frames"]:
-        classes = tuple(session.components[clf].classes)  # type: ignore[attr-defined]
+        classes = tuple(session.components.classifiers[clf].classes)
         save_label_figure(session.out_dir / "labels.png", times, probabilities, classes,
                           label_times, labels, events, name)
     return {**result, f"{name}_labels_from": sources[0]}
@@ -385,12 +389,14 @@ def _label_metrics(session: Session) -> dict[str, Any]:
 def _evaluation_map(session: Session) -> str | None:
     chosen = session.settings.evaluation_map
     if chosen is not None:
-        if chosen not in session.components:
-            raise RunError(f"run.evaluation_map {chosen!r} is not a component id")
+        if chosen not in session.components.maps:
+            found = session.components.get(chosen)
+            what = f"a {found.kind}" if found is not None else "no component"
+            raise RunError(f"run.evaluation_map {chosen!r} names {what}, not a map")
         return chosen
     for entry in session.experiment.of_kind(Kind.PLANNER):
         for name in entry.inputs:
-            if session.components[name].kind is Kind.MAP:
+            if name in session.components.maps:
                 return name
     maps = session.experiment.of_kind(Kind.MAP)
     return maps[-1].id if maps else None

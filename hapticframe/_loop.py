@@ -12,16 +12,16 @@ import math
 
 from ._dataflow import Dataflow
 from ._errors import RunError
-from ._kind import Kind
 from ._session import Session
-from .kinds import Component, MovementResult, Planner, Robot, Sensor
+from .kinds import Component, MovementResult, Planner, Robot
 
 __all__ = ["run_loop"]
 
 
 def run_loop(session: Session) -> None:
     """Run the closed loop (a planner and a robot) or the open loop (sensors only)."""
-    planners, robots = session.of_kind(Kind.PLANNER), session.of_kind(Kind.ROBOT)
+    planners = list(session.components.planners.values())
+    robots = list(session.components.robots.values())
     flow = Dataflow(session.experiment, session.components, session.recorder,
                     session.training_sensors)
     if planners or robots:
@@ -30,7 +30,7 @@ def run_loop(session: Session) -> None:
                 "a closed-loop run needs exactly one planner and one robot "
                 f"(found {len(planners)} planner(s) and {len(robots)} robot(s))"
             )
-        _closed_loop(session, flow, planners[0], robots[0])  # type: ignore[arg-type]
+        _closed_loop(session, flow, planners[0], robots[0])
     else:
         _open_loop(session, flow)
 
@@ -109,7 +109,7 @@ def _movement(
                 break
             outputs, classified = flow.read_and_classify()
             if halt_on_interaction and flow.holds_interaction(classified):
-                for component, snapshot in zip(chain, snapshots):
+                for component, snapshot in zip(chain, snapshots, strict=True):
                     component.rewind(snapshot)
                 replay_until = steps + len(states)
                 continue
@@ -136,14 +136,13 @@ def _movement(
 
 def _open_loop(session: Session, flow: Dataflow) -> None:
     training = session.training_sensors
-    sensors: list[Sensor] = [
-        s for s in session.of_kind(Kind.SENSOR) if s.id not in training  # type: ignore[misc]
-    ]
+    sensors = [s for sid, s in session.components.sensors.items() if sid not in training]
     if not sensors:
         raise RunError("nothing to run: the experiment has no sensors and no robot")
     max_reads = session.settings.max_reads
     reads = 0
-    for reads in range(1, max_reads + 1):
+    while reads < max_reads:
+        reads += 1
         if all(s.exhausted for s in sensors):
             break
         flow.tick()

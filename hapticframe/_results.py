@@ -42,7 +42,7 @@ SCIENTIFIC_DISTRIBUTIONS = (
 )
 
 
-class RunSummary(dict):  # type: ignore[type-arg]
+class RunSummary(dict[str, Any]):
     """The metrics of a finished run (a dict), plus where they were written."""
 
     out_dir: Path
@@ -94,7 +94,7 @@ def git_commit() -> str | None:
             capture_output=True, text=True, timeout=5, check=False,
         )
         return commit + ("-dirty" if dirty.returncode == 0 and dirty.stdout.strip() else "")
-    except Exception:  # noqa: BLE001  (provenance is best effort, never a failure)
+    except Exception:  # provenance is best effort, never a failure
         return None
 
 
@@ -106,7 +106,7 @@ def _dependency_versions() -> dict[str, str]:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             continue
-        except Exception:  # noqa: BLE001, S112  (a broken installation's metadata: skip it)
+        except Exception:  # a broken installation's metadata: skip it
             continue
     return versions
 
@@ -149,7 +149,7 @@ def run_record(
         "status": session.status,
         "error": error,
         "experiment_file": str(session.experiment.file),
-        "name": session.experiment.model.name,  # type: ignore[attr-defined]
+        "name": session.experiment.model.name,
         "seed": session.experiment.seed,
         "started_utc": session.started_utc,
         "wall_time_s": wall_time_s,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,7 +75,8 @@ class _Shape(BaseModel):
         local = self._local_outline(n)
         a = math.radians(self.orientation_deg)
         rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-        return local @ rot.T + np.asarray(self.center_m)
+        points: NDArray[np.float64] = local @ rot.T + np.asarray(self.center_m)
+        return points
 
     def _local_outline(self, n: int) -> NDArray[np.float64]:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -145,7 +146,7 @@ class Polygon(_Shape):
         v = np.asarray(self.vertices_m, dtype=np.float64)
         inside = np.zeros(len(p), dtype=bool)
         x, y = p[:, 0], p[:, 1]
-        for (x0, y0), (x1, y1) in zip(v, np.roll(v, -1, axis=0)):
+        for (x0, y0), (x1, y1) in zip(v, np.roll(v, -1, axis=0), strict=True):
             crosses = (y0 > y) != (y1 > y)
             with np.errstate(divide="ignore", invalid="ignore"):
                 x_at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
@@ -163,7 +164,7 @@ class Polygon(_Shape):
         return np.array([cx, cy])
 
 
-SceneObject = Annotated[Union[Circle, Ellipse, Polygon], Field(discriminator="shape")]
+SceneObject = Annotated[Circle | Ellipse | Polygon, Field(discriminator="shape")]
 
 
 class Scene(BaseModel):

@@ -78,7 +78,8 @@ def write_schemas(registry: Registry, directory: Path) -> list[Path]:
         if not path.exists() or path.read_text(encoding="utf-8") != text:
             path.write_text(text, encoding="utf-8")
         written.append(path)
-    for path in sorted((directory / "plugins").rglob("*.schema.json")) if directory.exists() else []:
+    existing = sorted((directory / "plugins").rglob("*.schema.json")) if directory.exists() else []
+    for path in existing:
         if path.relative_to(directory).as_posix() not in expected:
             path.unlink()
     return written

@@ -15,10 +15,9 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from ._assembly import _INTERFACES  # noqa: F401  (kept importable here for the kit)
+from ._components import Components
 from ._config import Experiment, RunSettings
 from ._dataflow import TraceRecorder
-from ._kind import Kind
 from .kinds import Component, MovementResult
 
 __all__ = ["Session", "SessionView"]
@@ -30,7 +29,7 @@ class Session:
 
     experiment: Experiment
     out_dir: Path
-    components: Mapping[str, Component]
+    components: Components
     echo: Callable[[str], None]
     movements: list[MovementResult] = field(default_factory=list)
     recorder: TraceRecorder = field(default_factory=TraceRecorder)
@@ -45,7 +44,7 @@ class Session:
 
     @property
     def settings(self) -> RunSettings:
-        return self.experiment.model.run  # type: ignore[attr-defined,no-any-return]
+        return self.experiment.model.run
 
     @property
     def training_sensors(self) -> frozenset[str]:
@@ -55,9 +54,6 @@ class Session:
     @property
     def hook(self) -> Any:
         return self.experiment.plugin_manager.hook
-
-    def of_kind(self, kind: Kind) -> list[Component]:
-        return [self.components[e.id] for e in self.experiment.of_kind(kind)]
 
     def view(self) -> SessionView:
         return SessionView(self)
@@ -98,7 +94,7 @@ class SessionView:
 
     @property
     def name(self) -> str:
-        return str(self._session.experiment.model.name)  # type: ignore[attr-defined]
+        return self._session.experiment.model.name
 
     @property
     def seed(self) -> int:

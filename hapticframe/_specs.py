@@ -92,7 +92,9 @@ def resolve_reference(reference: str, *, what: str = "", install_hint: str = "")
         hint = f"; {install_hint}" if install_hint else ""
         raise PluginImportError(f"{what or reference} cannot be imported: {exc}{hint}") from exc
     except AttributeError as exc:
-        raise PluginImportError(f"{what or reference}: {reference!r} does not exist ({exc})") from exc
+        raise PluginImportError(
+            f"{what or reference}: {reference!r} does not exist ({exc})"
+        ) from exc
     return obj
 
 

@@ -25,12 +25,13 @@ from typing import Any
 import numpy as np
 
 from ._assembly import build_components
+from ._components import Components
 from ._config import Experiment
 from ._dataflow import merge_batches
 from ._errors import HapticframeError, RunError, UsageError
 from ._kind import Kind
 from ._results import environment, write_json
-from .kinds import Classifier, FeatureExtractor, Persistent, SampleBatch, Sensor, Trainable
+from .kinds import Component, Persistent, SampleBatch, Trainable
 
 __all__ = [
     "collect_recordings",
@@ -61,7 +62,7 @@ def labels_at(times_s: np.ndarray, source: SampleBatch, channel: str) -> np.ndar
 
 
 def collect_recordings(
-    components: Mapping[str, Any], sources: Mapping[str, str]
+    components: Components, sources: Mapping[str, str]
 ) -> list[dict[str, SampleBatch]]:
     """The recordings (trials) of finite sensors, one dict per trial.
 
@@ -70,10 +71,10 @@ def collect_recordings(
     """
     if not sources:
         raise UsageError("nothing to train on: the experiment has no sensors")
-    per_sensor = {}
-    for target, source in sources.items():
-        sensor: Sensor = components[source]
-        per_sensor[target] = list(sensor.iter_recordings())
+    per_sensor = {
+        target: list(components.sensors[source].iter_recordings())
+        for target, source in sources.items()
+    }
     counts = {sid: len(recs) for sid, recs in per_sensor.items()}
     if len(set(counts.values())) != 1:
         raise RunError(f"sensors deliver different numbers of recordings: {counts}")
@@ -83,7 +84,9 @@ def collect_recordings(
     return [{sid: recs[i] for sid, recs in per_sensor.items()} for i in range(count)]
 
 
-def training_reports(components: Mapping[str, Any], trained: Sequence[str]) -> dict[str, Any]:
+def training_reports(
+    components: Mapping[str, Component], trained: Sequence[str]
+) -> dict[str, Any]:
     """The :meth:`~hapticframe.kinds.Trainable.training_report` of each fitted component
     that is :class:`~hapticframe.kinds.Trainable` (None for one that is not)."""
     reports: dict[str, Any] = {}
@@ -99,7 +102,7 @@ def training_reports(components: Mapping[str, Any], trained: Sequence[str]) -> d
 
 def fit_components(
     experiment: Experiment,
-    components: Mapping[str, Any],
+    components: Components,
     recordings: list[dict[str, SampleBatch]],
     label_channel: str,
     echo: Callable[[str], None] = _log.info,
@@ -113,25 +116,27 @@ def fit_components(
     sensor_ids = [e.id for e in experiment.of_kind(Kind.SENSOR) if e.id in recordings[0]]
     trained: list[str] = []
     for entry in experiment.components:
-        component = components[entry.id]
         if entry.kind not in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
             continue
         names = [i for i in entry.inputs if i in recordings[0]]
         if not names:
             continue  # reads nothing that was recorded: left as configured
         inputs = [merge_batches([rec[i] for i in names], entry.id) for rec in recordings]
-        if isinstance(component, FeatureExtractor):
-            echo(f"fitting {entry.id} ({entry.type})")
+        echo(f"fitting {entry.id} ({entry.type})")
+        if entry.kind is Kind.FEATURE_EXTRACTOR:
+            extractor = components.feature_extractors[entry.id]
             with _located(entry.id, entry.type):
-                component.fit(inputs)
-            for rec, batch in zip(recordings, inputs):
-                rec[entry.id] = component.transform(batch)
-        elif isinstance(component, Classifier):
-            echo(f"fitting {entry.id} ({entry.type})")
-            labels = [labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
-                                label_channel) for rec, batch in zip(recordings, inputs)]
+                extractor.fit(inputs)
+            for rec, batch in zip(recordings, inputs, strict=True):
+                rec[entry.id] = extractor.transform(batch)
+        else:
+            labels = [
+                labels_at(batch.timestamps_s, _label_source(rec, sensor_ids, label_channel),
+                          label_channel)
+                for rec, batch in zip(recordings, inputs, strict=True)
+            ]
             with _located(entry.id, entry.type):
-                component.fit(inputs, labels)
+                components.classifiers[entry.id].fit(inputs, labels)
         trained.append(entry.id)
     return trained
 
@@ -160,11 +165,11 @@ def train_experiment(
     if (out / "train.json").exists() and not overwrite:
         raise UsageError(f"--out {out} already holds a training run (train.json); pass --overwrite")
     started = time.perf_counter()
-    label_channel = experiment.model.run.label_channel  # type: ignore[attr-defined]
+    label_channel = experiment.model.run.label_channel
     with ExitStack() as stack:
         components = build_components(experiment, stack)
         # With run.train_from, the training sensors stand in for the sensors a run streams.
-        sources = dict(experiment.model.run.train_from) or {  # type: ignore[attr-defined]
+        sources = dict(experiment.model.run.train_from) or {
             e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
         }
         recordings = collect_recordings(components, sources)
@@ -183,7 +188,8 @@ def train_experiment(
             "versions": environment(),
             "plugins": [
                 {"id": e.id, "kind": e.kind.value, "type": e.type,
-                 "distribution": e.registered.source.distribution, "version": e.registered.source.version}
+                 "distribution": e.registered.source.distribution,
+                 "version": e.registered.source.version}
                 for e in experiment.components
             ],
             "resolved_config": experiment.resolved_config(),
@@ -193,14 +199,18 @@ def train_experiment(
         return record
 
 
-def _label_source(recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str) -> SampleBatch:
+def _label_source(
+    recording: Mapping[str, SampleBatch], sensor_ids: Sequence[str], channel: str
+) -> SampleBatch:
     for sid in sensor_ids:
         if channel in recording[sid].channels:
             return recording[sid]
     return recording[sensor_ids[0]]  # labels_at reports the missing channel
 
 
-def _save(components: Mapping[str, Any], trained: Sequence[str], out: Path) -> dict[str, str]:
+def _save(
+    components: Mapping[str, Component], trained: Sequence[str], out: Path
+) -> dict[str, str]:
     saved = {}
     for cid in trained:
         component = components[cid]

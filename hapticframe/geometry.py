@@ -52,13 +52,17 @@ def _check_grid(xs: ArrayLike, ys: ArrayLike, values: ArrayLike) -> tuple[FloatA
     y = np.asarray(ys, dtype=np.float64)
     v = np.asarray(values, dtype=np.float64)
     if v.shape != (y.size, x.size):
-        raise ValueError(f"values must have shape (len(ys), len(xs)) = {(y.size, x.size)}, got {v.shape}")
+        raise ValueError(
+            f"values must have shape (len(ys), len(xs)) = {(y.size, x.size)}, got {v.shape}"
+        )
     if not np.all(np.isfinite(v)):
         raise ValueError("values contain NaN or infinity")
     return x, y, v
 
 
-def level_outlines(xs: ArrayLike, ys: ArrayLike, values: ArrayLike, level: float) -> list[FloatArray]:
+def level_outlines(
+    xs: ArrayLike, ys: ArrayLike, values: ArrayLike, level: float
+) -> list[FloatArray]:
     """Closed curves where ``values`` crosses ``level`` (marching squares).
 
     Curves touching the grid's edge are closed along the edge, so an object at the border
@@ -144,12 +148,13 @@ def blob_centroid(
     mass = ndimage.sum(weights, labels, index)
     cx = ndimage.sum(weights * gx, labels, index) / mass
     cy = ndimage.sum(weights * gy, labels, index) / mass
-    centres = np.column_stack([cx, cy])
+    centres: NDArray[np.float64] = np.column_stack([cx, cy])
     if near_m is not None:
         chosen = int(np.argmin(np.linalg.norm(centres - np.asarray(near_m, dtype=float), axis=1)))
     else:
         chosen = int(np.argmax(mass))
-    return centres[chosen]
+    centre: NDArray[np.float64] = centres[chosen]
+    return centre
 
 
 def directed_hausdorff_both(estimate: ArrayLike, truth: ArrayLike) -> tuple[float, float]:

@@ -1,13 +1,14 @@
 """Experiment files: loading, the registry-built model, and validation."""
 
 from ._load import LoadedFile, load_file, load_text
-from ._model import SCHEMA_VERSION, RunSettings, build_experiment_model
+from ._model import SCHEMA_VERSION, ExperimentRoot, RunSettings, build_experiment_model
 from ._validate import ComponentEntry, Experiment, validate_data, validate_file, validate_mapping
 
 __all__ = [
     "SCHEMA_VERSION",
     "ComponentEntry",
     "Experiment",
+    "ExperimentRoot",
     "LoadedFile",
     "RunSettings",
     "build_experiment_model",

@@ -106,7 +106,8 @@ class _YamlConverter:
                 raise self.fail(node, f"tag {node.tag!r} is not allowed")
             out: dict[str, Any] = {}
             for key_node, value_node in node.value:
-                if not isinstance(key_node, yaml.ScalarNode) or key_node.tag == "tag:yaml.org,2002:merge":
+                if (not isinstance(key_node, yaml.ScalarNode)
+                        or key_node.tag == "tag:yaml.org,2002:merge"):
                     raise self.fail(key_node, "keys must be plain strings (no merge keys)")
                 key = self.convert(key_node, path, depth + 1)
                 if not isinstance(key, str):
@@ -148,7 +149,9 @@ def load_text(text: str, file: str, suffix: str) -> LoadedFile:
         try:
             data = json.loads(text, object_pairs_hook=_no_duplicate_pairs)
         except json.JSONDecodeError as exc:
-            raise ExperimentError(file, [Issue("", f"JSON syntax error: {exc.msg}", exc.lineno)]) from None
+            raise ExperimentError(
+                file, [Issue("", f"JSON syntax error: {exc.msg}", exc.lineno)]
+            ) from None
         except ValueError as exc:
             raise ExperimentError(file, [Issue("", str(exc))]) from None
         try:  # JSON is YAML, so the YAML pass can tell line numbers.
@@ -165,7 +168,9 @@ def load_text(text: str, file: str, suffix: str) -> LoadedFile:
     if suffix in (".yaml", ".yml"):
         data, lines = _yaml_lines(text, file)
         return LoadedFile(file, data, lines)
-    raise ExperimentError(file, [Issue("", f"unknown file type {suffix!r}: use .yaml, .yml, .json or .toml")])
+    raise ExperimentError(
+        file, [Issue("", f"unknown file type {suffix!r}: use .yaml, .yml, .json or .toml")]
+    )
 
 
 def _no_duplicate_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -184,7 +189,9 @@ def load_file(path: str | Path) -> LoadedFile:
     try:
         size = p.stat().st_size
         if size > MAX_FILE_BYTES:
-            raise ExperimentError(file, [Issue("", f"file is {size} bytes; the limit is {MAX_FILE_BYTES}")])
+            raise ExperimentError(
+                file, [Issue("", f"file is {size} bytes; the limit is {MAX_FILE_BYTES}")]
+            )
         raw = p.read_bytes()
     except FileNotFoundError:
         raise ExperimentError(file, [Issue("", "no such file")]) from None

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+import functools
+import operator
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
@@ -11,13 +13,22 @@ from .._registry import Registry
 from .._scene import Scene
 from .._specs import PluginSpec
 
-__all__ = ["ID_PATTERN", "RunSettings", "SCHEMA_VERSION", "build_experiment_model"]
+__all__ = [
+    "ID_PATTERN",
+    "SCHEMA_VERSION",
+    "ExperimentRoot",
+    "RunSettings",
+    "build_experiment_model",
+]
 
 SCHEMA_VERSION = 1
 ID_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]{0,63}$"
 MODULE_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
 
 _STRICT = ConfigDict(extra="forbid", frozen=True)
+
+#: A component id as experiment files write it.
+_ComponentId = Annotated[str, Field(pattern=ID_PATTERN)]
 
 
 class RunSettings(BaseModel):
@@ -57,7 +68,7 @@ class RunSettings(BaseModel):
         description="Sensor channel holding per-sample class labels for `hapticframe train` "
         "and `train_from`.",
     )
-    train_from: dict[Annotated[str, Field(pattern=ID_PATTERN)], Annotated[str, Field(pattern=ID_PATTERN)]] = Field(
+    train_from: dict[_ComponentId, _ComponentId] = Field(
         default_factory=dict,
         description="Fit the feature extractors and classifiers before the run, as `hapticframe "
         "train` would: maps the id of a sensor the run streams to the id of a finite sensor "
@@ -84,14 +95,16 @@ def _variant(spec: PluginSpec) -> type[BaseModel]:
     title = "".join(part.capitalize() for part in spec.name.replace("_", "-").split("-"))
     default = _default_factory(spec.config)
     config_field: Any = (spec.config, default)
-    return create_model(  # type: ignore[call-overload,no-any-return]
+    # The tag's value is known only at run time: a type built from it is a value to mypy.
+    tag: Any = Literal[spec.name]
+    return create_model(
         f"{title}{''.join(p.capitalize() for p in spec.kind.value.split('_'))}Component",
         __config__=_STRICT,
         __doc__=spec.summary,
         id=(str, Field(pattern=ID_PATTERN, description="Unique instance name.")),
-        type=(Literal[spec.name], Field(description=spec.summary)),  # type: ignore[valid-type]
+        type=(tag, Field(description=spec.summary)),
         config=config_field,
-        inputs=(list[Annotated[str, Field(pattern=ID_PATTERN)]],
+        inputs=(list[_ComponentId],
                 Field(default_factory=list, description="Ids of the components this one reads.")),
     )
 
@@ -101,31 +114,48 @@ def _section_type(registry: Registry, kind: Kind) -> Any:
     if not variants:
         # No plugin of this kind is installed: the section must stay empty.
         return (list[dict[str, Any]], Field(default_factory=list, max_length=0))
-    union = Annotated[Union[tuple(variants)], Field(discriminator="type")]  # type: ignore[valid-type]
-    return (list[union], Field(default_factory=list))  # type: ignore[valid-type]
+    # Built from the installed plugins at run time: to mypy a value, not a type.
+    members: Any = functools.reduce(operator.or_, variants)
+    union: Any = Annotated[members, Field(discriminator="type")]
+    section: Any = list[union]
+    return (section, Field(default_factory=list))
 
 
-_CACHE: dict[str, type[BaseModel]] = {}
+class ExperimentRoot(BaseModel):
+    """The sections of an experiment file that every registry shares.
+
+    :func:`build_experiment_model` adds one list per plugin kind (``sensors``, ``maps``, ...),
+    typed by the installed plugins; the core reads components from
+    :attr:`Experiment.components <hapticframe.Experiment.components>`, and these fields
+    from ``experiment.model``.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment")
+
+    # Literal[SCHEMA_VERSION]: a type checker accepts only a literal value here.
+    schema_version: Literal[1] = Field(description="Experiment file format version.")
+    name: str = Field(min_length=1, max_length=200, description="Name of the experiment.")
+    description: str = Field("", description="Free text.")
+    seed: int = Field(ge=0, lt=2**63, description="Seeds every component's random generator.")
+    scene: Scene | None = Field(None, description="What the simulated world contains.")
+    run: RunSettings = Field(default_factory=RunSettings)
 
 
-def build_experiment_model(registry: Registry) -> type[BaseModel]:
+_CACHE: dict[str, type[ExperimentRoot]] = {}
+
+
+def build_experiment_model(registry: Registry) -> type[ExperimentRoot]:
     """The root model of an experiment file for the plugins in ``registry`` (cached)."""
     key = registry.fingerprint()
     cached = _CACHE.get(key)
     if cached is not None:
         return cached
     sections = {kind.section: _section_type(registry, kind) for kind in Kind}
-    model = create_model(  # type: ignore[call-overload]
+    model = create_model(
         "Experiment",
-        __config__=ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment"),
+        __base__=ExperimentRoot,
         __doc__="A hapticframe experiment: the components to build and how to run them.",
-        schema_version=(Literal[SCHEMA_VERSION], Field(description="Experiment file format version.")),
-        name=(str, Field(min_length=1, max_length=200, description="Name of the experiment.")),
-        description=(str, Field("", description="Free text.")),
-        seed=(int, Field(ge=0, lt=2**63, description="Seeds every component's random generator.")),
-        scene=(Scene | None, Field(None, description="What the simulated world contains.")),
-        run=(RunSettings, Field(default_factory=RunSettings)),
         **sections,
     )
     _CACHE[key] = model
-    return model  # type: ignore[no-any-return]
+    return model

@@ -20,7 +20,7 @@ from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
 from ._load import LoadedFile, join_path, load_file
-from ._model import build_experiment_model
+from ._model import ExperimentRoot, build_experiment_model
 
 __all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
 
@@ -46,14 +46,14 @@ class Experiment:
     """A validated experiment: the root model and its components in build order."""
 
     file: str
-    model: BaseModel
+    model: ExperimentRoot
     components: tuple[ComponentEntry, ...]
     registry: Registry
     plugin_manager: PluginManager
 
     @property
     def seed(self) -> int:
-        return int(self.model.seed)  # type: ignore[attr-defined]
+        return self.model.seed
 
     def resolved_config(self) -> dict[str, Any]:
         """The experiment with every default filled in, as JSON-ready data."""
@@ -151,7 +151,7 @@ def validate_data(
     if model is not None and not issues:
         entries = _entries(model, registry)
         issues.extend(_check_graph(entries, loaded))
-        issues.extend(_check_train_from(model.run.train_from, entries, loaded))  # type: ignore[attr-defined]
+        issues.extend(_check_train_from(model.run.train_from, entries, loaded))
         if not issues:
             return Experiment(file, model, tuple(_build_order(entries)), registry, pm)
     issues.sort(key=lambda i: (i.line or 0, i.path))
@@ -232,7 +232,10 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
     elif kind == "missing":
         message = "required key is missing"
     elif kind == "literal_error" and parts == ["schema_version"]:
-        message = f"schema_version must be 1 (this hapticframe reads version 1), got {error.get('input')!r}"
+        message = (
+            "schema_version must be 1 (this hapticframe reads version 1), got "
+            f"{error.get('input')!r}"
+        )
     elif "input" in error and kind not in ("model_type", "dict_type", "list_type"):
         shown = repr(error["input"])
         message = f"{message} (got {shown[:60]}{'...' if len(shown) > 60 else ''})"
@@ -343,13 +346,17 @@ def _check_graph(entries: list[ComponentEntry], loaded: LoadedFile) -> list[Issu
             if name not in by_id:
                 close = difflib.get_close_matches(name, list(by_id), n=3, cutoff=0.5)
                 hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
-                issues.append(Issue(where, f"input {name!r} is not the id of any component{hint}", line))
+                issues.append(
+                    Issue(where, f"input {name!r} is not the id of any component{hint}", line)
+                )
                 continue
             source = by_id[name]
             if name == entry.id:
                 issues.append(Issue(where, f"{entry.id!r} cannot be its own input", line))
-            elif source.kind not in entry.registered.spec.inputs:
-                allowed = ", ".join(str(k) for k in entry.registered.spec.inputs) or "nothing"
+                continue
+            accepted = entry.registered.spec.inputs or ()  # never None once the spec is built
+            if source.kind not in accepted:
+                allowed = ", ".join(str(k) for k in accepted) or "nothing"
                 issues.append(Issue(
                     where,
                     f"{entry.id!r} ({entry.kind} {entry.type!r}) cannot read {name!r}, a "
@@ -382,7 +389,9 @@ def _check_train_from(
             if name not in sensors:
                 close = difflib.get_close_matches(name, sorted(sensors), n=3, cutoff=0.5)
                 hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
-                issues.append(Issue(where, f"{role} {name!r} is not the id of a sensor{hint}", line))
+                issues.append(
+                    Issue(where, f"{role} {name!r} is not the id of a sensor{hint}", line)
+                )
         if source == target:
             issues.append(Issue(where, f"sensor {target!r} cannot stand in for itself", line))
         elif source in train_from:

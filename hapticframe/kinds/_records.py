@@ -139,10 +139,10 @@ class SampleBatch:
                 _check_rows(f"channel {name!r}", array, t.size)
             channels[name] = array
         valid = {}
-        for name, value in self.valid.items():
+        for name, flags in self.valid.items():
             if name not in channels:
                 raise ValueError(f"validity given for unknown channel {name!r}")
-            mask: NDArray[np.bool_] = _owned(value, _BOOL)
+            mask: NDArray[np.bool_] = _owned(flags, _BOOL)
             if mask.shape != (t.size,):
                 raise ValueError(f"valid[{name!r}] must have shape ({t.size},), got {mask.shape}")
             valid[name] = mask
@@ -217,7 +217,9 @@ class ClassProbabilities:
         object.__setattr__(self, "classes", tuple(self.classes))
         _check_rows("probabilities", p, t.size)
         if p.shape[1] != len(self.classes):
-            raise ValueError(f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes")
+            raise ValueError(
+                f"probabilities have {p.shape[1]} columns for {len(self.classes)} classes"
+            )
         # One clearly valid row (a closed loop's tick) skips the array checks below.
         clearly_valid = p.shape[0] == 1 and p.size > 0 and _clearly_valid_row(p[0].tolist())
         if p.size and not clearly_valid:
@@ -234,7 +236,8 @@ class ClassProbabilities:
     @property
     def labels(self) -> NDArray[np.intp]:
         """Index of the most probable class per row."""
-        return np.argmax(self.probabilities, axis=1)
+        labels: NDArray[np.intp] = np.argmax(self.probabilities, axis=1)
+        return labels
 
 
 @dataclass(frozen=True)
@@ -373,7 +376,7 @@ class LocatedMeasurement:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Observations:
     """Map observations produced by a sensor model.
 
@@ -383,22 +386,24 @@ class Observations:
         Locations in the map frame.
     targets : (m,) float64
         Occupancy targets in [0, 1] (soft labels: 1 = object, 0 = granular material only).
-    weights : (m,) float64
-        Non-negative confidence of each target (1 by default).
+    weights : (m,) float64, optional
+        Non-negative confidence of each target; 1 for each when not given (the attribute is
+        always an array).
     """
 
     points_m: FloatArray
     targets: FloatArray
-    weights: FloatArray | None = None
+    weights: FloatArray
 
-    def __post_init__(self) -> None:
-        pts = _as_float_array(np.reshape(self.points_m, (-1, 2)), "points_m", ndim=2)
+    def __init__(
+        self, points_m: ArrayLike, targets: ArrayLike, weights: ArrayLike | None = None
+    ) -> None:
+        pts = _as_float_array(np.reshape(points_m, (-1, 2)), "points_m", ndim=2)
         m = pts.shape[0]
-        tgt = _as_float_array(self.targets, "targets", ndim=1)
+        tgt = _as_float_array(targets, "targets", ndim=1)
         if tgt.shape != (m,):
             raise ValueError(f"targets must have shape ({m},), got {tgt.shape}")
-        w = np.ones(m) if self.weights is None else self.weights
-        w = _as_float_array(w, "weights", ndim=1)
+        w = _as_float_array(np.ones(m) if weights is None else weights, "weights", ndim=1)
         if w.shape != (m,):
             raise ValueError(f"weights must have shape ({m},), got {w.shape}")
         if not (np.isfinite(pts).all() and np.isfinite(tgt).all() and np.isfinite(w).all()):
@@ -425,7 +430,7 @@ class Observations:
         return cls(
             np.concatenate([p.points_m for p in parts]),
             np.concatenate([p.targets for p in parts]),
-            np.concatenate([p.weights for p in parts]),  # type: ignore[misc]
+            np.concatenate([p.weights for p in parts]),
         )
 
 

@@ -57,10 +57,12 @@ class Robot(Component):
         """Why the last movement stopped early (``""`` if it did not)."""
         return ""
 
-    def execute(self, movement: ExploratoryMovement, max_steps: int = 1_000_000) -> list[RobotState]:
+    def execute(
+        self, movement: ExploratoryMovement, max_steps: int = 1_000_000
+    ) -> list[RobotState]:
         """Run ``movement`` to its end without interruption and return every state."""
         self.begin(movement)
-        states = []
+        states: list[RobotState] = []
         for _ in range(max_steps):
             state = self.step()
             if state is None:

@@ -8,10 +8,10 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
-from ..kinds import Component
 from ._harness import CheckFailure, make_component
 from ._import_probe import modules_loaded_by
 
@@ -39,10 +39,8 @@ def check(*kinds: Kind) -> Callable[[CheckFunction], CheckFunction]:
 @check()
 def check_spec_record(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """The factory resolves to a component class of the spec's kind."""
-    from .._session import _INTERFACES
-
     factory = spec.load_factory()
-    interface = _INTERFACES[spec.kind]
+    interface = INTERFACES[spec.kind]
     if isinstance(factory, type) and not issubclass(factory, interface):
         raise CheckFailure(
             f"factory {spec.factory!r} is {factory.__name__}, which does not derive from "
@@ -53,7 +51,9 @@ def check_spec_record(spec: PluginSpec, *, registry: Registry | None = None) -> 
     try:
         spec.config.model_validate(spec.check_config or {})
     except ValidationError as exc:
-        raise CheckFailure(f"check_config does not validate against {spec.config.__name__}: {exc}") from exc
+        raise CheckFailure(
+            f"check_config does not validate against {spec.config.__name__}: {exc}"
+        ) from exc
 
 
 @check()
@@ -64,7 +64,9 @@ def check_config_round_trip(spec: PluginSpec, *, registry: Registry | None = Non
         dumped = config.model_dump(mode="json")
         text = json.dumps(dumped, allow_nan=False)
     except (TypeError, ValueError) as exc:
-        raise CheckFailure(f"config of {spec.name!r} does not serialise to plain JSON: {exc}") from exc
+        raise CheckFailure(
+            f"config of {spec.name!r} does not serialise to plain JSON: {exc}"
+        ) from exc
     again = spec.config.model_validate_json(text)
     if again != config:
         raise CheckFailure(
@@ -77,8 +79,8 @@ def check_config_round_trip(spec: PluginSpec, *, registry: Registry | None = Non
     try:
         import jsonschema
     except ImportError:  # pragma: no cover - part of the test extra
-        jsonschema = None
-    if jsonschema is not None:
+        pass
+    else:
         try:
             jsonschema.validate(dumped, schema)
         except jsonschema.ValidationError as exc:
@@ -130,9 +132,9 @@ def check_lazy_import(spec: PluginSpec, *, registry: Registry | None = None) -> 
 @check()
 def check_builds(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """The factory builds a component of the right kind from the check config."""
-    component = make_component(spec, registry=registry)
+    component = make_component(spec, registry=registry, interface=INTERFACES[spec.kind])
     try:
-        if not isinstance(component, Component) or component.kind is not spec.kind:
+        if component.kind is not spec.kind:
             raise CheckFailure(
                 f"{spec.factory!r} built {type(component).__name__}, not a {spec.kind} component"
             )
@@ -146,7 +148,7 @@ def outputs_equal(a: Any, b: Any) -> bool:
     import numpy as np
 
     if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(outputs_equal(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(outputs_equal(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(outputs_equal(a[k], b[k]) for k in a)
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):

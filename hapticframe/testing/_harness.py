@@ -5,7 +5,7 @@ from __future__ import annotations
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -84,6 +84,10 @@ class KitMap(Map):
         return MapEstimate(mean, 0.5 * (1 - mean) + 0.01)
 
 
+C = TypeVar("C", bound=Component)
+
+
+@overload
 def make_component(
     spec: PluginSpec,
     *,
@@ -92,6 +96,34 @@ def make_component(
     scene: Scene | None = DEFAULT_SCENE,
     config: Mapping[str, Any] | None = None,
     planner_map: Map | None = None,
+    interface: type[C],
+    _depth: int = 0,
+) -> C: ...
+
+
+@overload
+def make_component(
+    spec: PluginSpec,
+    *,
+    registry: Registry | None = None,
+    seed: int = 0,
+    scene: Scene | None = DEFAULT_SCENE,
+    config: Mapping[str, Any] | None = None,
+    planner_map: Map | None = None,
+    interface: None = None,
+    _depth: int = 0,
+) -> Component: ...
+
+
+def make_component(
+    spec: PluginSpec,
+    *,
+    registry: Registry | None = None,
+    seed: int = 0,
+    scene: Scene | None = DEFAULT_SCENE,
+    config: Mapping[str, Any] | None = None,
+    planner_map: Map | None = None,
+    interface: type[Component] | None = None,
     _depth: int = 0,
 ) -> Component:
     """Build ``spec`` the way the conformance kit does.
@@ -100,11 +132,20 @@ def make_component(
     :data:`DEFAULT_SCENE`, and the inputs are built from ``spec.check_inputs``; a planner
     without ``check_inputs`` gets a :class:`KitMap` as input ``"map"``. ``planner_map``, for
     a planner, replaces that stand-in and every map named in ``check_inputs``.
+    ``interface`` (``Sensor``, ``Map``, ...) is the class the component must be an instance
+    of; it is also the type a type checker sees returned (default:
+    :class:`~hapticframe.kinds.Component`).
+
+    Raises
+    ------
+    CheckFailure
+        When the factory builds something that is not an instance of ``interface``.
     """
     if _depth > 5:
         raise CheckFailure(f"check_inputs of {spec.name!r} nest too deeply (a cycle?)")
     registry = registry or get_registry()
-    cfg = spec.config.model_validate(dict(config if config is not None else (spec.check_config or {})))
+    given = config if config is not None else (spec.check_config or {})
+    cfg = spec.config.model_validate(dict(given))
     inputs: dict[str, Component] = {}
     for ref in spec.check_inputs:
         kind_name, _, name = ref.partition("/")
@@ -130,7 +171,16 @@ def make_component(
     context = BuildContext(
         id=f"kit-{spec.name}", rng=np.random.default_rng(seed), inputs=inputs, scene=scene
     )
-    return factory(cfg, context)  # type: ignore[no-any-return]
+    built: object = factory(cfg, context)
+    wanted = interface or Component
+    if not isinstance(built, wanted):
+        if isinstance(built, Component):
+            built.close()
+        raise CheckFailure(
+            f"{spec.factory!r} built {type(built).__name__}, not a "
+            f"hapticframe.kinds.{wanted.__name__}"
+        )
+    return built
 
 
 def synthetic_batch(
@@ -153,7 +203,7 @@ def synthetic_batch(
             "cannot feed it; set consumes={'channel': shape} in its spec"
         )
     dt = 1.0 / spec.sample_rate_hz
-    t = t0 + dt * (1 + np.arange(n))
+    t = np.asarray(t0 + dt * (1 + np.arange(n)), dtype=np.float64)
     channels = {}
     for name, shape in spec.consumes.items():
         size = (n, *shape)
@@ -181,7 +231,8 @@ def crossing_movement(scene: Scene | None, robot: Robot | None = None) -> Explor
         y = float(scene.objects[0].centroid_m[1])
     margin = 0.02 * region.size_m[0]
     return ExploratoryMovement(
-        start_m=(region.x_min_m + margin, y), end_m=(region.x_max_m - margin, y),
+        start_m=np.array([region.x_min_m + margin, y]),
+        end_m=np.array([region.x_max_m - margin, y]),
         speed_m_per_s=0.05, phase="kit", label="kit crossing",
     )
 

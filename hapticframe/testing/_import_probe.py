@@ -138,7 +138,10 @@ def _probed(probe: _Probe, modules: tuple[str, ...]) -> frozenset[str] | None:
         return None
     if "error" in answer:
         raise ImportError(str(answer["error"]).strip()[-500:])
-    return frozenset(answer["modules"])  # type: ignore[call-overload]
+    loaded = answer.get("modules")
+    if not isinstance(loaded, list):
+        return None  # a garbled answer: the probe failed
+    return frozenset(str(name) for name in loaded)
 
 
 def modules_loaded_by(modules: Iterable[str], watched: Iterable[str]) -> frozenset[str]:

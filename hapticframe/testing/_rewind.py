@@ -12,12 +12,19 @@ from typing import Any
 
 import numpy as np
 
+from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
 from ..kinds import Component, Robot, Sensor
 from ._common import check, outputs_equal
-from ._harness import DEFAULT_SCENE, CheckFailure, crossing_movement, make_component, synthetic_batch
+from ._harness import (
+    DEFAULT_SCENE,
+    CheckFailure,
+    crossing_movement,
+    make_component,
+    synthetic_batch,
+)
 from ._streams import _outputs
 
 __all__ = ["check_rewind"]
@@ -59,7 +66,7 @@ def _checkpoints(components: list[Component]) -> list[Any] | None:
 
 def _rewound(components: list[Component], snapshots: list[Any], what: str) -> None:
     try:
-        for component, snapshot in zip(components, snapshots):
+        for component, snapshot in zip(components, snapshots, strict=True):
             component.rewind(snapshot)
     except Exception as exc:
         raise CheckFailure(f"rewind() raised {type(exc).__name__}: {exc} ({what})") from exc
@@ -71,10 +78,10 @@ def check_rewind(spec: PluginSpec, *, registry: Registry | None = None) -> None:
 
     Components that return None (the default: cannot rewind) pass without further checks.
     """
-    component = make_component(spec, registry=registry, seed=5)
+    component = make_component(spec, registry=registry, seed=5, interface=INTERFACES[spec.kind])
     try:
-        if spec.kind is Kind.ROBOT:
-            robot: Robot = component  # type: ignore[assignment]
+        if isinstance(component, Robot):
+            robot = component
             robot.begin(crossing_movement(DEFAULT_SCENE))
             _robot_trace(robot, _BEFORE)
             snapshots = _checkpoints([robot])
@@ -83,8 +90,8 @@ def check_rewind(spec: PluginSpec, *, registry: Registry | None = None) -> None:
             first = _robot_trace(robot, _AHEAD)
             _rewound([robot], snapshots, "robot")
             second = _robot_trace(robot, _AHEAD)
-        elif spec.kind is Kind.SENSOR:
-            sensor: Sensor = component  # type: ignore[assignment]
+        elif isinstance(component, Sensor):
+            sensor = component
             robots = [c for c in sensor.context.inputs.values() if isinstance(c, Robot)]
             robot_in = robots[0] if robots else None
             if robot_in is not None:

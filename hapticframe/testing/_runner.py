@@ -96,7 +96,7 @@ def parametrize_with_checks(
     for spec in specs:
         expected = _expected(spec, expected_failed_checks)
         for func in checks_for(spec):
-            marks = ()
+            marks: tuple[pytest.MarkDecorator, ...] = ()
             if func.__name__ in expected:
                 marks = (pytest.mark.xfail(strict=True, reason=expected[func.__name__]),)
             params.append(pytest.param(

@@ -7,12 +7,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._scene import RegionConfig, Scene
 from .._specs import PluginSpec
 from ..kinds import (
+    Classifier,
     ExploratoryMovement,
+    FeatureExtractor,
     LocatedMeasurement,
     Map,
     MapEstimate,
@@ -22,6 +25,7 @@ from ..kinds import (
     Region,
     Robot,
     RobotState,
+    Sensor,
     SensorModel,
 )
 from ._common import check, outputs_equal
@@ -49,9 +53,11 @@ __all__ = [
 CLASSES = ("free", "jamming", "contact")
 
 
-def located_measurement(n: int = 60, *, y: float = 0.25, depth: float = 0.044) -> LocatedMeasurement:
+def located_measurement(
+    n: int = 60, *, y: float = 0.25, depth: float = 0.044
+) -> LocatedMeasurement:
     """A fingertip moving along +x: free movement, then jamming, then contact."""
-    t = 0.01 * (1 + np.arange(n))
+    t = np.asarray(0.01 * (1 + np.arange(n)), dtype=np.float64)
     x = 0.10 + 0.0005 * np.arange(n)
     labels = np.zeros(n, dtype=int)
     labels[int(0.7 * n):] = 1
@@ -78,12 +84,17 @@ def map_observations(seed: int, n: int = 400, scene: Scene = DEFAULT_SCENE) -> O
 
 def _query_grid(the_map: Map) -> np.ndarray:
     r = the_map.region
-    gx, gy = np.meshgrid(np.linspace(r.x_min_m, r.x_max_m, 31), np.linspace(r.y_min_m, r.y_max_m, 21))
+    gx, gy = np.meshgrid(
+        np.linspace(r.x_min_m, r.x_max_m, 31), np.linspace(r.y_min_m, r.y_max_m, 21)
+    )
     return np.column_stack([gx.ravel(), gy.ravel()])
 
 
 def _invalid(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
-    origin = "produced invalid output" if raised_by_record_validation(exc) else f"raised {type(exc).__name__}"
+    origin = (
+        "produced invalid output" if raised_by_record_validation(exc)
+        else f"raised {type(exc).__name__}"
+    )
     return CheckFailure(f"{spec.kind} {spec.name!r} {origin} on {what}: {exc}")
 
 
@@ -93,7 +104,7 @@ def _invalid(spec: PluginSpec, what: str, exc: Exception) -> CheckFailure:
 @check(Kind.SENSOR_MODEL)
 def check_sensor_model_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Observations are finite points with targets in [0, 1]; empty input gives none."""
-    model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+    model = make_component(spec, registry=registry, interface=SensorModel)
     try:
         obs = model.observe(located_measurement())
         if not isinstance(obs, Observations):
@@ -115,11 +126,14 @@ def check_sensor_model_contract(spec: PluginSpec, *, registry: Registry | None =
 def check_sensor_model_streaming(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Observing rows one at a time equals observing them all at once."""
     measurement = located_measurement()
-    batch_model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
-    stream_model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+    batch_model = make_component(spec, registry=registry, interface=SensorModel)
+    stream_model = make_component(spec, registry=registry, interface=SensorModel)
     try:
         whole = batch_model.observe(measurement)
-        parts = [stream_model.observe(measurement.select(slice(i, i + 1))) for i in range(len(measurement))]
+        parts = [
+            stream_model.observe(measurement.select(slice(i, i + 1)))
+            for i in range(len(measurement))
+        ]
     finally:
         batch_model.close()
         stream_model.close()
@@ -154,7 +168,7 @@ def check_sensor_model_extremes(spec: PluginSpec, *, registry: Registry | None =
             base.classes, np.full(len(base), 1e-9)),
     }
     for what, measurement in cases.items():
-        model: SensorModel = make_component(spec, registry=registry)  # type: ignore[assignment]
+        model = make_component(spec, registry=registry, interface=SensorModel)
         try:
             model.observe(measurement)  # Observations validates finiteness and ranges
         except ValueError as exc:
@@ -172,7 +186,7 @@ def check_sensor_model_extremes(spec: PluginSpec, *, registry: Registry | None =
 @check(Kind.MAP)
 def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Queries anywhere (empty, float32, far outside) return means in [0, 1] and finite std."""
-    the_map: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+    the_map = make_component(spec, registry=registry, interface=Map)
     try:
         grid = _query_grid(the_map)
         for stage in ("before any update", "after an update"):
@@ -180,7 +194,9 @@ def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) ->
                 the_map.update(map_observations(5))
             estimate = the_map.query(grid)
             if estimate.mean.shape != (len(grid),):
-                raise CheckFailure(f"query of {len(grid)} points returned shape {estimate.mean.shape} {stage}")
+                raise CheckFailure(
+                    f"query of {len(grid)} points returned shape {estimate.mean.shape} {stage}"
+                )
             if the_map.query(np.empty((0, 2))).mean.shape != (0,):
                 raise CheckFailure(f"an empty query did not return an empty estimate {stage}")
             the_map.query(grid.astype(np.float32))
@@ -194,11 +210,13 @@ def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) ->
 
 
 @check(Kind.MAP)
-def check_map_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+def check_map_streaming_matches_batch(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
     """Two updates give (close to) the map fitted on both batches at once."""
     first, second = map_observations(6), map_observations(7)
-    streamed: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
-    batch: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+    streamed = make_component(spec, registry=registry, interface=Map)
+    batch = make_component(spec, registry=registry, interface=Map)
     try:
         streamed.update(first)
         streamed.update(second)
@@ -230,7 +248,7 @@ def check_map_extremes(spec: PluginSpec, *, registry: Registry | None = None) ->
             np.repeat(obs.points_m[:1], 200, axis=0), np.ones(200)),
     }
     for what, observations in cases.items():
-        the_map: Map = make_component(spec, registry=registry)  # type: ignore[assignment]
+        the_map = make_component(spec, registry=registry, interface=Map)
         try:
             the_map.update(observations)
             the_map.query(_query_grid(the_map))
@@ -269,7 +287,9 @@ def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[Expl
         if movement is None:
             return movements
         if not isinstance(movement, ExploratoryMovement):
-            raise CheckFailure(f"propose() returned {type(movement).__name__}, not ExploratoryMovement")
+            raise CheckFailure(
+                f"propose() returned {type(movement).__name__}, not ExploratoryMovement"
+            )
         movements.append(movement)
         distance, nearest = _segment_distance(center, movement.start_m, movement.end_m)
         hit = distance < 0.06
@@ -282,7 +302,9 @@ def planner_episode(planner: Planner, scene: Scene = DEFAULT_SCENE) -> list[Expl
             index, movement, hit, "interaction" if hit else "", state,
             "jamming" if hit else "free",
         ))
-    raise CheckFailure(f"the planner proposed more than max_movements={planner.max_movements} movements")
+    raise CheckFailure(
+        f"the planner proposed more than max_movements={planner.max_movements} movements"
+    )
 
 
 def _outside(movements: list[ExploratoryMovement], region: Region, tolerance: float) -> str:
@@ -304,7 +326,7 @@ def _outside(movements: list[ExploratoryMovement], region: Region, tolerance: fl
 @check(Kind.PLANNER)
 def check_planner_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Movements lie in the search region and the search ends within ``max_movements``."""
-    planner: Planner = make_component(spec, registry=registry)  # type: ignore[assignment]
+    planner = make_component(spec, registry=registry, interface=Planner)
     try:
         movements = planner_episode(planner)
     finally:
@@ -358,8 +380,8 @@ def check_planner_extremes(spec: PluginSpec, *, registry: Registry | None = None
     """
     for what, (scene, the_map) in _planner_cases().items():
         try:
-            planner: Planner = make_component(  # type: ignore[assignment]
-                spec, registry=registry, scene=scene, planner_map=the_map)
+            planner = make_component(
+                spec, registry=registry, scene=scene, planner_map=the_map, interface=Planner)
         except ValueError as exc:
             if str(exc) and not raised_by_record_validation(exc):
                 continue  # refused at build: a clear error
@@ -395,7 +417,7 @@ def _robot_states(robot: Robot, movement: ExploratoryMovement) -> list[RobotStat
 @check(Kind.ROBOT)
 def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Movements start at their start, advance at about the commanded speed, times increase."""
-    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    robot = make_component(spec, registry=registry, interface=Robot)
     try:
         movement = crossing_movement(DEFAULT_SCENE)
         states = _robot_states(robot, movement)
@@ -408,7 +430,10 @@ def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) 
         if not np.all(np.isfinite(pos)):
             raise CheckFailure("states contain NaN positions")
         if np.linalg.norm(pos[0] - movement.start_m) > 0.01:
-            raise CheckFailure(f"the first state {pos[0].tolist()} is not at the start {movement.start_m.tolist()}")
+            raise CheckFailure(
+                f"the first state {pos[0].tolist()} is not at the start "
+                f"{movement.start_m.tolist()}"
+            )
         step_max = movement.speed_m_per_s / robot.control_rate_hz * 1.5 + 1e-9
         if len(pos) > 1 and np.max(np.linalg.norm(np.diff(pos, axis=0), axis=1)) > step_max:
             raise CheckFailure("the fingertip moves faster than the commanded speed")
@@ -424,7 +449,7 @@ def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) 
 @check(Kind.ROBOT)
 def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """``halt()`` ends the movement at once."""
-    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    robot = make_component(spec, registry=registry, interface=Robot)
     try:
         robot.begin(crossing_movement(DEFAULT_SCENE))
         for _ in range(3):
@@ -459,11 +484,12 @@ def check_robot_extremes(spec: PluginSpec, *, registry: Registry | None = None) 
     its length's worth of steps (plus a margin) with finite states and increasing times;
     afterwards the robot still runs an ordinary movement with times that keep increasing.
     """
-    robot: Robot = make_component(spec, registry=registry)  # type: ignore[assignment]
+    robot = make_component(spec, registry=registry, interface=Robot)
     last_t = -np.inf
     try:
         for what, (movement, margin) in _robot_cases().items():
-            budget = int(movement.length_m / movement.speed_m_per_s * robot.control_rate_hz) + margin
+            duration_s = movement.length_m / movement.speed_m_per_s
+            budget = int(duration_s * robot.control_rate_hz) + margin
             try:
                 states = robot.execute(movement, max_steps=budget)
             except ValueError as exc:
@@ -505,23 +531,29 @@ def _check_states(states: list[RobotState], robot: Robot, what: str, last_t: flo
 
 
 def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
-    component = make_component(spec, registry=registry, seed=11)
+    # Built as the interface of its kind, so the branches below follow spec.kind.
+    component = make_component(spec, registry=registry, seed=11, interface=INTERFACES[spec.kind])
     try:
-        if spec.kind is Kind.SENSOR:
-            return sensor_outputs(component, spec)  # type: ignore[arg-type]
-        if spec.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER):
+        if isinstance(component, Sensor):
+            return sensor_outputs(component, spec)
+        if isinstance(component, (FeatureExtractor, Classifier)):
             return exercise_stream(component, spec)
-        if spec.kind is Kind.SENSOR_MODEL:
-            obs = component.observe(located_measurement())  # type: ignore[attr-defined]
+        if isinstance(component, SensorModel):
+            obs = component.observe(located_measurement())
             return [obs.points_m, obs.targets, obs.weights]
-        if spec.kind is Kind.MAP:
-            component.update(map_observations(9))  # type: ignore[attr-defined]
-            est = component.query(_query_grid(component))  # type: ignore[attr-defined]
+        if isinstance(component, Map):
+            component.update(map_observations(9))
+            est = component.query(_query_grid(component))
             return [est.mean, est.std]
-        if spec.kind is Kind.PLANNER:
-            return [(m.start_m, m.end_m, m.phase) for m in planner_episode(component)]  # type: ignore[arg-type]
-        states = _robot_states(component, crossing_movement(DEFAULT_SCENE))  # type: ignore[arg-type]
-        return [np.array([s.timestamp_s for s in states]), np.vstack([s.position_m for s in states])]
+        if isinstance(component, Planner):
+            return [(m.start_m, m.end_m, m.phase) for m in planner_episode(component)]
+        if isinstance(component, Robot):
+            states = _robot_states(component, crossing_movement(DEFAULT_SCENE))
+            return [
+                np.array([s.timestamp_s for s in states]),
+                np.vstack([s.position_m for s in states]),
+            ]
+        raise CheckFailure(f"{spec.kind} components are not exercised")  # pragma: no cover
     finally:
         component.close()
 

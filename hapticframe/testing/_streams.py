@@ -11,8 +11,8 @@ from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
 from ..kinds import (
-    ClassProbabilities,
     Classifier,
+    ClassProbabilities,
     FeatureExtractor,
     Robot,
     SampleBatch,
@@ -128,12 +128,14 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
     A ``finite`` sensor is read to its end (bounded: see :func:`drive_sensor`), a live one
     30 times.
     """
-    sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
         channels = dict(sensor.channels)
         for name, info in channels.items():
             if not info.unit or not info.rate_hz > 0:
-                raise CheckFailure(f"channel {name!r} needs a unit and a positive rate_hz, got {info}")
+                raise CheckFailure(
+                    f"channel {name!r} needs a unit and a positive rate_hz, got {info}"
+                )
         batches = _drive(spec, sensor)
         last_t = -np.inf
         delivered = 0
@@ -164,13 +166,15 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
 
 
 @check(Kind.SENSOR)
-def check_sensor_valid_samples_finite(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+def check_sensor_valid_samples_finite(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
     """Every sample a batch marks valid (``valid`` absent or True) is finite in every channel.
 
     A sensor that cannot measure a sample (a corrupted word, a stale reading) marks it
     invalid in ``batch.valid``; a NaN or infinity it calls valid would reach the models.
     """
-    sensor: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
         batches = _drive(spec, sensor)
     finally:
@@ -215,7 +219,8 @@ def _batches_differ(first: SampleBatch, second: SampleBatch) -> str:
             return f"channel {name!r} values that differ by up to {worst:.3g}"
     everywhere = np.ones(len(first), dtype=bool)
     for name in set(first.valid) | set(second.valid):
-        if not np.array_equal(first.valid.get(name, everywhere), second.valid.get(name, everywhere)):
+        first_valid = first.valid.get(name, everywhere)
+        if not np.array_equal(first_valid, second.valid.get(name, everywhere)):
             return f"validity flags of channel {name!r} that differ"
     return ""
 
@@ -231,7 +236,9 @@ def _whole(batches: list[SampleBatch], sensor: Sensor, what: str) -> SampleBatch
 
 
 @check(Kind.SENSOR)
-def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+def check_sensor_read_all_matches_reads(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
     """A finite sensor's ``read_all()`` and ``iter_recordings()`` give its successive ``read()``s.
 
     Batch use (training, ``read_all``) and streaming use (the run loop's ``read``) must see
@@ -239,12 +246,12 @@ def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry 
     """
     if "finite" not in spec.capabilities:
         return
-    streamed: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    streamed = make_component(spec, registry=registry, interface=Sensor)
     try:
         reads = _whole(_drive(spec, streamed), streamed, "the successive read()s")
     finally:
         streamed.close()
-    drained: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    drained = make_component(spec, registry=registry, interface=Sensor)
     try:
         whole = drained.read_all()
     except RuntimeError as exc:
@@ -258,7 +265,7 @@ def check_sensor_read_all_matches_reads(spec: PluginSpec, *, registry: Registry 
             f"differ: {difference} ({len(reads)} samples read one batch at a time). Batch "
             "and streaming use must deliver the same samples"
         )
-    split: Sensor = make_component(spec, registry=registry)  # type: ignore[assignment]
+    split = make_component(spec, registry=registry, interface=Sensor)
     try:
         recordings = list(itertools.islice(split.iter_recordings(), MAX_FINITE_READS))
     finally:
@@ -287,12 +294,18 @@ def check_stream_contract(spec: PluginSpec, *, registry: Registry | None = None)
             t, arrays = _outputs(component, batch.select(slice(start, start + 50)))
             if len(t):
                 if t[0] <= last_t or t[-1] > batch.timestamps_s[-1] + 1e-9:
-                    raise CheckFailure(f"output times {t[0]}..{t[-1]} are not increasing within the input's range")
+                    raise CheckFailure(
+                        f"output times {t[0]}..{t[-1]} are not increasing within the input's "
+                        "range"
+                    )
                 last_t = float(t[-1])
             if isinstance(component, FeatureExtractor):
                 declared = dict(component.output_channels)
                 if set(arrays) != set(declared):
-                    raise CheckFailure(f"features {sorted(arrays)} differ from output_channels {sorted(declared)}")
+                    raise CheckFailure(
+                        f"features {sorted(arrays)} differ from output_channels "
+                        f"{sorted(declared)}"
+                    )
                 for name, array in arrays.items():
                     if array.shape[1:] != tuple(declared[name].shape):
                         raise CheckFailure(
@@ -300,11 +313,15 @@ def check_stream_contract(spec: PluginSpec, *, registry: Registry | None = None)
                             f"{tuple(declared[name].shape)}"
                         )
                     if not np.all(np.isfinite(array)):
-                        raise CheckFailure(f"feature {name!r} contains NaN or infinity for finite input")
+                        raise CheckFailure(
+                            f"feature {name!r} contains NaN or infinity for finite input"
+                        )
             elif isinstance(component, Classifier):
                 probs = arrays["probabilities"]
                 if probs.shape[1] != len(component.classes):
-                    raise CheckFailure(f"{probs.shape[1]} probability columns for classes {component.classes}")
+                    raise CheckFailure(
+                        f"{probs.shape[1]} probability columns for classes {component.classes}"
+                    )
     except CheckFailure:
         raise
     except Exception as exc:
@@ -344,7 +361,10 @@ def check_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None
     for name, array in whole_a.items():
         streamed = np.concatenate([p[1][name] for p in parts]) if parts else np.empty_like(array)
         if not np.allclose(streamed, array, rtol=1e-9, atol=1e-9, equal_nan=True):
-            worst = float(np.nanmax(np.abs(streamed - array))) if streamed.shape == array.shape else np.inf
+            worst = (
+                float(np.nanmax(np.abs(streamed - array)))
+                if streamed.shape == array.shape else np.inf
+            )
             raise CheckFailure(
                 f"streaming and batch outputs of {name!r} differ (max |diff| {worst:.3g}); "
                 "update() in chunks must equal the batch path"
