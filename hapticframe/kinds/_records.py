@@ -284,7 +284,7 @@ class Region:
         return xs, ys
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class LocatedMeasurement:
     """Classifier output placed in the map plane: the input of a sensor model (Eq. 3.1).
 
@@ -298,8 +298,9 @@ class LocatedMeasurement:
     probabilities : (n, k) float64
         Class probabilities, as in :class:`ClassProbabilities`.
     classes : tuple of str
-    depth_m : (n,) float64
-        Fingertip depth below the free surface (NaN where unknown).
+    depth_m : (n,) float64, optional
+        Fingertip depth below the free surface; NaN where unknown, and NaN for every row
+        when not given (the attribute is always an array).
     """
 
     timestamps_s: FloatArray
@@ -307,21 +308,31 @@ class LocatedMeasurement:
     headings_rad: FloatArray
     probabilities: FloatArray
     classes: tuple[str, ...]
-    depth_m: FloatArray | None = None
+    depth_m: FloatArray
 
-    def __post_init__(self) -> None:
-        t = _as_float_array(self.timestamps_s, "timestamps_s", ndim=1)
+    def __init__(
+        self,
+        timestamps_s: ArrayLike,
+        positions_m: ArrayLike,
+        headings_rad: ArrayLike,
+        probabilities: ArrayLike,
+        classes: Sequence[str],
+        depth_m: ArrayLike | None = None,
+    ) -> None:
+        t = _as_float_array(timestamps_s, "timestamps_s", ndim=1)
         n = t.size
-        pos = _as_float_array(self.positions_m, "positions_m", ndim=2)
+        pos = _as_float_array(positions_m, "positions_m", ndim=2)
         if pos.shape != (n, 2):
             raise ValueError(f"positions_m must have shape ({n}, 2), got {pos.shape}")
-        heading = _as_float_array(self.headings_rad, "headings_rad", ndim=1)
+        heading = _as_float_array(headings_rad, "headings_rad", ndim=1)
         _check_rows("headings_rad", heading, n)
-        depth = np.full(n, np.nan) if self.depth_m is None else self.depth_m
-        depth = _as_float_array(depth, "depth_m", ndim=1)
+        depth = _as_float_array(np.full(n, np.nan) if depth_m is None else depth_m,
+                                "depth_m", ndim=1)
         _check_rows("depth_m", depth, n)
         # Reuse the probability checks.
-        probs = ClassProbabilities(t, self.probabilities, self.classes)
+        probs = ClassProbabilities(
+            t, _as_float_array(probabilities, "probabilities", ndim=2), tuple(classes)
+        )
         for name, value in (
             ("timestamps_s", t),
             ("positions_m", pos),
@@ -372,7 +383,7 @@ class LocatedMeasurement:
             self.headings_rad[rows],
             self.probabilities[rows],
             self.classes,
-            None if self.depth_m is None else self.depth_m[rows],
+            self.depth_m[rows],
         )
 
 
