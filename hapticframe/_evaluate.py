@@ -95,13 +95,16 @@ def save_outline_figure(
     outline: NDArray[np.float64] | None,
     centroid: Sequence[float] | None,
     level: float,
+    path_m: ArrayLike | None = None,
 ) -> bool:
-    """Draw the estimated outline over the true one with the movement paths (Figs. 3.5, 3.7).
+    """Draw the estimated outline over the true one with the movement paths (Figs. 3.5, 3.7),
+    or, for an open-loop run, with the fingertip path ``path_m``.
 
     Returns False when matplotlib is not installed (figures are optional).
     """
     try:
-        figure = draw_outline_figure(region, scene, movements, outline, centroid, level)
+        figure = draw_outline_figure(region, scene, movements, outline, centroid, level,
+                                     path_m)
     except ImportError:
         return False
     plotting.save_figure(figure, path)
@@ -118,13 +121,17 @@ def draw_outline_figure(
     outline: NDArray[np.float64] | None,
     centroid: Sequence[float] | None,
     level: float,
+    path_m: ArrayLike | None = None,
 ) -> Figure:
     """The Figure of :func:`save_outline_figure`: movements as arrows coloured by phase
-    (start to where the fingertip stopped), crosses where one halted on an interaction."""
+    (start to where the fingertip stopped), crosses where one halted on an interaction; an
+    open-loop run, which has no movements, draws the fingertip path ``path_m`` instead."""
     figure, ax, _ = plotting.map_figure(colorbar=False)
     ax.add_patch(_rectangle(region))
     plotting.draw_outlines(ax, [obj.outline(256) for obj in scene.objects],
-                           label="true outline")
+                           label="true object")
+    if not movements and path_m is not None:
+        plotting.draw_path(ax, path_m)
     phases = list(dict.fromkeys(r.movement.phase or "movement" for r in movements))
     colours = {p: _PHASE_COLOURS[i % len(_PHASE_COLOURS)] for i, p in enumerate(phases)}
     for phase in phases:
@@ -149,8 +156,9 @@ def draw_outline_figure(
         ax.plot(ring[:, 0], ring[:, 1], "k--", lw=1.5, label=f"estimated outline (p = {level:g})")
     if centroid is not None:
         ax.plot(*centroid, "k+", ms=12, mew=2, label="estimated centroid")
-    ax.set(xlabel="x (m)", ylabel="y (m)",
-           title=f"{len(movements)} exploratory movements and the estimated outline")
+    title = (f"{len(movements)} exploratory movements and the estimated outline" if movements
+             else "The fingertip path and the estimated outline")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
     margin = 0.02
     plotting.layout_map(figure, ax, None, (region.x_min_m - margin, region.x_max_m + margin,
                                            region.y_min_m - margin, region.y_max_m + margin))
@@ -294,6 +302,16 @@ def draw_label_figure(
     return figure
 
 
+def _streamed_path(session: Session) -> NDArray[np.float64] | None:
+    """The fingertip path of an open-loop run: the first streamed sensor's ``position_m``."""
+    trace = session.recorder.arrays()
+    for sensor_id in session.components.sensors:
+        path = trace.get(f"sensor/{sensor_id}/position_m")
+        if path is not None and path.size:
+            return np.asarray(path, dtype=np.float64).reshape(-1, 2)
+    return None
+
+
 # --- scoring a finished run -------------------------------------------------------------
 
 
@@ -327,6 +345,7 @@ def score_run(session: Session) -> dict[str, Any]:
             save_outline_figure(
                 session.out_dir / "outline.png", the_map.region, scene, session.movements,
                 outline, out["estimated_centroid_m"], settings.outline_level,
+                None if session.movements else _streamed_path(session),
             )
     out.update(_label_metrics(session))
     out["max_measured_force_n"] = session.max_measured_force_n

@@ -22,7 +22,7 @@ from matplotlib.patches import Patch
 
 from hapticframe import Circle, Scene, plotting, run_experiment, validate_file
 from hapticframe._evaluate import draw_label_figure
-from hapticframe.kinds import BuildContext, Observations, RunOutcome
+from hapticframe.kinds import BuildContext, Observations, Region, RunOutcome
 
 ROOT = Path(__file__).resolve().parents[1]
 SEARCH_FIGURES = {"bhm_mean.png", "bhm_std.png", "forces.png", "logodds_phase1.png",
@@ -202,6 +202,25 @@ def test_belief_snapshots_show_the_truth_and_the_fingertip_path(tmp_path) -> Non
 
 
 # --- the bench's search.png -----------------------------------------------------------------------
+
+
+def test_an_open_loop_outline_figure_draws_the_fingertip_path() -> None:
+    # A run with no exploratory movements (the perception example) draws the streamed path.
+    from hapticframe._evaluate import draw_outline_figure
+
+    scene = Scene(objects=[Circle(center_m=(0.02, 0.0), radius_m=0.02)],
+                  region={"x_min_m": -0.06, "x_max_m": 0.1, "y_min_m": -0.04, "y_max_m": 0.04})
+    x = np.linspace(-0.05, 0.08, 50)
+    path = np.column_stack([x, np.zeros_like(x)])
+    angles = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    outline = np.column_stack([0.02 + 0.018 * np.cos(angles), 0.018 * np.sin(angles)])
+    region = Region(-0.06, 0.1, -0.04, 0.04)
+    figure = draw_outline_figure(region, scene, (), outline, (0.02, 0.0), 0.6, path)
+    labels = check_figure(figure, "outline.png")
+    assert {"true object", "fingertip path", "fingertip", "estimated outline (p = 0.6)"} <= set(
+        labels
+    ), labels
+    assert figure.axes[0].get_title() == "The fingertip path and the estimated outline"
 
 
 def test_search_png_marks_not_found_trials_apart_from_the_errors() -> None:
