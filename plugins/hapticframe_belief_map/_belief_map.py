@@ -431,7 +431,7 @@ class BeliefMap(Map):
             # "Contact" here is the decided contact: an observation with P(contact) > 0.5.
             titles = {
                 "first_contact": "(a) first decided contact",
-                "mid_contact": "(b) mid-contact",
+                "mid_contact": "(b) middle decided contact",
                 "last_contact": "(c) last decided contact",
             }
             for moment, snapshot in snapshots.items():
