@@ -9,7 +9,7 @@ Passing ``EMDFeaturesConfig(emd_backend="numpy")`` and
 same way, for side-by-side figures. :func:`measure_step_latency` times one classifier
 step alone, :func:`compare_emd_with_pyemd` our EMD against PyEMD. The whole chain with the
 trained SF-RNN on the perception data is timed by ``hapticframe bench perception``
-(:func:`._perception.measure_streaming_latency`).
+(:func:`measure_streaming_latency`). Both time frames with one loop, :func:`_time_frames`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,11 @@ from __future__ import annotations
 import json
 import os
 import platform
+import sys
 import time
-from contextlib import AbstractContextManager, nullcontext
+from collections.abc import Iterator, Sequence
+from contextlib import AbstractContextManager, contextmanager, nullcontext
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -41,6 +44,7 @@ __all__ = [
     "compare_emd_with_pyemd",
     "measure_chain_latency",
     "measure_step_latency",
+    "measure_streaming_latency",
     "run_latency_bench",
     "synthetic_biotac_frames",
 ]
@@ -97,6 +101,66 @@ def _one_thread() -> AbstractContextManager[Any]:
     except ImportError:
         return nullcontext()
     return threadpool_limits(limits=1)
+
+
+@contextmanager
+def _torch_one_thread() -> Iterator[None]:
+    """Hold torch to one intra-op thread while timing, when torch is loaded at all."""
+    torch = sys.modules.get("torch")
+    if torch is None:
+        yield
+        return
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def _time_frames(
+    recordings: Sequence[SampleBatch],
+    extractor: Any,
+    coder: Any,
+    classifier: Any,
+    n_frames: int,
+) -> dict[str, np.ndarray]:
+    """Stream ``recordings`` one frame at a time through ``extractor`` → ``coder`` (→
+    ``classifier``) and time each frame, up to ``n_frames`` in all.
+
+    The extractor and classifier are reset at the start of each recording (a new trial is a
+    new stream). Returns per-frame milliseconds: ``emd``, ``coding``, ``classify`` (zero
+    without a classifier), ``total`` (wall clock) and ``cpu`` (this thread's CPU time).
+    Run it inside :func:`_one_thread`; torch is held to one thread here.
+    """
+    emd_ms, coding_ms, classify_ms, total_ms, cpu_ms = (np.zeros(n_frames) for _ in range(5))
+    done = 0
+    with _torch_one_thread():
+        for recording in recordings:
+            extractor.reset()
+            if classifier is not None:
+                classifier.reset()
+            for i in range(len(recording)):
+                if done >= n_frames:
+                    break
+                frame = recording.select(slice(i, i + 1))
+                cpu_start = time.thread_time()
+                start = time.perf_counter()
+                features = extractor.update(frame)
+                middle = time.perf_counter()
+                codes = coder.update(features)
+                coded = time.perf_counter()
+                if classifier is not None:
+                    classifier.update(codes)
+                end = time.perf_counter()
+                cpu_ms[done] = 1e3 * (time.thread_time() - cpu_start)
+                emd_ms[done] = 1e3 * (middle - start)
+                coding_ms[done] = 1e3 * (coded - middle)
+                classify_ms[done] = 1e3 * (end - coded)
+                total_ms[done] = 1e3 * (end - start)
+                done += 1
+    return {"emd": emd_ms[:done], "coding": coding_ms[:done], "classify": classify_ms[:done],
+            "total": total_ms[:done], "cpu": cpu_ms[:done]}
 
 
 def measure_chain_latency(
@@ -159,29 +223,10 @@ def measure_chain_latency(
         frames = synthetic_biotac_frames(n_frames, rng)
         # Load (or compile) the numba kernels outside the timed loop.
         coder.update(extractor.transform(synthetic_biotac_frames(emd_cfg.delay_frames + 1, rng)))
-        extractor.reset()
-        if classifier is not None:
-            classifier.reset()
-        emd_ms = np.zeros(n_frames)
-        classify_ms = np.zeros(n_frames)
-        total_ms = np.zeros(n_frames)
-        cpu_ms = np.zeros(n_frames)
-        for i in range(n_frames):
-            frame = frames.select(slice(i, i + 1))
-            cpu_start = time.thread_time()
-            start = time.perf_counter()
-            features = extractor.update(frame)
-            middle = time.perf_counter()
-            codes = coder.update(features)
-            coded = time.perf_counter()
-            if classifier is not None:
-                classifier.update(codes)
-            end = time.perf_counter()
-            cpu_ms[i] = 1e3 * (time.thread_time() - cpu_start)
-            emd_ms[i] = 1e3 * (middle - start)
-            classify_ms[i] = 1e3 * (end - coded)
-            total_ms[i] = 1e3 * (end - start)
-    coding_ms = total_ms - emd_ms - classify_ms
+        times = _time_frames([frames], extractor, coder, classifier, n_frames)
+    emd_ms, classify_ms, total_ms, cpu_ms = (
+        times["emd"], times["classify"], times["total"], times["cpu"])
+    coding_ms = times["coding"]
     classify = ({"classify_ms_median": float(np.median(classify_ms)),
                  "classify_ms_p99": float(np.percentile(classify_ms, 99))}
                 if classifier is not None else {})
@@ -202,6 +247,59 @@ def measure_chain_latency(
         "threads": 1,
         "machine": f"{platform.machine()} {platform.system()}, {os.cpu_count()} CPUs, "
         f"Python {platform.python_version()}",
+    }
+
+
+def measure_streaming_latency(
+    coder: Any, model_dir: str | Path, frames: int, seed: int,
+    emd_settings: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Per-frame time of emd-features → sparse-coding → SF-RNN on robustness trials, one thread.
+
+    Fresh robustness trials, tared in open air as in training, are streamed one frame at a
+    time through a new ``emd-features``, the perception run's fitted ``sparse-coding``
+    (``coder``) and its seed-0 all-modality SF-RNN (loaded from ``model_dir``); each stage
+    is timed (:func:`_time_frames`). ``hapticframe bench perception`` reports it.
+    """
+    from hapticframe_biotac import (
+        BioTacFrames,
+        generate_trial,
+        layout_for,
+        open_air_frames,
+        robustness_specs,
+        tare_in_air,
+    )
+    from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
+
+    model = SFRNNClassifier(SFRNNConfig(model_dir=str(model_dir), progress=False),
+                            BuildContext("sf-rnn", np.random.default_rng(seed)))
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 17]))
+    specs = robustness_specs(rng)
+    recordings: list[SampleBatch] = []
+    total = 0
+    for i in rng.permutation(len(specs)):
+        trial = generate_trial(specs[i], rng)
+        recorded = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
+                                trial.tac, trial.tdc, trial.electrodes)
+        air = open_air_frames(trial, 10, rng)
+        recordings.append(tare_in_air(recorded, air).to_sample_batch())
+        total += len(recordings[-1])
+        if total >= frames:
+            break
+    extractor = EMDFeatureExtractor(EMDFeaturesConfig(**(emd_settings or {})),
+                                    BuildContext("emd", np.random.default_rng(0)))
+    with _one_thread():
+        times = _time_frames(recordings, extractor, coder, model, frames)
+    stages = {"emd": times["emd"], "coding": times["coding"], "sfrnn": times["classify"]}
+    return {
+        "latency_ms_median": float(np.median(times["total"])),
+        "latency_ms_p99": float(np.percentile(times["total"], 99)),
+        "latency_ms_max": float(times["total"].max()),
+        "cpu_ms_median": float(np.median(times["cpu"])),
+        "frames": int(times["total"].size),
+        "stages_ms_median": {k: float(np.median(v)) for k, v in stages.items()},
+        "stages_ms_p99": {k: float(np.percentile(v, 99)) for k, v in stages.items()},
+        "threads": 1,
     }
 
 

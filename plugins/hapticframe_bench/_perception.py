@@ -39,6 +39,7 @@ import numpy as np
 from hapticframe import BenchOptions, UsageError
 from hapticframe_sfrnn import balanced_accuracy
 
+from ._latency import measure_streaming_latency
 from ._perception_data import build_perception_data
 from ._perception_jobs import job_fingerprint, keep_job, kept_job, model_digest
 from ._perception_models import (
@@ -60,7 +61,6 @@ __all__ = [
     "PERCEPTION_TARGETS",
     "QUICK_PLAN",
     "SuitePlan",
-    "measure_streaming_latency",
     "plan_for",
     "run_perception",
     "run_suite",
@@ -492,84 +492,6 @@ def _diagnostics(model: TrainedModel, cell: dict[str, float]) -> dict[str, Any]:
         "train_trials": metrics.get("train_trials"),
         "validation_trials": metrics.get("validation_trials"),
         "validation_source": metrics.get("validation_source"),
-    }
-
-
-def measure_streaming_latency(
-    coder: Any, model_dir: str | Path, frames: int, seed: int,
-    emd_settings: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """Per-frame time of emd-features → sparse-coding → SF-RNN on robustness trials, one thread.
-
-    Fresh robustness trials, tared in open air as in training, are streamed one frame at a time
-    through a new ``emd-features``, the run's fitted ``sparse-coding`` and the run's seed-0
-    all-modality SF-RNN (loaded from ``model_dir``); each stage is timed.
-    """
-    import torch
-    from threadpoolctl import threadpool_limits
-
-    from hapticframe.kinds import BuildContext, SampleBatch
-    from hapticframe_biotac import (
-        BioTacFrames,
-        generate_trial,
-        layout_for,
-        open_air_frames,
-        robustness_specs,
-        tare_in_air,
-    )
-    from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
-    from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig
-
-    model = SFRNNClassifier(SFRNNConfig(model_dir=str(model_dir), progress=False),
-                            BuildContext("sf-rnn", np.random.default_rng(seed)))
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 17]))
-    specs = robustness_specs(rng)
-    batches: list[SampleBatch] = []
-    total = 0
-    for i in rng.permutation(len(specs)):
-        trial = generate_trial(specs[i], rng)
-        recorded = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
-                                trial.tac, trial.tdc, trial.electrodes)
-        air = open_air_frames(trial, 10, rng)
-        batches.append(tare_in_air(recorded, air).to_sample_batch())
-        total += len(batches[-1])
-        if total >= frames:
-            break
-    extractor = EMDFeatureExtractor(EMDFeaturesConfig(**(emd_settings or {})),
-                                    BuildContext("emd", np.random.default_rng(0)))
-    stage: dict[str, list[float]] = {"emd": [], "coding": [], "sfrnn": [], "total": []}
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        with threadpool_limits(limits=1):
-            for batch in batches:
-                extractor.reset()
-                model.reset()
-                for i in range(len(batch)):
-                    if len(stage["total"]) >= frames:
-                        break
-                    frame = batch.select(slice(i, i + 1))
-                    t0 = time.perf_counter()
-                    features = extractor.update(frame)
-                    t1 = time.perf_counter()
-                    codes = coder.update(features)
-                    t2 = time.perf_counter()
-                    model.update(codes)
-                    t3 = time.perf_counter()
-                    for name, value in (("emd", t1 - t0), ("coding", t2 - t1), ("sfrnn", t3 - t2),
-                                        ("total", t3 - t0)):
-                        stage[name].append(1e3 * value)
-    finally:
-        torch.set_num_threads(previous)
-    total_ms = np.asarray(stage["total"])
-    return {
-        "latency_ms_median": float(np.median(total_ms)),
-        "latency_ms_p99": float(np.percentile(total_ms, 99)),
-        "latency_ms_max": float(total_ms.max()),
-        "frames": int(total_ms.size),
-        "stages_ms_median": {k: float(np.median(v)) for k, v in stage.items() if k != "total"},
-        "stages_ms_p99": {k: float(np.percentile(v, 99)) for k, v in stage.items() if k != "total"},
-        "threads": 1,
     }
 
 

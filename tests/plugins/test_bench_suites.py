@@ -89,6 +89,42 @@ def test_bhm_suite_prints_and_writes_each_target_with_its_verdict(tmp_path, monk
 # --- latency -------------------------------------------------------------------------------------
 
 
+def test_both_latency_suites_time_frames_with_one_thread_and_a_fresh_stream_per_trial() -> None:
+    # bench latency and bench perception share one timing loop: the classifier is reset at
+    # each recording, torch runs on one thread, and timing stops after n_frames in all.
+    torch = pytest.importorskip("torch")
+    from hapticframe.kinds import SampleBatch
+    from hapticframe_bench._latency import _time_frames
+
+    class Stage:
+        def __init__(self) -> None:
+            self.resets = 0
+            self.threads: list[int] = []
+
+        def reset(self) -> None:
+            self.resets += 1
+
+        def update(self, batch: object) -> object:
+            self.threads.append(torch.get_num_threads())
+            return batch
+
+    recordings = [SampleBatch(np.arange(n) / 100.0, {"x": np.zeros(n)}) for n in (3, 4, 5)]
+    extractor, coder, classifier = Stage(), Stage(), Stage()
+    original = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        times = _time_frames(recordings, extractor, coder, classifier, 9)
+        assert torch.get_num_threads() == 2  # restored afterwards
+    finally:
+        torch.set_num_threads(original)
+    assert extractor.resets == classifier.resets == 3  # one fresh stream per recording
+    assert classifier.threads == [1] * 9  # 3 + 4 + the first 2 of the last
+    assert {k: v.size for k, v in times.items()} == dict.fromkeys(
+        ("emd", "coding", "classify", "total", "cpu"), 9
+    )
+    assert np.all(times["total"] >= times["emd"])
+
+
 def test_latency_probe_reports_its_figures() -> None:
     from hapticframe_tactile_features import EMDFeaturesConfig, SparseCodingConfig
 
