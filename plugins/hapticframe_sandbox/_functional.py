@@ -273,8 +273,9 @@ def trapezoid_timing(
     a = float(acceleration_m_per_s2)
     peak = min(float(speed_m_per_s), math.sqrt(a * length_m))
     ramp = peak / a
-    # Cruise covers what the two ramps (each peak² / 2a) leave of the length.
-    cruise = (length_m - peak * peak / a) / peak if peak > 0 else 0.0
+    # Cruise covers what the two ramps (each peak² / 2a) leave of the length; none in a
+    # triangle (where rounding could otherwise leave a sliver).
+    cruise = (length_m - peak * peak / a) / peak if peak == speed_m_per_s else 0.0
     cruise = max(cruise, 0.0)
     return TrapezoidTiming(peak, ramp, ramp + cruise, 2 * ramp + cruise)
 
