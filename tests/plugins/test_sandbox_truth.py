@@ -81,7 +81,7 @@ def valid_truth(**overrides) -> PhysicalTruth:
     return PhysicalTruth(**fields)
 
 
-# --- the record and the protocol ------------------------------------------------------------
+# --- the record and the protocol --------------------------------------------------------------
 
 
 def test_the_record_owns_read_only_float_arrays():
@@ -142,7 +142,7 @@ def test_config_bounds():
     )
 
 
-# --- the default config changes nothing ----------------------------------------------------------
+# --- the default config changes nothing -------------------------------------------------------
 
 SEQUENCE = (
     ExploratoryMovement((0.05, 0.45), (0.2, 0.40)),
@@ -218,7 +218,7 @@ def test_default_profile_truth_has_constant_velocity_and_no_acceleration():
     np.testing.assert_array_equal([s.speed_m_per_s for s in states], 0.05)
 
 
-# --- the trapezoidal speed profile -----------------------------------------------------------------
+# --- the trapezoidal speed profile ------------------------------------------------------------
 
 
 @pytest.mark.parametrize(
@@ -300,7 +300,7 @@ def test_a_halt_stops_at_once_and_the_next_movement_starts_from_rest():
     assert truth.position_m[0] == pytest.approx(0.05 + 0.25 * DT**2)
 
 
-# --- sample-and-hold ---------------------------------------------------------------------------
+# --- sample-and-hold --------------------------------------------------------------------------
 
 
 def test_truth_between_steps_is_sample_and_hold():
@@ -336,7 +336,7 @@ def test_truth_between_steps_is_sample_and_hold():
     assert same(robot.physical_truth(robot.truth_time_s), last)
 
 
-# --- the inertial and wrench numbers ---------------------------------------------------------------
+# --- the inertial and wrench numbers ----------------------------------------------------------
 
 
 def test_inertial_load_orientation_and_torque():
@@ -385,7 +385,7 @@ def test_inertial_load_orientation_and_torque():
     assert mid.torque_nm[0] == pytest.approx(height * mid.force_n[1])
 
 
-# --- rewind and the kit ---------------------------------------------------------------------------
+# --- rewind and the kit -----------------------------------------------------------------------
 
 
 def test_rewind_restores_the_truth():
