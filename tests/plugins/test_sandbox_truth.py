@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -419,3 +421,33 @@ def test_the_robot_with_a_speed_profile_passes_the_kit(config):
     assert results and all(r.status == "PASS" for r in results), [
         (r.check, r.status, r.message) for r in results if r.status != "PASS"
     ]
+
+
+def test_the_documented_sensor_physics_removes_the_sandbox_inertia():
+    # The snippet of docs/simulated-devices.md, run on the sandbox's truth: the F/T reading
+    # holds m (a + g) in the tool frame, and the observer's Eq. 3.10 recovers the force.
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "simulated-devices.md").read_text()
+    snippet = re.findall(r"```python\n(.*?)```", doc, re.S)[1]
+    namespace: dict = {}
+    exec(snippet, namespace)
+    mass, accel = 0.8, 0.5
+    robot, _ = robot_and_sensor(acceleration_m_per_s2=accel)
+    states = steps(robot, ExploratoryMovement((0.05, 0.05), (0.25, 0.15)))
+    first = robot.physical_truth(states[0].timestamp_s)
+    r_ti = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # IMU yawed 90 deg
+    offset = np.array([0.5, -0.2, 1.0])
+    force, torque = namespace["ft_readings"](first, r_ti, offset)
+    r_wt = first.rotation_matrix
+    np.testing.assert_allclose(
+        force - r_wt.T @ first.force_n - offset, [mass * accel, 0, mass * STANDARD_GRAVITY],
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(torque, r_wt.T @ first.torque_nm, atol=1e-15)
+    for state in states[::7]:
+        truth = robot.physical_truth(state.timestamp_s)
+        force, _ = namespace["ft_readings"](truth, r_ti, offset)
+        a_imu = namespace["imu_readings"](truth, r_ti)["acceleration_m_per_s2"]
+        np.testing.assert_allclose(
+            force - mass * r_ti @ a_imu - offset, truth.rotation_matrix.T @ truth.force_n,
+            atol=1e-12,
+        )
