@@ -15,12 +15,13 @@ from ._records import (
     MapEstimate,
     MovementResult,
     Observations,
+    PhysicalTruth,
     Region,
     RobotState,
     SampleBatch,
     concatenate_batches,
 )
-from .capabilities import GridQueryable, Persistent, Trainable
+from .capabilities import GridQueryable, Persistent, PhysicalTruthSource, Trainable
 from .classifier import Classifier
 from .feature_extractor import FeatureExtractor
 from .map import Map
@@ -44,6 +45,8 @@ __all__ = [
     "MovementResult",
     "Observations",
     "Persistent",
+    "PhysicalTruth",
+    "PhysicalTruthSource",
     "Planner",
     "Region",
     "Robot",

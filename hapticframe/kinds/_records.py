@@ -29,6 +29,7 @@ __all__ = [
     "MapEstimate",
     "MovementResult",
     "Observations",
+    "PhysicalTruth",
     "Region",
     "RobotState",
     "SampleBatch",
@@ -564,3 +565,104 @@ class MovementResult:
     def interacted(self) -> bool:
         """True when the movement ended in a non-background state."""
         return self.halt_reason == "interaction"
+
+
+# --- physical truth of simulated robots (issue 14, DESIGN §2) ---------------------------------
+
+#: Shape of each array field of :class:`PhysicalTruth`.
+_TRUTH_SHAPES = {
+    "position_m": (3,),
+    "orientation_wxyz": (4,),
+    "linear_velocity_m_per_s": (3,),
+    "linear_acceleration_m_per_s2": (3,),
+    "angular_velocity_rad_per_s": (3,),
+    "force_n": (3,),
+    "torque_nm": (3,),
+}
+
+
+@dataclass(frozen=True)
+class PhysicalTruth:
+    """A simulated robot's physical state at one instant, in the world frame (REP 103:
+    x forward, z up).
+
+    What a simulation hands to device emulators (a wrist force/torque sensor, an IMU) so that
+    they can synthesise the readings a real device on the tool would give; see
+    :class:`hapticframe.kinds.capabilities.PhysicalTruthSource`.
+
+    Parameters
+    ----------
+    timestamp_s : float
+        Simulation time of the state.
+    position_m : (3,) float64
+        Origin of the wrist force/torque sensor in the world frame. Each robot documents
+        where its world z = 0 lies (the sandbox: the free surface of the sand).
+    orientation_wxyz : (4,) float64
+        Unit quaternion (w, x, y, z) of the tool frame in the world frame (world ← tool):
+        it maps a vector in tool coordinates to world coordinates. Tool x is the heading
+        direction, tool z points up when the tool is upright.
+    linear_velocity_m_per_s : (3,) float64
+        Velocity of the sensor origin in the world frame.
+    linear_acceleration_m_per_s2 : (3,) float64
+        Kinematic acceleration of the sensor origin in the world frame, gravity NOT
+        included (an accelerometer at rest reads the opposite of gravity; that is the
+        emulator's part).
+    angular_velocity_rad_per_s : (3,) float64
+        Angular velocity of the tool in the world frame.
+    force_n : (3,) float64
+        Force the environment exerts on the tool, in the world frame (a plate dragged
+        through sand feels a force against its motion).
+    torque_nm : (3,) float64
+        Torque of that environment force about the sensor origin, in the world frame.
+    end_effector_mass_kg : float
+        Mass beyond the wrist sensor (what the sensor weighs and accelerates), non-negative.
+
+    Notes
+    -----
+    Every array is copied into a read-only float64 array the record owns (a read-only
+    float64 array is taken as it is). Every value must be finite and the quaternion of unit
+    norm (to 1e-6); a malformed record raises ``ValueError`` where it is built.
+    """
+
+    timestamp_s: float
+    position_m: FloatArray
+    orientation_wxyz: FloatArray
+    linear_velocity_m_per_s: FloatArray
+    linear_acceleration_m_per_s2: FloatArray
+    angular_velocity_rad_per_s: FloatArray
+    force_n: FloatArray
+    torque_nm: FloatArray
+    end_effector_mass_kg: float
+
+    def __post_init__(self) -> None:
+        timestamp = float(self.timestamp_s)
+        if not math.isfinite(timestamp):
+            raise ValueError("timestamp_s must be finite")
+        object.__setattr__(self, "timestamp_s", timestamp)
+        for name, shape in _TRUTH_SHAPES.items():
+            array = _as_float_array(getattr(self, name), name)
+            if array.shape != shape:
+                raise ValueError(f"{name} must have shape {shape}, got {array.shape}")
+            # A finite sum means every entry is finite (NaN and infinities propagate).
+            if not math.isfinite(sum(array.tolist())):
+                raise ValueError(f"{name} contains NaN or infinity")
+            object.__setattr__(self, name, array)
+        norm = math.sqrt(sum(v * v for v in self.orientation_wxyz.tolist()))
+        if abs(norm - 1.0) > 1e-6:
+            raise ValueError(f"orientation_wxyz must be a unit quaternion, got norm {norm:.9g}")
+        mass = float(self.end_effector_mass_kg)
+        if not (math.isfinite(mass) and mass >= 0):
+            raise ValueError(f"end_effector_mass_kg must be non-negative and finite, got {mass}")
+        object.__setattr__(self, "end_effector_mass_kg", mass)
+
+    @property
+    def rotation_matrix(self) -> FloatArray:
+        """The (3, 3) rotation matrix of :attr:`orientation_wxyz` (world ← tool)."""
+        w, x, y, z = self.orientation_wxyz.tolist()
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )

@@ -14,6 +14,9 @@ intent and lets a type checker hold the signatures to the protocol's.
   saves each fitted persistent component into ``DIR/<component id>/``.
 - :class:`GridQueryable`: a map that computes its mean and std on a regular grid faster
   than :meth:`~hapticframe.kinds.Map.query` on the same points; planners use it when offered.
+- :class:`PhysicalTruthSource`: a simulated robot that exposes its physical state per step
+  (a :class:`~hapticframe.kinds.PhysicalTruth`), so that device emulators can be driven by
+  the simulation.
 """
 
 from __future__ import annotations
@@ -25,7 +28,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["GridQueryable", "Persistent", "Trainable"]
+from ._records import PhysicalTruth
+
+__all__ = ["GridQueryable", "Persistent", "PhysicalTruthSource", "Trainable"]
 
 FloatArray = NDArray[np.float64]
 
@@ -73,4 +78,37 @@ class GridQueryable(Protocol):
         of a grid of about ``spacing_m`` over the region, and the occupancy mean and its
         standard deviation there, each ``(ny, nx)`` (the values :meth:`Map.query` gives at
         those points, to rounding)."""
+        ...
+
+
+# --- physical truth of simulated robots (issue 14, DESIGN §2) ---------------------------------
+
+
+@runtime_checkable
+class PhysicalTruthSource(Protocol):
+    """A simulation that exposes its physical truth, so that any device emulator can be
+    driven by it.
+
+    A simulated robot implements this (the sandbox robot does); an emulated sensor whose
+    inputs name such a robot asks ``isinstance(robot, PhysicalTruthSource)`` and, at each
+    ``read()``, advances its own (fake) clock to :attr:`truth_time_s` and draws the values
+    its device would report at time ``t`` from :meth:`physical_truth` ``(t)``. No plugin
+    needs another plugin's private methods for this.
+
+    Conventions (world frame, REP 103: x forward, z up; SI units): the record's position is
+    the wrist sensor's origin; the force and torque are what the environment exerts on the
+    tool (the torque about the sensor origin); the acceleration is kinematic, gravity not
+    included. Sensor physics (specific force, sensor frames, the end effector's inertial
+    load) belongs to the emulators: see ``docs/simulated-devices.md``.
+    """
+
+    def physical_truth(self, timestamp_s: float) -> PhysicalTruth:
+        """The state of the latest simulation step at or before ``timestamp_s``
+        (sample-and-hold); the current state when ``timestamp_s`` is at or after
+        :attr:`truth_time_s`. Before the first step: the state the simulation starts from."""
+        ...
+
+    @property
+    def truth_time_s(self) -> float:
+        """Time of the latest step, in seconds (the simulation clock)."""
         ...

@@ -95,6 +95,23 @@ class SandboxRobotConfig(PluginConfig):
     sector_angular_samples: int = Field(
         21, ge=1, description="Rays across the failure zone (odd keeps one on the axis)."
     )
+    # The tool's inertia and the wrist sensor, for the physical truth that drives emulated
+    # force/torque sensors and IMUs (docs/simulated-devices.md).
+    end_effector_mass_kg: float = Field(
+        0.8, gt=0, description="Mass beyond the wrist force/torque sensor (plate and mount)."
+    )
+    acceleration_m_per_s2: float | None = Field(
+        None,
+        gt=0,
+        description="Acceleration at the start and deceleration at the end of each movement "
+        "(a trapezoidal speed profile); None starts and stops at once (constant speed).",
+    )
+    sensor_height_m: float = Field(
+        0.1,
+        ge=0,
+        description="Height of the wrist sensor's origin above the fingertip: the lever arm "
+        "of the environment force's torque.",
+    )
 
     @model_validator(mode="after")
     def _depths_consistent(self) -> SandboxRobotConfig:

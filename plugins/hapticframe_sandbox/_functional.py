@@ -14,7 +14,9 @@ Units: metres, seconds, newtons, radians, except parameters whose names end in `
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,7 +30,10 @@ __all__ = [
     "plate_edge_points",
     "sector_ray_points",
     "shear_cycle_factor",
+    "TrapezoidTiming",
     "startup_factor",
+    "trapezoid_motion",
+    "trapezoid_timing",
     "unit_vector",
 ]
 
@@ -240,3 +245,59 @@ def contact_force_n(penetration_m: ArrayLike, stiffness_n_per_m: float) -> Float
     p = np.clip(np.asarray(penetration_m, dtype=np.float64), 0.0, None)
     out = stiffness_n_per_m * p
     return float(out) if out.ndim == 0 else out
+
+
+# --- speed profile ------------------------------------------------------------------------------
+
+
+class TrapezoidTiming(NamedTuple):
+    """Timing of a trapezoidal speed profile over one straight movement (seconds, m/s)."""
+
+    peak_speed_m_per_s: float
+    ramp_end_s: float
+    cruise_end_s: float
+    total_s: float
+
+
+def trapezoid_timing(
+    length_m: float, speed_m_per_s: float, acceleration_m_per_s2: float
+) -> TrapezoidTiming:
+    """Accelerate at ``acceleration_m_per_s2`` to ``speed_m_per_s``, cruise, decelerate to
+    stop after ``length_m``.
+
+    A movement shorter than ``speed² / acceleration`` never reaches the speed: its profile is
+    a triangle peaking at ``sqrt(acceleration x length)`` halfway (no cruise).
+    """
+    if not (length_m >= 0 and speed_m_per_s > 0 and acceleration_m_per_s2 > 0):
+        raise ValueError("need length_m >= 0, speed_m_per_s > 0 and acceleration_m_per_s2 > 0")
+    a = float(acceleration_m_per_s2)
+    peak = min(float(speed_m_per_s), math.sqrt(a * length_m))
+    ramp = peak / a
+    # Cruise covers what the two ramps (each peak² / 2a) leave of the length; none in a
+    # triangle (where rounding could otherwise leave a sliver).
+    cruise = (length_m - peak * peak / a) / peak if peak == speed_m_per_s else 0.0
+    cruise = max(cruise, 0.0)
+    return TrapezoidTiming(peak, ramp, ramp + cruise, 2 * ramp + cruise)
+
+
+def trapezoid_motion(
+    elapsed_s: float, length_m: float, acceleration_m_per_s2: float, timing: TrapezoidTiming
+) -> tuple[float, float]:
+    """Distance travelled and speed ``elapsed_s`` after the start of a trapezoidal profile.
+
+    Plain floats in and out (the robot calls it once per control step). Before the start:
+    ``(0, 0)``; from ``timing.total_s`` on: ``(length_m, 0)``.
+    """
+    a = acceleration_m_per_s2
+    peak, ramp_end, cruise_end, total = timing
+    if elapsed_s <= 0.0:
+        return 0.0, 0.0
+    if elapsed_s >= total:
+        return length_m, 0.0
+    if elapsed_s < ramp_end:
+        return 0.5 * a * elapsed_s * elapsed_s, a * elapsed_s
+    if elapsed_s < cruise_end:
+        return 0.5 * peak * ramp_end + peak * (elapsed_s - ramp_end), peak
+    # Decelerating: mirror the ramp from the end, so the profile ends exactly at length_m.
+    remaining = total - elapsed_s
+    return length_m - 0.5 * a * remaining * remaining, a * remaining

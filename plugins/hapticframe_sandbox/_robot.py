@@ -5,11 +5,18 @@ straight exploratory movement, places the failure zone ahead of it (thesis Eq. 3
 3.2), and computes the true interaction force: free plate drag modulated by the shear-band
 nucleation cycle, a jamming surge once the failure zone reaches an object, and a stiff
 contact force once the plate does. The sandbox force sensor reads that force from here.
+
+The robot is also a :class:`~hapticframe.kinds.PhysicalTruthSource`: per step it exposes the
+tool's pose, velocity, acceleration and the environment's force and torque on it as a
+:class:`~hapticframe.kinds.PhysicalTruth`, which drives emulated wrist force/torque sensors and
+IMUs (``docs/simulated-devices.md``). With ``acceleration_m_per_s2`` set, each movement follows
+a trapezoidal speed profile, so that the tool's inertia shows in those sensors.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +29,8 @@ from hapticframe.kinds import (
     BuildContext,
     ExploratoryMovement,
     MovementResult,
+    PhysicalTruth,
+    PhysicalTruthSource,
     Robot,
     RobotState,
     RunOutcome,
@@ -101,8 +110,12 @@ class MovementTruth:
         return self.max_state >= JAMMING
 
 
-class SandboxRobot(Robot):
+class SandboxRobot(Robot, PhysicalTruthSource):
     """Simulated robot that rakes a rigid plate through a sandbox at constant depth and speed.
+
+    With ``acceleration_m_per_s2`` set, the speed follows a trapezoid within each movement
+    (accelerate, cruise at the movement's speed, decelerate to stop at the end point); a
+    halt still stops at once. See :meth:`physical_truth` for the state it exposes.
 
     Parameters
     ----------
@@ -161,6 +174,15 @@ class SandboxRobot(Robot):
         self._log_depth: list[float] = []
         self._movements: list[MovementTruth] = []
         self._max_force = 0.0
+        # Physical truth: (heading, speed, acceleration along the heading) per step, beside
+        # the logs above; records are built only when asked for (physical_truth).
+        self._log_motion: list[tuple[float, float, float]] = []
+        self._accel = config.acceleration_m_per_s2
+        self._profile: F.TrapezoidTiming | None = None
+        self._em_steps = 0
+        self._truth_speed = 0.0
+        # The pose held before the first step: (x, y, heading, depth), at rest.
+        self._origin = (*home.tolist(), 0.0, config.depth_m)
 
     # --- Robot interface -----------------------------------------------------------------
 
@@ -224,21 +246,46 @@ class SandboxRobot(Robot):
         self._contact_onset = math.nan
         self._active = self._length > 0.0
         self._state = RobotState(self._time, self._start, self._heading, depth, 0.0)
+        self._em_steps = 0
+        self._truth_speed = 0.0
+        self._profile = (
+            None
+            if self._accel is None
+            else F.trapezoid_timing(self._length, self._speed, self._accel)
+        )
+        if not self._log_t:
+            self._origin = (*self._start_xy, self._heading, depth)
 
     def step(self) -> RobotState | None:
         if not self._active:
             return None
-        advance = min(self._speed * self._dt, self._length - self._travelled)
-        self._travelled += advance
+        if self._profile is None:
+            # Instantaneous start and stop: the commanded speed throughout, no acceleration.
+            advance = min(self._speed * self._dt, self._length - self._travelled)
+            self._travelled += advance
+            speed, acceleration = self._speed, 0.0
+        else:
+            self._em_steps += 1
+            travelled, speed = F.trapezoid_motion(
+                self._em_steps * self._dt, self._length, self._accel or 0.0, self._profile
+            )
+            if travelled >= self._length:
+                travelled, speed = self._length, 0.0
+            # Monotone despite rounding at the profile's corners.
+            travelled = max(travelled, self._travelled)
+            advance = travelled - self._travelled
+            self._travelled = travelled
+            # The mean acceleration over the step: velocities integrate exactly from it.
+            acceleration = (speed - self._truth_speed) / self._dt
+            self._truth_speed = speed
         # Time from the global step count: exact, and strictly increasing across movements.
         self._time = (len(self._log_t) + 1) * self._dt
         (sx, sy), (dx, dy), travelled = self._start_xy, self._direction_xy, self._travelled
         position = (sx + travelled * dx, sy + travelled * dy)
         force, true_state = self._interaction(position, advance)
         magnitude = self._record(position, force, true_state)
-        self._state = RobotState(
-            self._time, np.array(position), self._heading, self._depth, self._speed
-        )
+        self._log_motion.append((self._heading, speed, acceleration))
+        self._state = RobotState(self._time, np.array(position), self._heading, self._depth, speed)
         if magnitude > self.config.force_limit_n:
             self.halt("force_limit")
         elif self._travelled >= self._length:
@@ -264,7 +311,7 @@ class SandboxRobot(Robot):
         if attributes["_index"] != self._index or logged > len(self._log_t):
             raise ValueError(f"robot {self.id!r}: the checkpoint is not from this movement")
         for log in (self._log_t, self._log_pos, self._log_state, self._log_force,
-                    self._log_index, self._log_depth):
+                    self._log_index, self._log_depth, self._log_motion):
             del log[logged:]
         self.__dict__.update(attributes)
         self._rng.bit_generator.state = generator
@@ -284,6 +331,81 @@ class SandboxRobot(Robot):
             "max_force_n": float(self._max_force),
             "object_interactions": int(sum(m.interacted for m in self._movements)),
         }
+
+    # --- physical truth (PhysicalTruthSource) --------------------------------------------
+
+    @property
+    def truth_time_s(self) -> float:
+        """Time of the latest step (0 before the first): the simulation clock."""
+        return self._time
+
+    def physical_truth(self, timestamp_s: float) -> PhysicalTruth:
+        """The tool's physical state at the latest step at or before ``timestamp_s``.
+
+        Sample-and-hold: a time between two steps gets the earlier step's state (its
+        ``timestamp_s`` is that step's time); a time at or after :attr:`truth_time_s` the
+        latest step's; a time before the first step the pose the robot starts from, at rest
+        with no force. Between movements the tool moves to the next start point at once: the
+        next movement's first step shows it there.
+
+        Conventions (world frame, z up; details in ``docs/simulated-devices.md``):
+
+        - ``position_m``: the wrist sensor's origin, ``(x, y, sensor_height_m - depth)``;
+          world z = 0 is the free surface of the sand and the fingertip is at ``-depth``.
+        - ``orientation_wxyz``: a yaw by the heading about z (tool x along the motion, tool
+          z up); the plate never tilts, so the angular velocity is zero (a heading changes
+          only between movements).
+        - velocity and acceleration along the heading; the acceleration of a step is the
+          mean over the step (the speed change divided by the period), so zero while
+          cruising and always zero without ``acceleration_m_per_s2``. A halt stops the tool
+          at once: no deceleration is shown for it.
+        - ``force_n``: the sandbox's 2-D force on the plate as ``(fx, fy, 0)``: the force the
+          sand exerts on the tool, against the motion in free raking.
+        - ``torque_nm``: that force acting at the fingertip, ``sensor_height_m`` below the
+          sensor origin: ``r x f`` with ``r = (0, 0, -sensor_height_m)``.
+        """
+        times = self._log_t
+        if times and timestamp_s >= times[-1]:
+            i = len(times) - 1
+        else:
+            i = bisect_right(times, timestamp_s) - 1
+        if i < 0:
+            x, y, heading, depth = self._origin
+            return self._truth_record(0.0, x, y, depth, heading, 0.0, 0.0, 0.0, 0.0)
+        x, y = self._log_pos[i]
+        fx, fy = self._log_force[i]
+        heading, speed, acceleration = self._log_motion[i]
+        return self._truth_record(
+            times[i], x, y, self._log_depth[i], heading, speed, acceleration, fx, fy
+        )
+
+    def _truth_record(
+        self,
+        time_s: float,
+        x: float,
+        y: float,
+        depth: float,
+        heading: float,
+        speed: float,
+        acceleration: float,
+        fx: float,
+        fy: float,
+    ) -> PhysicalTruth:
+        cfg = self.config
+        c, s = math.cos(heading), math.sin(heading)
+        h = cfg.sensor_height_m
+        return PhysicalTruth(
+            timestamp_s=time_s,
+            position_m=np.array([x, y, h - depth]),
+            orientation_wxyz=np.array([math.cos(heading / 2), 0.0, 0.0, math.sin(heading / 2)]),
+            linear_velocity_m_per_s=np.array([speed * c, speed * s, 0.0]),
+            linear_acceleration_m_per_s2=np.array([acceleration * c, acceleration * s, 0.0]),
+            angular_velocity_rad_per_s=np.zeros(3),
+            force_n=np.array([fx, fy, 0.0]),
+            # (0, 0, -h) x (fx, fy, 0)
+            torque_nm=np.array([h * fy, -h * fx, 0.0]),
+            end_effector_mass_kg=cfg.end_effector_mass_kg,
+        )
 
     # --- ground truth --------------------------------------------------------------------
 
