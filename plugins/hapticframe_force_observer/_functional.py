@@ -288,7 +288,8 @@ def _smallest_rotation(u: FloatArray, w: FloatArray) -> FloatArray:
 
 
 def _format_vector(v: FloatArray) -> str:
-    return "(" + ", ".join(f"{x:+.2f}" for x in v) + ")"
+    rounded = np.round(v, 2) + 0.0  # + 0.0 turns -0.0 into 0.0
+    return "(" + ", ".join(f"{x:+.2f}" for x in rounded) + ")"
 
 
 def fit_force_observer(
@@ -352,6 +353,8 @@ def fit_force_observer(
     order = np.argsort(eigvals)[::-1]
     std = np.sqrt(np.clip(eigvals[order], 0.0, None))
     axes = eigvecs[:, order].T
+    # A direction's sign is arbitrary: make its largest component positive, for the message.
+    axes *= np.sign(axes[np.arange(3), np.argmax(np.abs(axes), axis=1)])[:, None]
     floor = max(min_excitation_m_per_s2, min_relative_excitation * float(std[0]))
     excited = int(np.sum(std >= floor))
 

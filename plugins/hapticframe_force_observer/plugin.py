@@ -21,4 +21,11 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         requires=("scipy",),
         consumes={"force_n": (3,), "acceleration_m_per_s2": (3,)},
         sample_rate_hz=100.0,
+        # A real load (0.8 kg, IMU turned 45° about y, an offset), so the kit's checks run
+        # the whole of Eq. 3.10 rather than the pass-through defaults.
+        check_config={
+            "mass_kg": 0.8,
+            "imu_rotation_wxyz": [0.9238795325112867, 0.0, 0.3826834323650898, 0.0],
+            "bias_n": [0.5, -0.2, 1.0],
+        },
     )
