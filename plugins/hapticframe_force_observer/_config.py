@@ -84,6 +84,7 @@ class ForceObserverConfig(PluginConfig):
             norm = math.sqrt(sum(v * v for v in self.imu_rotation_wxyz))
             if abs(norm - 1.0) > 1e-3:
                 raise ValueError(
-                    f"imu_rotation_wxyz must be a unit quaternion (w, x, y, z), its norm is {norm:.6g}"
+                    "imu_rotation_wxyz must be a unit quaternion (w, x, y, z), its norm is "
+                    f"{norm:.6g}"
                 )
         return self

@@ -241,7 +241,10 @@ def _plain(value: FloatArray | None) -> Any:
     if value is None:
         return None
     array = np.asarray(value, dtype=np.float64)
-    return np.where(np.isfinite(array), array, None).tolist()
+    cleaned = array.astype(object)
+    cleaned[~np.isfinite(array)] = None
+    listed: Any = cleaned.tolist()
+    return listed
 
 
 def _finite_rows(*arrays: FloatArray) -> NDArray[np.bool_]:

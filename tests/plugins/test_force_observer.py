@@ -155,7 +155,9 @@ def test_constant_inputs_give_eq_3_10_exactly():
     n = 50
     a = np.array([0.3, -1.0, 9.7])
     f = np.array([4.0, 2.0, 11.0])
-    batch = SampleBatch(np.arange(n) / RATE_HZ, {FORCE: np.tile(f, (n, 1)), ACCEL: np.tile(a, (n, 1))})
+    batch = SampleBatch(
+        np.arange(n) / RATE_HZ, {FORCE: np.tile(f, (n, 1)), ACCEL: np.tile(a, (n, 1))}
+    )
     out = make(**inline()).transform(batch)
     expected = f - MASS_KG * R_TRUE @ a - BIAS_N
     np.testing.assert_allclose(out.channels[FORCE], np.tile(expected, (n, 1)), atol=1e-9)
