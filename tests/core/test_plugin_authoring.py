@@ -180,7 +180,7 @@ config = LoadCellConfig(port="loop://")
 sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(0)))
 idle = len(sensor.read())
 port = sensor.transport.port
-port.write(encode(0, 2148) + b"#noise\n" + encode(1, 2048)[:-3] + b"X\n" + encode(2, 1948))
+port.write(encode(0, 2148) + b"#noise\\n" + encode(1, 2048)[:-3] + b"X\\n" + encode(2, 1948))
 first = sensor.read()
 port.write(encode(3, 2048)[:4])
 port.write(encode(3, 2048)[4:])
