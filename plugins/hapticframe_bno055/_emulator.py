@@ -395,10 +395,10 @@ class Bno055Model(DeviceModel):
         """The data registers 0x08..0x35 at ``now_s``, and the value faults applied."""
         mode = self.mode(now_s)
         if mode == OperationMode.CONFIG:
-            block = bytearray(DATA_LENGTH)  # fusion halted: every output reads zero
-            block[Register.TEMP - DATA_START] = self.registers[Register.TEMP]
-            block[Register.CALIB_STAT - DATA_START] = self._calibration(now_s, mode)
-            return bytes(block), ()
+            zeros = bytearray(DATA_LENGTH)  # fusion halted: every output reads zero
+            zeros[Register.TEMP - DATA_START] = self.registers[Register.TEMP]
+            zeros[Register.CALIB_STAT - DATA_START] = self._calibration(now_s, mode)
+            return bytes(zeros), ()
         tick = math.floor(now_s / FUSION_PERIOD_S + 1e-9)
         t = tick * FUSION_PERIOD_S
         accel, lia, gravity, gyro, quat = self.ideal_values(t)

@@ -1,4 +1,4 @@
-"""BNO055 driver against its emulator on a pty: readings, the fault matrix, bounded recovery, kit."""
+"""BNO055 driver against its emulator on a pty: readings, fault matrix, bounded recovery, kit."""
 
 import math
 
@@ -194,9 +194,12 @@ def test_overrun_retries_are_bounded(count, overruns, dropped):
 
 def test_a_device_that_never_answers_raises_after_bounded_recovery():
     sensor = make(faults=[{"kind": "no_reply", "at_s": 0.2, "params": {"count": 10**9}}])
-    with pytest.raises(DeviceError, match="did not recover after 3 attempts") as caught:
+    def read_until_it_fails():
         for _ in range(1000):
             sensor.read()
+
+    with pytest.raises(DeviceError, match="did not recover after 3 attempts") as caught:
+        read_until_it_fails()
     assert "imu" in str(caught.value)
     assert sensor.lifecycle_state is LifecycleState.ERROR
     assert sensor.health.recoveries == 3
