@@ -138,7 +138,11 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         self._truth_source = self._find_truth_source(context.inputs) if config.emulated else None
         self._period_s = 1.0 / config.rate_hz
         self._mode = _MODES[config.mode]
-        self._clock: Clock = FakeClock(0.0) if config.emulated else MonotonicClock()
+        self._clock: Clock = MonotonicClock()
+        if config.emulated:
+            # The emulated device's clock is the simulation's: it starts at the robot's time.
+            start = 0.0 if self._truth_source is None else float(self._truth_source.truth_time_s)
+            self._clock = FakeClock(start)
         self._channels = MappingProxyType({
             name: ChannelInfo(shape=shape, unit=unit, rate_hz=config.rate_hz)
             for name, (shape, unit) in CHANNELS.items()

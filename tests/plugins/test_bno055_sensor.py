@@ -244,7 +244,7 @@ class _TruthSource:
     """A robot stand-in: the tool rolled 20°, accelerating along world x, turning about z."""
 
     def __init__(self):
-        self.truth_time_s = 0.0
+        self.truth_time_s = 12.0  # the simulation need not start at 0
         self.rotation = matrix_from_rpy_deg([20.0, 0.0, 0.0])
 
     def physical_truth(self, timestamp_s):
@@ -273,7 +273,8 @@ def test_robot_input_drives_the_emulated_imu():
         batch = concatenate_batches([b for b in batches if len(b)])
     finally:
         sensor.close()
-    assert len(batch) >= 25
+    assert len(batch) >= 25 and sensor.health.dropped_samples == 0
+    assert 12.0 < batch.timestamps_s[0] < 12.1
     r = robot.rotation
     g = np.array([0.0, 0.0, 9.80665])
     np.testing.assert_allclose(batch.channels["acceleration_m_per_s2"][-1],
