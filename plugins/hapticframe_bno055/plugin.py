@@ -1,0 +1,35 @@
+"""Registration of the BNO055 IMU sensor (import-light: config model and hapticframe only)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import Kind, SensorSpec, hookimpl
+
+from ._config import Bno055SensorConfig
+
+__all__ = ["SPECS", "hapticframe_sensors"]
+
+#: The specs this package registers (for the conformance kit and tests).
+SPECS = (
+    SensorSpec(
+        name="bno055",
+        summary=(
+            "Bosch BNO055 IMU over UART: acceleration, gravity, linear acceleration, angular "
+            "rate, orientation and calibration; port 'emulated' runs its emulator on a pty."
+        ),
+        config=Bno055SensorConfig,
+        factory="hapticframe_bno055._sensor:Bno055Sensor",
+        capabilities=frozenset(),
+        requires=("serial",),
+        install_hint="pip install 'hapticframe[hardware]'",
+        # The robot is optional: it drives the emulated IMU; a real port ignores it.
+        inputs=(Kind.ROBOT,),
+        check_config={"port": "emulated"},
+    ),
+)
+
+
+@hookimpl
+def hapticframe_sensors() -> Iterator[SensorSpec]:
+    yield from SPECS
