@@ -532,7 +532,8 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
                         self._streaming = True
                         self._last_byte_s = self._last_frame_s = now
                         self._stalled = False
-                        self._accept(frames, now)
+                        if frames:
+                            self._accept(frames, now)
                         return
                 if clock.now() >= deadline:
                     self.health.timeouts += 1
@@ -574,6 +575,15 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
     def _accept(self, frames: list[bytes], now: float) -> None:
         self._last_frame_s = now
         n = len(frames)
+        if not n:
+            return
+        # Frames the device sent and we never got: a gap of two periods or more before the
+        # first of these (back-dated, so a late burst after a stall fills its own gap). The
+        # slack absorbs the jitter of receipt times; a single lost frame shows as a CRC error.
+        first = now - (n - 1) * FRAME_PERIOD_S
+        gap = first - self._last_t
+        if math.isfinite(gap) and gap > 2.5 * FRAME_PERIOD_S:
+            self.health.dropped_samples += math.floor(gap / FRAME_PERIOD_S + 0.3) - 1
         for k, frame in enumerate(frames):
             counts = decode_stream_frame(frame)
             # Frames that arrived together were sent one period apart.
