@@ -295,6 +295,8 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         self._streaming = False
         if transport is not None and transport.is_open:
             transport.write(JAM_BYTES)
+            # Let the bytes reach the device (and a clock-paced emulator hear them).
+            self.clock.sleep(POLL_S)
 
     def on_cleanup(self) -> None:
         self._release()
