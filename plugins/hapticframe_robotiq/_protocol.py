@@ -13,7 +13,7 @@ Streaming has no stop command: the host sends 0xFF bytes until the sensor falls 
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from hapticframe.devices import append_crc16, check_crc16
@@ -193,7 +193,7 @@ def read_reply_length(count: int) -> int:
     return 5 + 2 * count
 
 
-def reply_length(head: bytes, expected: int) -> int | None:
+def reply_length(head: bytes | bytearray, expected: int) -> int | None:
     """Length of the reply that ``head`` begins: an exception reply, or ``expected``.
 
     None when fewer than two bytes are there to tell.
@@ -342,7 +342,7 @@ def encode_serial_number(letters: str, number: int) -> tuple[int, ...]:
 # --- stream frames --------------------------------------------------------------------------
 
 
-def quantise(force_n: Sequence[float], torque_nm: Sequence[float]) -> tuple[int, ...]:
+def quantise(force_n: Iterable[float], torque_nm: Iterable[float]) -> tuple[int, ...]:
     """Six int16 counts of a wrench (rounded; clipped to the int16 range)."""
     counts = [round(f * FORCE_COUNTS_PER_N) for f in force_n]
     counts += [round(m * TORQUE_COUNTS_PER_NM) for m in torque_nm]
@@ -350,7 +350,7 @@ def quantise(force_n: Sequence[float], torque_nm: Sequence[float]) -> tuple[int,
 
 
 def encode_stream_frame(counts: Sequence[int]) -> bytes:
-    """A 16-byte stream frame from six int16 counts (Fx Fy Fz in 1/100 N, Mx My Mz in 1/1000 N·m)."""
+    """A 16-byte stream frame from six int16 counts (forces in 1/100 N, torques in 1/1000 N·m)."""
     if len(counts) != 6:
         raise ValueError(f"a stream frame holds 6 values, got {len(counts)}")
     return append_crc16(_STREAM.pack(STREAM_HEADER, *counts))

@@ -291,11 +291,15 @@ def test_the_tare_zeroes_the_offset_and_a_requested_tare_removes_a_drift():
     assert abs(recent[:, 0].mean()) < 0.1
 
 
+def _read_until_error(run: Run) -> None:
+    for _ in range(1000):
+        run.sensor.read()
+
+
 def test_a_device_that_never_comes_back_raises_device_error_in_bounded_time():
     run = _start([{"kind": "dead", "at_s": 1.0}])
     with pytest.raises(DeviceError, match="did not recover") as info:
-        for _ in range(1000):
-            run.sensor.read()
+        _read_until_error(run)
     assert "wrist" in str(info.value)
     # Watchdog + 3 recoveries, each a bounded jam (5 bursts × 0.5 s listening).
     assert run.clock.now() < 1.0 + 0.2 + 3 * (5 * 0.51 + 0.2)
@@ -307,8 +311,7 @@ def test_a_device_that_never_comes_back_raises_device_error_in_bounded_time():
 def test_a_port_that_never_reopens_fails_after_the_backoff():
     run = _start([{"kind": "disconnect", "at_s": 1.0, "duration_s": 1000.0}])
     with pytest.raises(DeviceError):
-        for _ in range(1000):
-            run.sensor.read()
+        _read_until_error(run)
     assert run.sensor.health.reconnects == 0
     assert run.clock.now() < 1.0 + 3 * 2.0
 
