@@ -353,8 +353,8 @@ def _resample(
             exact = seen & (lower_t == times)
             upper_t = st[upper]
             between = has_next & ~exact
-            weight = np.where(between, (times - lower_t) / np.where(between, upper_t - lower_t, 1.0),
-                              0.0)
+            span = np.where(between, upper_t - lower_t, 1.0)
+            weight = np.where(between, (times - lower_t) / span, 0.0)
             decided = ~ok | exact | has_next | (last_t - times > max_age)
             ok = exact | (ok & has_next & (upper_t - times <= max_age))
             upper = np.where(exact, lower, upper)

@@ -25,7 +25,7 @@ _sleep: Callable[[float], None] = time.sleep
 
 
 def devices_of(components: Mapping[str, Component]) -> dict[str, Device]:
-    """The components that are :class:`~hapticframe.kinds.Device`\ s, in build order."""
+    """The components that are devices (:class:`~hapticframe.kinds.Device`), in build order."""
     return {cid: c for cid, c in components.items() if isinstance(c, Device)}
 
 
