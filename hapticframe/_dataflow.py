@@ -239,13 +239,15 @@ class InputAligner:
     The dataflow keeps one per consumer whose :attr:`~hapticframe.kinds.Component.
     input_alignment` is ``hold`` or ``linear``; :func:`merge_batches` uses a fresh one for
     whole recordings. Between pushes it keeps, per later input, the samples a future
-    timestamp may still need (from the latest one at or before the first input's latest
-    timestamp on), and, for ``linear``, the first input's samples that wait for a later
-    sample to interpolate towards. Each timestamp is resolved from the same samples
-    whatever the chunking, so streaming equals batch exactly, given what a run guarantees:
-    in each push, every input has delivered its samples up to about the same time (one
-    tick of sensors read together, stamped by one host clock); a sample that arrives a
-    push after samples of the first input stamped later than it is used only from then on.
+    timestamp may still need (from the latest one at or before the earliest timestamp still
+    to come), and, for ``linear``, the first input's samples that wait for a later sample
+    to interpolate towards. Each timestamp is resolved from the same samples however the
+    recordings are cut into pushes, so streaming equals batch exactly, provided that when a
+    push delivers a sample of the first input, every later input has delivered its samples
+    up to that time. A run reads its sensors one after the other, in build order, and
+    sensors stamp samples with one host clock, so an input read after the first one is
+    ahead of it. (A sample of a later input that comes a push late is used only from then
+    on.)
     """
 
     def __init__(self, alignment: InputAlignment, consumer: str) -> None:

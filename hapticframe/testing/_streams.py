@@ -420,8 +420,9 @@ def check_aligned_inputs_stream_as_batch(
 
     For a component whose ``input_alignment`` is ``hold`` or ``linear``: the first
     ``consumes`` channel comes from one input at ``sample_rate_hz``, the other channels from
-    a second input at another rate (:func:`two_clock_inputs`). Both are cut into the same
-    random ticks, joined by the run's aligner and fed to ``update()``; the outputs must
+    a second input at another rate (:func:`two_clock_inputs`). Both are cut into random
+    ticks (the second input's a little later, as a run reads its sensors one after the
+    other), joined by the run's aligner and fed to ``update()``; the outputs must
     equal the batch path (``transform`` or ``predict_proba``) on the whole recordings
     joined at once, as training joins them. A component that aligns exactly, or consumes
     one channel, passes without further checks.
@@ -439,17 +440,24 @@ def check_aligned_inputs_stream_as_batch(
         )
         component.reset()
         aligner = InputAligner(alignment, consumer)
-        # Tick boundaries anywhere between samples, 1 to 37 first-input samples apart.
+        # Tick boundaries anywhere between samples, 1 to 37 first-input samples apart; the
+        # second input is read up to a few first-input periods later in each tick, as
+        # sensors read one after the other are.
         ends = np.cumsum(rng.integers(1, 38, size=240))
         ends = ends[ends < len(first)]
         dt = 1.0 / spec.sample_rate_hz
         cuts = [*(first.timestamps_s[ends - 1] + rng.uniform(0, dt, len(ends))), np.inf]
-        parts, low = [], -np.inf
-        for high in cuts:
-            ticks = [b.select((b.timestamps_s > low) & (b.timestamps_s <= high))
-                     for b in (first, second)]
+        skews = rng.uniform(0, 3 * dt, len(cuts))
+        parts, low, low_second = [], -np.inf, -np.inf
+        for high, skew in zip(cuts, skews, strict=True):
+            high_second = max(high + skew, low_second)
+            ticks = [
+                first.select((first.timestamps_s > low) & (first.timestamps_s <= high)),
+                second.select((second.timestamps_s > low_second)
+                              & (second.timestamps_s <= high_second)),
+            ]
             parts.append(_outputs(component, aligner.push(ticks)))
-            low = high
+            low, low_second = high, high_second
     except CheckFailure:
         raise
     except Exception as exc:
