@@ -94,9 +94,12 @@ class FakeClock:
 class ClockSync:
     """Maps a device's clock (or sequence counter) onto host time, and counts missed samples.
 
-    A least-squares line ``host = offset + (1 + drift) * device`` is fitted over the last
-    ``window`` pairs (device time, host receipt time). Receipt times carry transport latency
-    and jitter; the fit averages the jitter out, and its offset includes the mean latency.
+    The model is ``host = offset + (1 + drift) * device``. The drift is the least-squares
+    slope over the last ``window`` pairs (device time, host receipt time), trusted once they
+    span ``min_span_s`` of device time and bounded by ``max_drift`` (samples read in bursts
+    would otherwise fake a slope). Receipt times only ever lag the true time (transport
+    latency, reads in batches), so the offset is the lower envelope: the least lag in the
+    window, which the estimate approaches as soon as one sample arrives promptly.
 
     Parameters
     ----------
@@ -105,15 +108,28 @@ class ClockSync:
         sequence numbers (consecutive integers).
     window : int, optional
         Pairs kept for the fit (at 100 Hz, 200 pairs = the last 2 s).
+    min_span_s : float, optional
+        Device time the window must span before the drift is estimated (0 until then).
+    max_drift : float, optional
+        Largest drift believed (crystal clocks stay within a few hundred ppm).
     """
 
-    def __init__(self, nominal_period_s: float | None = None, *, window: int = 200) -> None:
+    def __init__(
+        self,
+        nominal_period_s: float | None = None,
+        *,
+        window: int = 200,
+        min_span_s: float = 1.0,
+        max_drift: float = 1e-3,
+    ) -> None:
         if nominal_period_s is not None and not nominal_period_s > 0:
             raise ValueError("nominal_period_s must be positive")
         if window < 2:
             raise ValueError("window must hold at least two pairs")
         self.nominal_period_s = nominal_period_s
         self.window = window
+        self.min_span_s = min_span_s
+        self.max_drift = max_drift
         self._pairs: deque[tuple[float, float]] = deque(maxlen=window)
         self._offset = math.nan
         self._slope = 1.0
@@ -145,18 +161,24 @@ class ClockSync:
     def update(self, device_time_s: float, host_time_s: float) -> float:
         """Add one pair and return the host-time estimate of ``device_time_s``."""
         self._pairs.append((float(device_time_s), float(host_time_s)))
-        if len(self._pairs) == 1:
-            self._offset = host_time_s - device_time_s
-            self._slope = 1.0
-        else:
-            pairs = np.array(self._pairs, dtype=np.float64)
-            device, host = pairs[:, 0], pairs[:, 1]
+        pairs = np.array(self._pairs, dtype=np.float64)
+        device, host = pairs[:, 0], pairs[:, 1]
+        slope = 1.0
+        if device.max() - device.min() >= self.min_span_s:
             # Centred sums: device times can be large; raw sums would lose precision.
             d0, h0 = device.mean(), host.mean()
-            spread = float(np.dot(device - d0, device - d0))
-            slope = float(np.dot(device - d0, host - h0)) / spread if spread > 0 else 1.0
-            self._slope = slope
-            self._offset = float(h0 - slope * d0)
+            fitted = float(np.dot(device - d0, host - h0)) / float(np.dot(device - d0, device - d0))
+            slope = min(max(fitted, 1.0 - self.max_drift), 1.0 + self.max_drift)
+        self._slope = slope
+        self._offset = float((host - slope * device).min())
+        return self._offset + slope * device_time_s
+
+    def host_time(self, device_time_s: float) -> float:
+        """The host-time estimate of ``device_time_s`` with the current fit.
+
+        For samples read in a burst, :meth:`update` with all of them first, then map each:
+        every sample then benefits from the promptest one.
+        """
         return self._offset + self._slope * device_time_s
 
     def gap(self, seq_or_time: float) -> int:

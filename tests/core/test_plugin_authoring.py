@@ -74,7 +74,7 @@ def test_the_example_passes_the_conformance_kit(installed_example):
 def test_the_example_experiment_validates(installed_example, tmp_path):
     (tmp_path / "e.yaml").write_text(
         "schema_version: 1\nname: load-cell\nseed: 1\nsensors:\n"
-        "  - {id: wrist, type: lab-load-cell, config: {transport: emulator, rate_hz: 200}}\n"
+        "  - {id: wrist, type: lab-load-cell, config: {port: emulated, rate_hz: 200}}\n"
     )
     proc = _hapticframe(installed_example, "validate", "e.yaml", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
@@ -107,45 +107,106 @@ def test_the_example_benchmark_runs_and_refuses_bad_options(installed_example, t
     assert "at least 10 reads" in proc.stderr and "Traceback" not in proc.stderr
 
 
-SERIAL_SESSION = """
+EMULATED_SESSION = """
 import json
 import numpy as np
+from hapticframe.devices import LifecycleState
 from hapticframe.kinds import BuildContext
 from hf_loadcell.config import LoadCellConfig
 from hf_loadcell.sensor import LoadCellSensor
 
-config = LoadCellConfig(transport="serial", port="loop://", samples_per_read=4)
-sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(0)))
-link = sensor.transport.link
-reads = {"timeout": link.timeout, "idle": len(sensor.read())}
-link.write(b"2148\\n#garbage\\xff\\nnan\\n2048\\n1948\\n20")
-first = sensor.read()
-link.write(b"48\\n" + b"x" * 100)
-second = sensor.read()
-reads.update(
-    first=first.channels["force_n"][:, 0].tolist(),
-    second=second.channels["force_n"][:, 0].tolist(),
-    times=np.concatenate([first.timestamps_s, second.timestamps_s]).tolist(),
-    garbage=sensor.transport.garbage_lines,
-)
+faults = [{"kind": "garbage", "at_s": 0.2, "params": {"count": 40}},
+          {"kind": "fragment", "at_s": 0.0, "duration_s": 1.0},
+          {"kind": "stall", "at_s": 1.2, "duration_s": 0.3, "params": {"drop": 1}},
+          {"kind": "disconnect", "at_s": 2.0, "duration_s": 0.2}]
+config = LoadCellConfig(faults=faults, samples_per_read=2)
+sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(3)))
+batches = [sensor.read() for _ in range(200)]  # 4 s of device time
+model = sensor.emulator.model
+counts = np.concatenate([b.channels["force_n"][:, 0] for b in batches]) / 0.01 + 2048
+times = np.concatenate([b.timestamps_s for b in batches])
+sent = iter(model.sent)
+report = {
+    "path": sensor.emulator.path,
+    "live": sensor.live,
+    "state": sensor.lifecycle_state.name,
+    "delivered": len(counts),
+    "sent": len(model.sent),
+    "subsequence": all(any(c == round(x) for c in sent) for x in counts),
+    "increasing": bool(np.all(np.diff(times) > 0)),
+    "time_span": [float(times[0]), float(times[-1]), sensor.clock.now()],
+    "health": sensor.health.as_dict(),
+    "injected": sorted({f.kind for f in sensor.emulator.faults.injected}),
+}
 sensor.close()
-reads["closed"] = not link.is_open
-print(json.dumps(reads))
+report["closed"] = sensor.lifecycle_state.name
+print(json.dumps(report))
 """
 
 
-def test_the_serial_transport_skips_garbage_and_never_waits(installed_example):
-    # pyserial's loop:// port reads back what is written: a device that sends a reading, a
-    # line of noise, a NaN, two readings and half a line, then the rest of that line and
-    # 100 bytes without a newline.
+def test_the_driver_runs_against_its_pty_emulator_with_faults(installed_example):
+    # The guide's driver opens the emulator's pseudo-terminal through pyserial, while the
+    # emulator inserts 40 bytes of noise, fragments writes for a second, swallows 0.3 s of
+    # data and unplugs the device for 0.2 s.
     pytest.importorskip("serial")
-    proc = subprocess.run([sys.executable, "-c", SERIAL_SESSION], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-c", EMULATED_SESSION], capture_output=True,
+                          text=True, env=installed_example, timeout=120, check=False)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    assert report["path"].startswith("/dev/") and not report["live"]
+    assert report["state"] == "ACTIVE" and report["closed"] == "FINALIZED"
+    assert report["injected"] == ["disconnect", "fragment", "garbage", "stall"]
+    assert report["subsequence"] and report["increasing"]  # nothing corrupted, time runs on
+    health = report["health"]
+    # 400 samples in 4 s; the stall drops ~30 and the unplugged 0.2 s (plus the reopen) more.
+    assert 300 <= report["delivered"] <= report["sent"] <= 400
+    assert health["frames"] == report["delivered"]
+    assert health["crc_errors"] + health["overflows"] >= 1  # the noise, caught
+    assert health["dropped_samples"] >= 25  # the stall's gap in the sequence numbers
+    assert health["reconnects"] == 1 and health["recoveries"] == 1
+    start, end, now = report["time_span"]
+    # 200 reads of 20 ms, plus the backoff delays that recovery slept on the fake clock.
+    assert 0 <= start < 0.1 and 3.8 < end <= now and 4.0 < now <= 4.0 + 0.05 + 0.1 + 0.2
+
+
+LIVE_SESSION = """
+import json
+import numpy as np
+from hapticframe.kinds import BuildContext
+from hf_loadcell.config import LoadCellConfig
+from hf_loadcell.sensor import LoadCellSensor, encode
+
+config = LoadCellConfig(port="loop://")
+sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(0)))
+idle = len(sensor.read())
+port = sensor.transport.port
+port.write(encode(0, 2148) + b"#noise\\n" + encode(1, 2048)[:-3] + b"X\\n" + encode(2, 1948))
+first = sensor.read()
+port.write(encode(3, 2048)[:4])
+port.write(encode(3, 2048)[4:])
+second = sensor.read()
+print(json.dumps({
+    "idle": idle, "live": sensor.live, "timeout": port.timeout,
+    "first": first.channels["force_n"][:, 0].tolist(),
+    "second": second.channels["force_n"][:, 0].tolist(),
+    "times": np.concatenate([first.timestamps_s, second.timestamps_s]).tolist(),
+    "health": sensor.health.as_dict(),
+}))
+sensor.close()
+"""
+
+
+def test_the_driver_reads_a_real_port_without_waiting(installed_example):
+    # pyserial's loop:// port reads back what is written: the real-port path (monotonic
+    # clock, wall-clock pacing) fed two good lines around a noise line and a corrupted one.
+    pytest.importorskip("serial")
+    proc = subprocess.run([sys.executable, "-c", LIVE_SESSION], capture_output=True, text=True,
                           env=installed_example, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr
     reads = json.loads(proc.stdout)
-    assert reads["timeout"] == 0 and reads["idle"] == 0  # no data: an empty batch at once
-    assert reads["first"] == pytest.approx([1.0, 0.0, -1.0])
-    assert reads["second"] == pytest.approx([0.0])  # the half line, completed
-    assert reads["garbage"] == 3  # "#garbage", "nan" and the 100 bytes without a newline
+    assert reads["idle"] == 0 and reads["timeout"] == 0 and reads["live"]
+    assert reads["first"] == pytest.approx([1.0, -1.0])
+    assert reads["second"] == pytest.approx([0.0])  # a line split across two writes
+    health = reads["health"]
+    assert health["crc_errors"] == 2 and health["dropped_samples"] == 1  # seq 1 never came
     assert all(b > a for a, b in pairwise(reads["times"]))
-    assert reads["closed"]
