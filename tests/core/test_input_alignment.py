@@ -48,7 +48,7 @@ def test_the_default_alignment_is_exact_and_bad_alignments_are_refused():
 
 
 def test_exact_alignment_still_requires_shared_timestamps():
-    with pytest.raises(RunError, match="different times.*input_alignment"):
+    with pytest.raises(RunError, match=r"different times.*input_alignment"):
         merge_batches([primary([0.1, 0.2]), secondary([0.1, 0.25], [1, 2])], "c")
     joined = merge_batches([primary([0.1, 0.2]), secondary([0.1, 0.2], [1, 2])], "c")
     np.testing.assert_array_equal(joined.channels["accel"][:, 0], [1, 2])
