@@ -39,7 +39,14 @@ from hapticframe.devices import (
     SerialTransport,
     TransportError,
 )
-from hapticframe.kinds import BuildContext, ChannelInfo, RunOutcome, SampleBatch, Sensor
+from hapticframe.kinds import (
+    BuildContext,
+    ChannelInfo,
+    PhysicalTruthSource,
+    RunOutcome,
+    SampleBatch,
+    Sensor,
+)
 
 from ._config import Ft300Config
 from ._emulator import FRAME_PERIOD_S, Ft300Model, Ft300Physics, schedule_from
@@ -85,7 +92,7 @@ _EMULATED_LEAD_S = 0.5
 T = TypeVar("T")
 
 
-def _truth_source(context: BuildContext) -> Any | None:
+def _truth_source(context: BuildContext) -> PhysicalTruthSource | None:
     """The robot input that provides physical truth (a ``PhysicalTruthSource``), or None."""
     inputs = list(context.inputs.items())
     if not inputs:
@@ -97,10 +104,7 @@ def _truth_source(context: BuildContext) -> Any | None:
             f"it is mounted on; got {names}"
         )
     name, robot = inputs[0]
-    # hapticframe.kinds.PhysicalTruthSource is a runtime-checkable protocol: these two members.
-    if not callable(getattr(robot, "physical_truth", None)) or not hasattr(
-        type(robot), "truth_time_s"
-    ):
+    if not isinstance(robot, PhysicalTruthSource):
         raise ValueError(
             f"sensor {context.id!r} (type 'robotiq-ft300'): input {name!r} "
             f"({type(robot).__name__}) does not expose its physical truth "
