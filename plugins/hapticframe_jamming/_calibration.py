@@ -33,7 +33,10 @@ def _classifier(
     config: ForceRateJammingConfig, sample_rate_hz: float | None
 ) -> ForceRateJammingClassifier:
     rate = sample_rate_hz or config.sample_rate_hz or DEFAULT_SAMPLE_RATE_HZ
-    config = type(config).model_validate({**config.model_dump(), "sample_rate_hz": rate})
+    # model_dir None: calibration starts from the thresholds given, never from an artifact.
+    config = type(config).model_validate(
+        {**config.model_dump(), "sample_rate_hz": rate, "model_dir": None}
+    )
     return ForceRateJammingClassifier(
         config, BuildContext(id="calibration", rng=np.random.default_rng(0))
     )

@@ -26,9 +26,11 @@ on mid-movement does not see a spurious step.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -45,9 +47,26 @@ from hapticframe.kinds import (
 from . import _functional as F
 from ._config import ForceRateJammingConfig
 
-__all__ = ["CLASSES", "ForceRateJammingClassifier", "ForceRateTracker", "TrackerState"]
+__all__ = [
+    "CLASSES",
+    "THRESHOLDS_FILE",
+    "THRESHOLDS_FORMAT",
+    "ForceRateJammingClassifier",
+    "ForceRateTracker",
+    "TrackerState",
+]
 
 CLASSES = ("free", "jamming", "contact")
+#: What :meth:`ForceRateJammingClassifier.save` writes, and its format tag.
+THRESHOLDS_FILE = "thresholds.json"
+THRESHOLDS_FORMAT = "hapticframe-force-rate-jamming"
+_FORMAT_VERSION = 1
+_THRESHOLD_FIELDS = (
+    "jamming_force_n",
+    "jamming_rate_n_per_s",
+    "contact_force_n",
+    "contact_rate_n_per_s",
+)
 DEFAULT_SAMPLE_RATE_HZ = 100.0
 #: Longest batch that :meth:`ForceRateJammingClassifier.update` classifies row by row.
 ROW_BY_ROW_MAX = 4096
@@ -200,13 +219,21 @@ class ForceRateJammingClassifier(Classifier):
     config : ForceRateJammingConfig
     context : BuildContext
         An input sensor, if given, supplies the sample rate when the config leaves it unset.
+
+    Notes
+    -----
+    With ``config.model_dir`` the thresholds that :meth:`save` wrote there (after
+    :meth:`fit`, e.g. by ``hapticframe train``) replace the configured ones at build time.
     """
 
     def __init__(self, config: ForceRateJammingConfig, context: BuildContext) -> None:
         super().__init__(config, context)
         self._sample_rate_hz = self._resolve_sample_rate(config, context)
         self._training: dict[str, Any] = {}
-        self._build()
+        if config.model_dir is not None:
+            self.load(config.model_dir)  # builds the filter too
+        else:
+            self._build()
 
     @staticmethod
     def _resolve_sample_rate(config: ForceRateJammingConfig, context: BuildContext) -> float:
@@ -357,6 +384,78 @@ class ForceRateJammingClassifier(Classifier):
         """What the last fit did (:class:`hapticframe.kinds.Trainable`): the recordings it
         saw and the four thresholds it chose; empty before a fit."""
         return dict(self._training)
+
+    # --- Persistent ------------------------------------------------------------------------
+
+    def _filter_settings(self) -> dict[str, float]:
+        return {
+            "cutoff_hz": float(self.config.cutoff_hz),
+            "filter_order": int(self.config.filter_order),
+            "sample_rate_hz": float(self._sample_rate_hz),
+        }
+
+    def save(self, directory: str | Path) -> Path:
+        """Write the four thresholds, the filter they were fitted through and the training
+        report into ``directory/thresholds.json`` (plain JSON); returns its path."""
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        record = {
+            "format": THRESHOLDS_FORMAT,
+            "format_version": _FORMAT_VERSION,
+            "thresholds": {name: float(getattr(self.config, name)) for name in _THRESHOLD_FIELDS},
+            "filter": self._filter_settings(),
+            "force_channel": self.config.force_channel,
+            "training_report": self._training,
+        }
+        target = out / THRESHOLDS_FILE
+        target.write_text(json.dumps(record, indent=2, allow_nan=False))
+        return target
+
+    def load(self, directory: str | Path) -> None:
+        """Read the thresholds :meth:`save` wrote (ValueError when they do not fit).
+
+        Thresholds on a filtered force rate are only meaningful through the filter they were
+        fitted with, so the artifact is refused when its cutoff, order or sample rate differ
+        from this classifier's, as well as when it is not a thresholds file of this format.
+        """
+        path = Path(directory) / THRESHOLDS_FILE
+        try:
+            record = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(
+                f"classifier {self.id!r}: no jamming thresholds in {directory}: {exc}"
+            ) from exc
+        if (
+            not isinstance(record, dict)
+            or record.get("format") != THRESHOLDS_FORMAT
+            or record.get("format_version") != _FORMAT_VERSION
+        ):
+            raise ValueError(
+                f"classifier {self.id!r}: {path} is not a {THRESHOLDS_FORMAT} "
+                f"v{_FORMAT_VERSION} file"
+            )
+        saved, ours = record.get("filter") or {}, self._filter_settings()
+        mismatched = [
+            f"{key} {saved.get(key)!r} (saved) vs {value!r} (configured)"
+            for key, value in ours.items()
+            if not isinstance(saved.get(key), (int, float))
+            or not math.isclose(float(saved[key]), value, rel_tol=1e-9)
+        ]
+        if mismatched:
+            raise ValueError(
+                f"classifier {self.id!r}: the thresholds in {path} were fitted through another "
+                f"filter: {'; '.join(mismatched)}. Configure the same filter or refit"
+            )
+        thresholds = record.get("thresholds") or {}
+        try:
+            values = {name: float(thresholds[name]) for name in _THRESHOLD_FIELDS}
+            config = type(self.config).model_validate({**self.config.model_dump(), **values})
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"classifier {self.id!r}: bad thresholds in {path}: {exc}") from exc
+        self.config = config
+        report = record.get("training_report")
+        self._training = dict(report) if isinstance(report, dict) else {}
+        self._build()
 
     # --- extras ----------------------------------------------------------------------------
 

@@ -60,6 +60,13 @@ class ForceRateJammingConfig(PluginConfig):
         description="Softness of the rate thresholds: margin per unit of logit.",
     )
 
+    model_dir: str | None = Field(
+        None,
+        description="Directory written by save() (thresholds.json, e.g. by `hapticframe "
+        "train`) to load at build time: its four fitted thresholds replace the ones configured "
+        "here; its filter (cutoff, order, sample rate) must equal this config's.",
+    )
+
     @model_validator(mode="after")
     def _finite_nyquist(self) -> ForceRateJammingConfig:
         if self.sample_rate_hz is not None and self.cutoff_hz >= self.sample_rate_hz / 2:
