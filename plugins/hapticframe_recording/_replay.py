@@ -289,7 +289,9 @@ def recording_from_arrays(
                 f"{source}: sensor {sensor!r} has {t.size} sample(s), too few to tell its "
                 "rate; set rate_hz"
             )
-        rate = 1.0 / float(np.median(np.diff(t)))
+        # Nine significant digits: recorded times k * dt carry rounding noise far below
+        # that, which would otherwise show in the rate (100.00000000000213 Hz).
+        rate = float(f"{1.0 / float(np.median(np.diff(t))):.9g}")
     info = {
         name: ChannelInfo(shape=tuple(v.shape[1:]), unit=units[name], rate_hz=rate)
         for name, v in values.items()
