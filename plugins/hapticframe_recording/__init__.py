@@ -23,6 +23,7 @@ __all__ = [
     "demo_trace",
     "load_labels",
     "load_recording",
+    "read_trace",
     "recording_from_arrays",
 ]
 
@@ -34,6 +35,7 @@ _LAZY = {
     "demo_trace": "._replay",
     "load_labels": "._replay",
     "load_recording": "._replay",
+    "read_trace": "._replay",
     "recording_from_arrays": "._replay",
     "TraceRecordingSensor": "._sensor",
 }

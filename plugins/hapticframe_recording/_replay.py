@@ -33,6 +33,7 @@ __all__ = [
     "demo_trace",
     "load_labels",
     "load_recording",
+    "read_trace",
     "recording_from_arrays",
 ]
 
@@ -169,7 +170,7 @@ def _channel(arrays: Mapping[str, Any], key: str, n: int, source: str) -> NDArra
 def _sample_valid(values: NDArray[np.float64]) -> NDArray[np.bool_]:
     """True where every value of a sample is finite."""
     flat = values.reshape(values.shape[0], -1)
-    return np.isfinite(flat).all(axis=1)
+    return np.asarray(np.isfinite(flat).all(axis=1), dtype=np.bool_)
 
 
 def _held_index(times: NDArray[np.float64], at: NDArray[np.float64]) -> NDArray[np.intp]:
@@ -340,6 +341,13 @@ def _trial_starts(
     return np.concatenate([[0], changes]).astype(np.intp)
 
 
+def read_trace(path: str | Path) -> tuple[dict[str, Any], str]:
+    """The sensor and robot arrays of a ``trace.npz`` (or a run directory's), and the
+    file's path for messages; a :class:`RecordingError` when it cannot be read."""
+    target = _resolve(path, TRACE_FILE, "recording")
+    return _read_npz(target, "recording", ["sensor/", "robot/"]), str(target)
+
+
 def load_recording(
     path: str | Path,
     *,
@@ -381,10 +389,7 @@ def load_recording(
     RecordingError
         When a file or an array is missing or malformed (the message names which).
     """
-    target = _resolve(path, TRACE_FILE, "recording")
-    source = str(target)
-    wanted = ["sensor/", "robot/"]
-    arrays = _read_npz(target, "recording", wanted)
+    arrays, source = read_trace(path)
     label_arrays = None if labels is None else load_labels(labels, labels_key)
     return recording_from_arrays(
         arrays,

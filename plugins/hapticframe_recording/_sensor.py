@@ -8,7 +8,7 @@ from types import MappingProxyType
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch, Sensor
 
 from ._config import TraceRecordingConfig
-from ._replay import Recording, demo_trace, load_recording, recording_from_arrays
+from ._replay import Recording, demo_trace, load_labels, read_trace, recording_from_arrays
 
 __all__ = ["TraceRecordingSensor"]
 
@@ -34,29 +34,23 @@ class TraceRecordingSensor(Sensor):
 
     def __init__(self, config: TraceRecordingConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        options = {
-            "component": config.component,
-            "channels": config.channels,
-            "robot": config.robot,
-            "split_movements": config.split_movements,
-            "label_channel": config.label_channel,
-            "unlabelled": config.unlabelled,
-            "rate_hz": config.rate_hz,
-        }
         if config.path is not None:
-            self._recording = load_recording(
-                config.path, labels=config.labels, labels_key=config.labels_key, **options
-            )
+            arrays, source = read_trace(config.path)
         else:
-            if config.labels is not None:
-                from ._replay import load_labels
-
-                labels = load_labels(config.labels, config.labels_key)
-            else:
-                labels = None
-            self._recording = recording_from_arrays(
-                demo_trace(), source="the demo recording", labels=labels, **options
-            )
+            arrays, source = demo_trace(), "the demo recording"
+        labels = None if config.labels is None else load_labels(config.labels, config.labels_key)
+        self._recording = recording_from_arrays(
+            arrays,
+            source=source,
+            component=config.component,
+            channels=config.channels,
+            robot=config.robot,
+            split_movements=config.split_movements,
+            labels=labels,
+            label_channel=config.label_channel,
+            unlabelled=config.unlabelled,
+            rate_hz=config.rate_hz,
+        )
         self._channels = MappingProxyType(dict(self._recording.info))
         self._cursor = 0
 

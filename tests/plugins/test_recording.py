@@ -253,20 +253,20 @@ def test_malformed_traces_are_located(tmp_path, arrays, config, message):
 
 
 def test_missing_files_and_labels_are_located(tmp_path, trace):
-    with pytest.raises(RecordingError, match="no such file: .*nothing.npz"):
+    with pytest.raises(RecordingError, match=r"no such file: .*nothing\.npz"):
         build(path=str(tmp_path / "nothing.npz"))
     empty = tmp_path / "empty-run"
     empty.mkdir()
-    with pytest.raises(RecordingError, match="empty-run holds no trace.npz"):
+    with pytest.raises(RecordingError, match=r"empty-run holds no trace\.npz"):
         build(path=str(empty))
-    with pytest.raises(RecordingError, match="empty-run holds no ground_truth.npz"):
+    with pytest.raises(RecordingError, match=r"empty-run holds no ground_truth\.npz"):
         build(path=str(trace), component="wrist", labels=str(empty))
     with pytest.raises(RecordingError, match=r"holds no 'truth' \(arrays: other, state, "
                                              r"timestamps_s\); set labels_key"):
         build(path=str(trace), component="wrist", labels=str(labels_file(tmp_path)),
               labels_key="truth")
     (tmp_path / "broken.npz").write_bytes(b"not a zip file")
-    with pytest.raises(RecordingError, match="cannot read .*broken.npz"):
+    with pytest.raises(RecordingError, match=r"cannot read .*broken\.npz"):
         build(path=str(tmp_path / "broken.npz"))
 
 
@@ -275,7 +275,7 @@ def test_pickled_arrays_are_never_loaded(tmp_path):
     arrays["sensor/wrist/force_n"] = np.array([object()] * 24, dtype=object)
     path = tmp_path / "pickled.npz"
     np.savez(path, **arrays)  # savez pickles object arrays; load must refuse them
-    with pytest.raises(RecordingError, match="cannot read .*pickled.npz.*allow_pickle"):
+    with pytest.raises(RecordingError, match=r"cannot read .*pickled\.npz.*allow_pickle"):
         load_recording(path, component="wrist")
 
 
@@ -289,7 +289,8 @@ def test_config_needs_exactly_one_source():
 def test_a_missing_recording_ends_the_run_with_exit_2_and_a_located_message(tmp_path, capsys):
     experiment = tmp_path / "replay.yaml"
     experiment.write_text(
-        "schema_version: 1\nname: replay\nseed: 1\nsensors:\n  - id: wrist\n    type: trace-recording\n"
+        "schema_version: 1\nname: replay\nseed: 1\nsensors:\n  - id: wrist\n"
+        "    type: trace-recording\n"
         f"    config: {{path: {tmp_path / 'missing'}}}\n"
     )
     assert main(["run", *PLUGIN, str(experiment), "--out", str(tmp_path / "out"),
