@@ -10,6 +10,7 @@ BUNDLED = {
     ("sensor", "sandbox-force"),
     ("sensor", "robotiq-ft300"),
     ("sensor", "bno055"),
+    ("sensor", "trace-recording"),
     ("feature_extractor", "force-observer"),
     ("feature_extractor", "emd-features"),
     ("feature_extractor", "sparse-coding"),
