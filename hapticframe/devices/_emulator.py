@@ -12,8 +12,13 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import os
+import select
+import struct
+import termios
 import threading
+import time
 import tty
 from abc import ABC, abstractmethod
 from pathlib import Path
@@ -21,11 +26,23 @@ from types import TracebackType
 
 import numpy as np
 
+from . import _ptysync
 from ._clock import Clock, FakeClock
 from ._faults import FaultSchedule
 from ._transport import ByteTransport, TransportError
 
 __all__ = ["DeviceModel", "EmulatedTransport", "PtyEmulator"]
+
+#: The longest a synchronous emulator waits, in real time, for the kernel to move bytes
+#: across its pty (it takes microseconds; seconds only on a machine that is stalled).
+_DELIVERY_WAIT_S = 2.0
+#: Bytes a pty's line discipline holds for its reader (N_TTY_BUF_SIZE is 4096), less one.
+_LINE_BUFFER_FULL = 4095
+
+
+def _queued(fd: int) -> int:
+    """Bytes waiting to be read on ``fd`` (FIONREAD)."""
+    return int(struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0])
 
 
 class DeviceModel(ABC):
@@ -195,8 +212,10 @@ class PtyEmulator:
 
     The driver opens :attr:`path` with any serial library, exactly as a device. Paced by a
     :class:`FakeClock`, the emulator services the pty in a clock listener (deterministic:
-    every ``clock.sleep``/``advance`` runs one :meth:`pump`); paced by any other clock, a
-    daemon thread pumps every millisecond.
+    every ``clock.sleep``/``advance`` runs one :meth:`pump`, which returns only once the
+    bytes it wrote are readable on the host's side and the bytes a
+    :class:`SerialTransport` wrote to it have arrived — a pty moves bytes asynchronously);
+    paced by any other clock, a daemon thread pumps every millisecond.
 
     Parameters
     ----------
@@ -238,6 +257,10 @@ class PtyEmulator:
         self._master: int | None = None
         self._slave: int | None = None
         self._tty_name = ""
+        self._synchronous = isinstance(clock, FakeClock)
+        # Bytes a SerialTransport wrote to the host's end, and bytes read here, since plugging.
+        self._host_written = 0
+        self._host_read = 0
         self._replug_at_s: float | None = None
         self._running = False
         self._thread: threading.Thread | None = None
@@ -264,6 +287,9 @@ class PtyEmulator:
         os.set_blocking(master, False)
         self._master, self._slave = master, slave
         self._tty_name = os.ttyname(slave)
+        self._host_written = self._host_read = 0
+        if self._synchronous:
+            _ptysync.register(self._tty_name, self)
         if self.link_path is not None:
             temporary = self.link_path.with_name(self.link_path.name + ".new")
             with contextlib.suppress(FileNotFoundError):
@@ -272,6 +298,8 @@ class PtyEmulator:
             os.replace(temporary, self.link_path)  # atomic: the path never dangles half-moved
 
     def _unplug(self) -> None:
+        if self._synchronous and self._tty_name:
+            _ptysync.unregister(self._tty_name)
         for fd in (self._master, self._slave):
             if fd is not None:
                 with contextlib.suppress(OSError):
@@ -345,6 +373,12 @@ class PtyEmulator:
     def _on_tick(self, now_s: float) -> None:
         self.pump()
 
+    def host_wrote(self, count: int) -> None:
+        """A :class:`SerialTransport` wrote ``count`` bytes to this pty (the delivery
+        barrier of synchronous pumping: the next :meth:`pump` waits for them)."""
+        with self._lock:
+            self._host_written += count
+
     def _serve(self) -> None:
         while not self._stop.wait(0.001):
             self.pump()
@@ -376,22 +410,50 @@ class PtyEmulator:
     def _drain(self) -> bytes:
         assert self._master is not None
         chunks = []
+        deadline: float | None = None
         while True:
             try:
                 chunk = os.read(self._master, 4096)
             except BlockingIOError:
-                break
+                chunk = b""
             except OSError as exc:
                 if exc.errno == errno.EIO:  # no slave open: nothing to read
                     break
                 raise
-            if not chunk:
+            if chunk:
+                chunks.append(chunk)
+                self._host_read += len(chunk)
+                continue
+            if not self._synchronous or self._host_read >= self._host_written:
                 break
-            chunks.append(chunk)
+            # Bytes the host wrote are still crossing the pty: wait for them (bounded).
+            now = time.monotonic()
+            if deadline is None:
+                deadline = now + _DELIVERY_WAIT_S
+            elif now >= deadline:
+                self._host_read = self._host_written  # lost in the kernel: do not wait again
+                break
+            select.select([self._master], [], [], min(0.01, deadline - now))
         return b"".join(chunks)
+
+    def _await_delivery(self, count: int) -> None:
+        """Wait (bounded) until ``count`` bytes written just now are readable by the host."""
+        slave = self._slave
+        if slave is None:
+            return
+        deadline = time.monotonic() + _DELIVERY_WAIT_S
+        while True:
+            queued = _queued(slave)
+            # A host that stopped reading fills the line discipline's buffer: what does not
+            # fit waits in the kernel, and waiting longer would not change that.
+            if queued >= count or queued >= _LINE_BUFFER_FULL or time.monotonic() >= deadline:
+                return
+            time.sleep(0)
 
     def _write(self, data: bytes) -> None:
         assert self._master is not None
+        # What the host has not read yet plus what is written now is what it must see.
+        target = _queued(self._slave) if self._synchronous and self._slave is not None else 0
         view = memoryview(data)
         while view:
             try:
@@ -402,4 +464,7 @@ class PtyEmulator:
                 self.stats["overruns"] += 1
                 break
             self.stats["bytes_out"] += written
+            target += written
             view = view[written:]
+        if self._synchronous:
+            self._await_delivery(target)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
+from . import _ptysync
+
 __all__ = ["Backoff", "ByteTransport", "SerialTransport", "TransportError", "open_transport"]
 
 
@@ -147,6 +149,8 @@ class SerialTransport(ByteTransport):
             raise TransportError(f"write to {self.url} failed: {exc}") from exc
         if written is not None and written != len(data):
             raise TransportError(f"write to {self.url} sent {written} of {len(data)} bytes")
+        if "://" not in self.url:
+            _ptysync.notify_host_write(self.url, len(data))
 
     def reset_input(self) -> None:
         port = self._require_open()
