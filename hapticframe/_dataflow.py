@@ -22,14 +22,16 @@ from ._errors import RunError
 from ._kind import Kind
 from .kinds import (
     ClassProbabilities,
+    InputAlignment,
     LocatedMeasurement,
     Observations,
     RobotState,
     SampleBatch,
     Sensor,
+    concatenate_batches,
 )
 
-__all__ = ["Dataflow", "PoseHistory", "TraceRecorder"]
+__all__ = ["Dataflow", "InputAligner", "PoseHistory", "TraceRecorder", "merge_batches"]
 
 
 class TraceRecorder:
@@ -193,10 +195,24 @@ class PoseHistory:
         return np.column_stack([xs, ys]), headings, depths
 
 
-def merge_batches(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
-    """Join the batches of several inputs sample by sample (they must share timestamps)."""
+def merge_batches(
+    batches: Sequence[SampleBatch], consumer: str, alignment: InputAlignment | None = None
+) -> SampleBatch:
+    """Join the batches of several inputs into the one batch ``consumer`` reads.
+
+    With the default (``exact``) alignment the inputs must share timestamps. With
+    ``hold`` or ``linear`` (:class:`~hapticframe.kinds.InputAlignment`) every input after
+    the first is resampled onto the first input's timestamps, as :class:`InputAligner` does
+    tick by tick: the whole recordings at once give what a stream of them gives.
+    """
     if len(batches) == 1:
         return batches[0]
+    if alignment is None or alignment.method == "exact":
+        return _merge_exact(batches, consumer)
+    return InputAligner(alignment, consumer).push(batches)
+
+
+def _merge_exact(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
     first = batches[0]
     channels: dict[str, np.ndarray] = {}
     valid: dict[str, np.ndarray] = {}
@@ -206,7 +222,8 @@ def merge_batches(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
         ):
             raise RunError(
                 f"the inputs of {consumer!r} deliver samples at different times; give it "
-                "inputs that share a clock, or one input"
+                "inputs that share a clock, or one input, or let it align its inputs "
+                "(Component.input_alignment: hold or linear)"
             )
         for name, array in batch.channels.items():
             if name in channels:
@@ -214,6 +231,159 @@ def merge_batches(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
             channels[name] = array
         valid.update(batch.valid)
     return SampleBatch(first.timestamps_s, channels, valid)
+
+
+class InputAligner:
+    """Resamples a consumer's later inputs onto its first input's timestamps, tick by tick.
+
+    The dataflow keeps one per consumer whose :attr:`~hapticframe.kinds.Component.
+    input_alignment` is ``hold`` or ``linear``; :func:`merge_batches` uses a fresh one for
+    whole recordings. Between pushes it keeps, per later input, the samples a future
+    timestamp may still need (from the latest one at or before the earliest timestamp still
+    to come), and, for ``linear``, the first input's samples that wait for a later sample
+    to interpolate towards. Each timestamp is resolved from the same samples however the
+    recordings are cut into pushes, so streaming equals batch exactly, provided that when a
+    push delivers a sample of the first input, every later input has delivered its samples
+    up to that time. A run reads its sensors one after the other, in build order, and
+    sensors stamp samples with one host clock, so an input read after the first one is
+    ahead of it. (A sample of a later input that comes a push late is used only from then
+    on.)
+    """
+
+    def __init__(self, alignment: InputAlignment, consumer: str) -> None:
+        if alignment.method == "exact":
+            raise ValueError("an InputAligner aligns by 'hold' or 'linear', not 'exact'")
+        self.alignment = alignment
+        self.consumer = consumer
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every kept sample (a new stream starts)."""
+        self._tails: list[SampleBatch | None] = []
+        self._pending: SampleBatch | None = None
+        self._last_t = -math.inf
+
+    def checkpoint(self) -> tuple[list[SampleBatch | None], SampleBatch | None, float]:
+        """The kept samples (batches are immutable, so no copy is needed)."""
+        return list(self._tails), self._pending, self._last_t
+
+    def rewind(self, checkpoint: tuple[list[SampleBatch | None], SampleBatch | None, float]
+               ) -> None:
+        tails, pending, last_t = checkpoint
+        self._tails, self._pending, self._last_t = list(tails), pending, last_t
+
+    def push(self, batches: Sequence[SampleBatch]) -> SampleBatch:
+        """The joined batch of the first input's samples that can be resolved so far."""
+        primary = batches[0]
+        if self._pending is not None and len(self._pending):
+            primary = concatenate_batches([self._pending, primary])
+        times = primary.timestamps_s
+        if len(times):
+            self._last_t = max(self._last_t, float(times[-1]))
+        while len(self._tails) < len(batches) - 1:
+            self._tails.append(None)
+        channels: dict[str, np.ndarray] = dict(primary.channels)
+        valid: dict[str, np.ndarray] = dict(primary.valid)
+        ready = len(times)
+        known_inputs: list[SampleBatch] = []
+        for k, batch in enumerate(batches[1:]):
+            known = _join_tail(self._tails[k], batch)
+            known_inputs.append(known)
+            values, flags, decided = _resample(known, times, self._last_t, self.alignment)
+            for name, array in values.items():
+                if name in channels:
+                    raise RunError(
+                        f"two inputs of {self.consumer!r} both provide channel {name!r}"
+                    )
+                channels[name] = array
+                valid[name] = flags[name]
+            if not decided.all():
+                ready = min(ready, int(np.argmin(decided)))
+        # Keep from the latest sample at or before the earliest timestamp still to come
+        # (a pending one, or any after the first input's latest): its lower neighbour.
+        horizon = float(times[ready]) if ready < len(times) else self._last_t
+        for k, known in enumerate(known_inputs):
+            first = max(int(np.searchsorted(known.timestamps_s, horizon, side="right")) - 1, 0)
+            self._tails[k] = known.select(slice(first, None)) if first else known
+        self._pending = primary.select(slice(ready, None)) if ready < len(times) else None
+        if ready < len(times):
+            rows = slice(0, ready)
+            return SampleBatch(
+                times[rows],
+                {name: array[rows] for name, array in channels.items()},
+                {name: mask[rows] for name, mask in valid.items()},
+            )
+        return SampleBatch(times, channels, valid)
+
+
+def _join_tail(tail: SampleBatch | None, batch: SampleBatch) -> SampleBatch:
+    """The kept samples followed by the new ones (a sample not after the kept ones is a
+    sensor's repeat and is dropped)."""
+    if tail is None or not len(tail):
+        return batch
+    if not len(batch):
+        return tail
+    if batch.timestamps_s[0] <= tail.timestamps_s[-1]:
+        batch = batch.select(batch.timestamps_s > tail.timestamps_s[-1])
+        if not len(batch):
+            return tail
+    return concatenate_batches([tail, batch])
+
+
+def _resample(
+    source: SampleBatch, times: NDArray[np.float64], last_t: float, alignment: InputAlignment
+) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.bool_]], NDArray[np.bool_]]:
+    """``source``'s channels at ``times``: values, per-channel validity, and which times
+    are decided (``linear`` waits for the sample after a time, at most ``max_age_s``)."""
+    st = source.timestamps_s
+    m, n = len(st), len(times)
+    max_age = alignment.max_age_s
+    below = np.searchsorted(st, times, side="right") - 1
+    seen = below >= 0  # False: before the input's first sample
+    lower = np.clip(below, 0, max(m - 1, 0))
+    decided = np.ones(n, dtype=bool)
+    if m == 0:
+        ok = np.zeros(n, dtype=bool)
+        weight = upper = None
+    else:
+        lower_t = st[lower]
+        ok = seen & (times - lower_t <= max_age)
+        weight = upper = None
+        if alignment.method == "linear":
+            has_next = seen & (below + 1 < m)
+            upper = np.clip(below + 1, 0, m - 1)
+            exact = seen & (lower_t == times)
+            upper_t = st[upper]
+            between = has_next & ~exact
+            span = np.where(between, upper_t - lower_t, 1.0)
+            weight = np.where(between, (times - lower_t) / span, 0.0)
+            decided = ~ok | exact | has_next | (last_t - times > max_age)
+            ok = exact | (ok & has_next & (upper_t - times <= max_age))
+            upper = np.where(exact, lower, upper)
+    values: dict[str, NDArray[np.float64]] = {}
+    flags: dict[str, NDArray[np.bool_]] = {}
+    for name, array in source.channels.items():
+        shape = (n, *array.shape[1:])
+        if m == 0:
+            values[name] = np.full(shape, np.nan)
+            flags[name] = np.zeros(n, dtype=bool)
+            continue
+        source_valid = source.valid.get(name)
+        good = ok if source_valid is None else ok & source_valid[lower]
+        if weight is not None and upper is not None:
+            if source_valid is not None:
+                good = good & source_valid[upper]
+            w = weight.reshape((n,) + (1,) * (array.ndim - 1))
+            low, high = array[lower], array[upper]
+            with np.errstate(invalid="ignore"):
+                # A timestamp on a sample takes it as it is (no 0 * inf).
+                value = np.where(w == 0.0, low, low + w * (high - low))
+        else:
+            value = array[lower]
+        value[~good] = np.nan
+        values[name] = value
+        flags[name] = good
+    return values, flags, decided
 
 
 class Dataflow:
@@ -243,6 +413,13 @@ class Dataflow:
         self.force_max_n = float("nan")
         self._robot_keys: dict[str, tuple[str, ...]] = {}
         self._recorded_classes: dict[str, tuple[str, ...]] = {}
+        # One aligner per consumer whose inputs run on different clocks: it keeps their
+        # recent samples from tick to tick (a stream), so a run joins them as training does.
+        self.aligners: dict[str, InputAligner] = {}
+        for cid in self.extractors + self.classifiers:
+            alignment = components[cid].input_alignment
+            if alignment.method != "exact":
+                self.aligners[cid] = InputAligner(alignment, cid)
         self._plan_sensor_models()
         for sensor_id in self.sensors:
             channels = components.sensors[sensor_id].channels
@@ -300,7 +477,12 @@ class Dataflow:
         names = [i for i in self.entries[consumer].inputs if i in outputs]
         if not names:
             raise RunError(f"{consumer!r} has no sensor or feature input")
-        return merge_batches([outputs[i] for i in names], consumer)
+        if len(names) == 1:
+            return outputs[names[0]]
+        aligner = self.aligners.get(consumer)
+        if aligner is not None:
+            return aligner.push([outputs[i] for i in names])
+        return _merge_exact([outputs[i] for i in names], consumer)
 
     def tick(self) -> bool:
         """Read every sensor once and push the samples through. True if any sample arrived."""
@@ -364,6 +546,15 @@ class Dataflow:
         if probs is None or not len(probs):
             return False
         return bool(np.any(np.argmax(probs.probabilities, axis=1) != 0))
+
+    def checkpoint(self) -> dict[str, Any]:
+        """The aligners' kept samples, taken with the rewindable components' snapshots."""
+        return {cid: aligner.checkpoint() for cid, aligner in self.aligners.items()}
+
+    def rewind(self, checkpoint: Mapping[str, Any]) -> None:
+        """Return the aligners to a :meth:`checkpoint`."""
+        for cid, state in checkpoint.items():
+            self.aligners[cid].rewind(state)
 
     @property
     def rewindable(self) -> list[str]:
@@ -434,6 +625,8 @@ class Dataflow:
         self.force_max_n = float("nan")
         for cid in self.extractors + self.classifiers:
             self.components[cid].reset()
+        for aligner in self.aligners.values():
+            aligner.reset()
 
     def interaction_detected(self) -> str | None:
         """The class name if the primary classifier's latest sample is not background."""

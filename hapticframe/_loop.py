@@ -9,13 +9,65 @@ dataflow and the components; nothing here writes files or scores results.
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Callable, Mapping
 
 from ._dataflow import Dataflow
 from ._errors import RunError
 from ._session import Session
-from .kinds import Component, MovementResult, Planner, Robot
+from .kinds import Component, Device, MovementResult, Planner, Robot
 
-__all__ = ["run_loop"]
+__all__ = ["device_faults", "devices_of", "run_loop"]
+
+#: The wall clock that paces live runs (tests replace both).
+_monotonic: Callable[[], float] = time.monotonic
+_sleep: Callable[[float], None] = time.sleep
+
+
+def devices_of(components: Mapping[str, Component]) -> dict[str, Device]:
+    """The components that are devices (:class:`~hapticframe.kinds.Device`), in build order."""
+    return {cid: c for cid, c in components.items() if isinstance(c, Device)}
+
+
+def device_faults(devices: Mapping[str, Device]) -> str:
+    """`` | wrist: crc_errors 3, resyncs 12`` for the devices with non-zero fault counters
+    (``""`` when none has any)."""
+    parts = []
+    for cid, device in devices.items():
+        faults = {k: v for k, v in device.health.faults().items() if v}
+        if faults:
+            parts.append(f"{cid}: " + ", ".join(f"{k} {v}" for k, v in faults.items()))
+    return "".join(f" | {part}" for part in parts)
+
+
+class _Pacer:
+    """Waits on the wall clock so that ticks start at most every ``period_s`` seconds.
+
+    Only a run with a live device is paced (real hardware delivers samples in real time;
+    reading it faster only spins); simulated and emulated runs go as fast as they can.
+    A late tick is not made up for by a burst: the schedule restarts from it.
+    """
+
+    def __init__(self, period_s: float | None) -> None:
+        self.period_s = period_s
+        self._last: float | None = None
+
+    def wait(self) -> None:
+        if self.period_s is None:
+            return
+        now = _monotonic()
+        if self._last is not None:
+            due = self._last + self.period_s
+            if now < due:
+                _sleep(due - now)
+                self._last = due
+                return
+        self._last = now
+
+
+def _pacer(devices: Mapping[str, Device], period_s: float) -> _Pacer:
+    live = any(bool(device.live) for device in devices.values())
+    return _Pacer(period_s if live else None)
 
 
 def run_loop(session: Session) -> None:
@@ -40,6 +92,11 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
     limit = min(settings.max_movements, planner.max_movements)
     chain: list[Component] = [robot, *(session.components[i] for i in flow.rewindable)]
     lookahead = settings.lookahead_steps
+    devices = devices_of(session.components)
+    # A live device: each robot step waits for its control period on the wall clock.
+    pacer = _pacer(devices, 1.0 / robot.control_rate_hz)
+    if pacer.period_s is not None:
+        lookahead = 1
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
@@ -48,7 +105,7 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
         robot.begin(movement)
         if lookahead > 1 and any(c.checkpoint() is None for c in chain):
             lookahead = 1  # a component that cannot rewind: one step at a time
-        steps, halted_by_loop = _movement(session, flow, robot, index, chain, lookahead)
+        steps, halted_by_loop = _movement(session, flow, robot, index, chain, lookahead, pacer)
         flow.flush_maps()
         reason = halted_by_loop or robot.halt_reason
         result = MovementResult(
@@ -62,7 +119,7 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
         )
         session.movements.append(result)
         _note_force(session, flow.force_max_n)
-        _progress(session, result, steps)
+        _progress(session, result, steps, devices)
         for component in session.components.values():
             component.on_movement_end(result)
     session.echo(f"stopped after {limit} movements (the movement limit)")
@@ -70,7 +127,7 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
 
 def _movement(
     session: Session, flow: Dataflow, robot: Robot, index: int, chain: list[Component],
-    lookahead: int,
+    lookahead: int, pacer: _Pacer | None = None,
 ) -> tuple[int, str]:
     """Step the robot through the movement it has begun; returns the steps taken and
     ``"interaction"`` when the loop halted it.
@@ -99,6 +156,7 @@ def _movement(
             batch = min(batch, every - steps % every)
         if batch > 1 and steps >= replay_until and not halted_by_loop:
             snapshots = [component.checkpoint() for component in chain]
+            aligned = flow.checkpoint()
             states = []
             for _ in range(batch):
                 state = robot.step()
@@ -111,6 +169,7 @@ def _movement(
             if halt_on_interaction and flow.holds_interaction(classified):
                 for component, snapshot in zip(chain, snapshots, strict=True):
                     component.rewind(snapshot)
+                flow.rewind(aligned)
                 replay_until = steps + len(states)
                 continue
             for state in states:
@@ -118,6 +177,8 @@ def _movement(
             flow.commit(outputs, classified)
             steps += len(states)
         else:
+            if pacer is not None:
+                pacer.wait()
             state = robot.step()
             if state is None:
                 break
@@ -140,17 +201,23 @@ def _open_loop(session: Session, flow: Dataflow) -> None:
     if not sensors:
         raise RunError("nothing to run: the experiment has no sensors and no robot")
     max_reads = session.settings.max_reads
+    devices = devices_of(session.components)
+    pacer = _pacer(devices, session.settings.live_tick_s)
     reads = 0
     while reads < max_reads:
         reads += 1
         if all(s.exhausted for s in sensors):
             break
+        pacer.wait()
         flow.tick()
         flow.flush_maps()
     else:
         session.echo(f"stopped after {max_reads} reads (run.max_reads)")
     session.details["sensor_reads"] = reads
     _note_force(session, flow.force_max_n)
+    faults = device_faults(devices)
+    if faults:  # the open loop has no per-movement line: the devices' faults at its end
+        session.echo(f"{reads} sensor reads{faults}")
 
 
 def _note_force(session: Session, force_n: float) -> None:
@@ -159,7 +226,9 @@ def _note_force(session: Session, force_n: float) -> None:
         session.max_measured_force_n = force_n if math.isnan(previous) else max(previous, force_n)
 
 
-def _progress(session: Session, result: MovementResult, steps: int) -> None:
+def _progress(
+    session: Session, result: MovementResult, steps: int, devices: Mapping[str, Device]
+) -> None:
     m = result.movement
     # The force a sensor measured (noise included), as metrics.json's max_measured_force_n;
     # a simulator's true force is its own metric.
@@ -173,5 +242,5 @@ def _progress(session: Session, result: MovementResult, steps: int) -> None:
     session.echo(
         f"EM {result.index + 1:>3} {m.phase or '':<7} "
         f"{result.halt_reason or 'completed':<12} state {state:<8} "
-        f"{steps:>5d} steps{force:<27}{label}"
+        f"{steps:>5d} steps{force:<27}{label}{device_faults(devices)}"
     )

@@ -6,6 +6,13 @@ The orchestrator. It calls, in this order and never the other way round:
 :mod:`~hapticframe._loop` (the closed or open loop), :mod:`~hapticframe._evaluate`
 (score the run) and :mod:`~hapticframe._results` (write ``trace.npz``, ``metrics.json`` and
 ``run.json``). An experiment that fails to build writes nothing.
+
+Devices (:class:`~hapticframe.kinds.Device`) are configured and activated once everything
+is built and released, in reverse order, when the run ends in any way. A
+:class:`~hapticframe.devices.DeviceError` (a device that cannot recover) first halts every
+robot (and deactivates a robot that is a device), then fails the run with a message naming
+the device (exit status 1). Each device's health counters go to ``metrics.json``
+(``devices``), or to ``run.json`` (``details.devices``) when the run did not finish.
 """
 
 from __future__ import annotations
@@ -25,11 +32,12 @@ from . import _assembly
 from ._config import Experiment
 from ._errors import HapticframeError, RunError, RunInterrupted, UsageError
 from ._evaluate import score_run
-from ._loop import run_loop
+from ._loop import devices_of, run_loop
 from ._results import RunSummary, run_record, save_outputs, write_json
 from ._session import Session
 from ._train import collect_recordings, fit_components, training_reports
-from .kinds import Component
+from .devices import DeviceError
+from .kinds import Component, Device, Robot
 
 __all__ = ["RunSummary", "run_experiment"]
 
@@ -99,6 +107,32 @@ def _blame(exc: BaseException, components: Mapping[str, Component]) -> str:
     return found
 
 
+def _stop_robots(components: Mapping[str, Component]) -> tuple[list[str], list[str]]:
+    """Halt every robot (``"device failure"``) and deactivate those that are devices; the
+    ids halted, and what failed while doing so (each robot is tried whatever the others
+    do)."""
+    halted: list[str] = []
+    failures: list[str] = []
+    for cid, component in components.items():
+        if not isinstance(component, Robot):
+            continue
+        try:
+            component.halt("device failure")
+            halted.append(cid)
+        except Exception as exc:
+            failures.append(f"halting {cid!r} failed: {type(exc).__name__}: {exc}")
+        if isinstance(component, Device):
+            try:
+                component.deactivate()
+            except Exception as exc:
+                failures.append(f"deactivating {cid!r} failed: {type(exc).__name__}: {exc}")
+    return halted, failures
+
+
+def _device_health(components: Mapping[str, Component]) -> dict[str, dict[str, int]]:
+    return {cid: dict(d.health.as_dict()) for cid, d in devices_of(components).items()}
+
+
 def run_experiment(
     experiment: Experiment,
     out_dir: str | Path,
@@ -154,8 +188,22 @@ def run_experiment(
                 _fit_before_run(session)
                 run_loop(session)
                 metrics = score_run(session)
+                health = _device_health(components)
+                if health:
+                    metrics["devices"] = health
                 save_outputs(session, metrics)
                 session.status = "ok"
+            except DeviceError as exc:
+                # Stop every actuator before anything else is released.
+                halted, failures = _stop_robots(components)
+                session.status = "failed"
+                error = f"device failure{_blame(exc, components)}: {exc}"
+                if halted:
+                    error += f" (halted {', '.join(repr(r) for r in halted)})"
+                if failures:
+                    session.details["halt_errors"] = failures
+                    error += "; " + "; ".join(failures)
+                raise RunError(f"the run failed: {error}") from exc
             except RunInterrupted as exc:
                 session.status, signal_name, error = "interrupted", exc.signal_name, None
                 raise
@@ -176,6 +224,13 @@ def run_experiment(
         # The stack has closed every component by now.
     finally:
         if session is not None:
+            if session.status != "ok":
+                try:
+                    health = _device_health(session.components)
+                except Exception:  # a broken device's counters never hide the run's error
+                    health = {}
+                if health:
+                    session.details["devices"] = health
             if close_errors and session.status == "ok":
                 session.status, error = "failed", "; ".join(close_errors)
             elif close_errors:

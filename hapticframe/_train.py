@@ -2,7 +2,8 @@
 
 The experiment's sensors must be finite (synthetic trials, recordings). Their recordings
 (trials) flow through the components in build order: each feature extractor is fitted on
-its inputs and then transforms them; each classifier is fitted on its inputs with labels
+its inputs (joined as :attr:`~hapticframe.kinds.Component.input_alignment` says, as the run
+joins them) and then transforms them; each classifier is fitted on its inputs with labels
 taken from the sensors' label channel (``run.label_channel``, default ``contact``) at the
 classifier inputs' timestamps. Components that are
 :class:`~hapticframe.kinds.Persistent` write their artifacts into ``DIR/<component id>/``,
@@ -121,7 +122,10 @@ def fit_components(
         names = [i for i in entry.inputs if i in recordings[0]]
         if not names:
             continue  # reads nothing that was recorded: left as configured
-        inputs = [merge_batches([rec[i] for i in names], entry.id) for rec in recordings]
+        # Aligned as the run aligns them: each recording is one stream.
+        alignment = components[entry.id].input_alignment
+        inputs = [merge_batches([rec[i] for i in names], entry.id, alignment)
+                  for rec in recordings]
         echo(f"fitting {entry.id} ({entry.type})")
         if entry.kind is Kind.FEATURE_EXTRACTOR:
             extractor = components.feature_extractors[entry.id]

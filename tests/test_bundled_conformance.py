@@ -8,6 +8,10 @@ SPECS = [registered.spec for registered in get_registry()]
 BUNDLED = {
     ("sensor", "biotac"),
     ("sensor", "sandbox-force"),
+    ("sensor", "robotiq-ft300"),
+    ("sensor", "bno055"),
+    ("sensor", "trace-recording"),
+    ("feature_extractor", "force-observer"),
     ("feature_extractor", "emd-features"),
     ("feature_extractor", "sparse-coding"),
     ("classifier", "force-rate-jamming"),

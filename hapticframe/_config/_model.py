@@ -81,6 +81,12 @@ class RunSettings(BaseModel):
     evaluation_spacing_m: float = Field(
         0.0025, gt=0, le=0.05, description="Grid spacing for outline and centroid estimates."
     )
+    live_tick_s: float = Field(
+        0.01, gt=0, le=10.0,
+        description="With a live device (real hardware), the shortest wall-clock time between "
+        "two reads of an open loop's sensors; a closed loop waits the robot's control period "
+        "per step instead. Simulated and emulated runs are never paced.",
+    )
 
 
 def _default_factory(config: type[BaseModel]) -> Any:

@@ -6,7 +6,7 @@ What only some components can do (train, persist, evaluate on a grid) is declare
 :mod:`hapticframe.kinds.capabilities`.
 """
 
-from ._base import BuildContext, Component, RunOutcome
+from ._base import BuildContext, Component, InputAlignment, RunOutcome
 from ._records import (
     ChannelInfo,
     ClassProbabilities,
@@ -21,7 +21,7 @@ from ._records import (
     SampleBatch,
     concatenate_batches,
 )
-from .capabilities import GridQueryable, Persistent, PhysicalTruthSource, Trainable
+from .capabilities import Device, GridQueryable, Persistent, PhysicalTruthSource, Trainable
 from .classifier import Classifier
 from .feature_extractor import FeatureExtractor
 from .map import Map
@@ -36,9 +36,11 @@ __all__ = [
     "ClassProbabilities",
     "Classifier",
     "Component",
+    "Device",
     "ExploratoryMovement",
     "FeatureExtractor",
     "GridQueryable",
+    "InputAlignment",
     "LocatedMeasurement",
     "Map",
     "MapEstimate",

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from ._records import MovementResult
 if TYPE_CHECKING:
     from .._scene import Scene
 
-__all__ = ["BuildContext", "Component", "RunOutcome"]
+__all__ = ["BuildContext", "Component", "InputAlignment", "RunOutcome"]
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,50 @@ class RunOutcome:
     outline_level: float = 0.6
 
 
+#: The ways a consumer's inputs can be aligned (see :class:`InputAlignment`).
+AlignmentMethod = Literal["exact", "hold", "linear"]
+
+
+@dataclass(frozen=True)
+class InputAlignment:
+    """How a consumer with several inputs (sensors or feature extractors) joins them.
+
+    The first input sets the timestamps of the joined batch; every later input is
+    resampled onto them. The dataflow keeps each input's recent samples across ticks, so a
+    run that streams gives the same joined samples as training on whole recordings.
+
+    Parameters
+    ----------
+    method : {"exact", "hold", "linear"}
+        ``"exact"`` (the default): every input must deliver samples at the same
+        timestamps, as one clock would. ``"hold"``: the latest sample of the input at or
+        before each timestamp (sample-and-hold). ``"linear"``: linear interpolation between
+        the input's samples just before and just after each timestamp; a timestamp waits for
+        the following sample (at most ``max_age_s``), so the consumer sees it up to one
+        sample period of that input late, and the last samples of a recording that no later
+        sample brackets are left out. Vector channels are interpolated element-wise (a
+        quaternion comes back unnormalised).
+    max_age_s : float
+        A resampled value older than this (``hold``: the time since the sample it holds;
+        ``linear``: the time to either sample it interpolates between) is invalid: its
+        channels are NaN and ``valid[name]`` is False. So is a timestamp before the input's
+        first sample. Infinity (the default) never expires a sample.
+    """
+
+    method: AlignmentMethod = "exact"
+    max_age_s: float = math.inf
+
+    def __post_init__(self) -> None:
+        if self.method not in ("exact", "hold", "linear"):
+            raise ValueError(
+                f"InputAlignment.method must be 'exact', 'hold' or 'linear', got {self.method!r}"
+            )
+        age = float(self.max_age_s)
+        if math.isnan(age) or age <= 0:
+            raise ValueError(f"InputAlignment.max_age_s must be positive, got {self.max_age_s!r}")
+        object.__setattr__(self, "max_age_s", age)
+
+
 class Component(ABC):
     """Base class of every plugin implementation.
 
@@ -102,6 +147,17 @@ class Component(ABC):
 
     def reset(self) -> None:
         """Forget streaming state (hidden states, buffers, counters). Default: nothing."""
+
+    @property
+    def input_alignment(self) -> InputAlignment:
+        """How the dataflow joins this component's inputs when it has several.
+
+        Default: ``InputAlignment()`` (``exact``: the inputs share timestamps). A consumer
+        of inputs on different clocks (a 100 Hz force stream and a polled IMU) returns
+        ``InputAlignment("hold", max_age_s=...)`` or ``"linear"``; only feature extractors
+        and classifiers are asked.
+        """
+        return _EXACT
 
     def on_movement_end(self, result: MovementResult) -> None:
         """Called after each exploratory movement in a closed-loop run. Default: nothing."""
@@ -136,3 +192,6 @@ class Component(ABC):
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} id={self.id!r} kind={self.kind.value}>"
+
+
+_EXACT = InputAlignment()

@@ -17,20 +17,26 @@ intent and lets a type checker hold the signatures to the protocol's.
 - :class:`PhysicalTruthSource`: a simulated robot that exposes its physical state per step
   (a :class:`~hapticframe.kinds.PhysicalTruth`), so that device emulators can be driven by
   the simulation.
+- :class:`Device`: a component that drives hardware (or an emulation of it) through the
+  lifecycle configure → activate → deactivate → cleanup; the run loop drives it and
+  reports its health counters.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ._records import PhysicalTruth
 
-__all__ = ["GridQueryable", "Persistent", "PhysicalTruthSource", "Trainable"]
+if TYPE_CHECKING:
+    from ..devices import DeviceHealth
+
+__all__ = ["Device", "GridQueryable", "Persistent", "PhysicalTruthSource", "Trainable"]
 
 FloatArray = NDArray[np.float64]
 
@@ -111,4 +117,50 @@ class PhysicalTruthSource(Protocol):
     @property
     def truth_time_s(self) -> float:
         """Time of the latest step, in seconds (the simulation clock)."""
+        ...
+
+
+# --- Device (the run loop's hardware lifecycle) ----------------------------------------
+
+
+@runtime_checkable
+class Device(Protocol):
+    """A component that talks to a device: a serial sensor, an arm, or their emulation.
+
+    The lifecycle is ros2_control's: ``configure`` (open the port, identify the device),
+    ``activate`` (start streaming, tare), then reads or writes, then ``deactivate`` (stop
+    streaming, stop moving) and ``cleanup`` (close the port).
+    :class:`hapticframe.devices.DeviceLifecycle` implements it with checked transitions and
+    bounded recovery. ``hapticframe run`` configures and activates every device after
+    building the experiment, in build order, and deactivates and cleans them up in reverse
+    order when the run ends, whether it succeeded or not; ``deactivate`` and ``cleanup``
+    must be safe to call again on a device already closed.
+
+    A device that cannot go on raises :class:`hapticframe.devices.DeviceError`: the run
+    halts every robot and ends with exit status 1 and a message naming the device.
+    """
+
+    def configure(self) -> None:
+        """Open the link and set the device up (UNCONFIGURED → INACTIVE)."""
+
+    def activate(self) -> None:
+        """Start the device's data flow (INACTIVE → ACTIVE)."""
+
+    def deactivate(self) -> None:
+        """Stop the data flow (ACTIVE → INACTIVE); a no-op when not active."""
+
+    def cleanup(self) -> None:
+        """Release the link (INACTIVE → UNCONFIGURED); a no-op when already released."""
+
+    @property
+    def health(self) -> DeviceHealth:
+        """Counters of the link's health (bytes, frames, CRC errors, resyncs, timeouts...):
+        written to ``metrics.json`` under ``devices``; the non-zero fault counters are shown
+        in the run's progress lines."""
+        ...
+
+    @property
+    def live(self) -> bool:
+        """True when the device is real hardware, so the run is paced by the wall clock;
+        False for an emulated device that the simulation paces."""
         ...

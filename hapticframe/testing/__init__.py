@@ -25,7 +25,10 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
   (a finite sensor's ``read_all()`` and joined ``iter_recordings()`` equal what successive
   ``read()`` calls deliver), ``check_rewind``;
 - feature extractors and classifiers: ``check_stream_contract``,
-  ``check_streaming_matches_batch``, ``check_numerical_extremes``, ``check_rewind``;
+  ``check_streaming_matches_batch``, ``check_aligned_inputs_stream_as_batch`` (a consumer
+  whose ``input_alignment`` is ``hold`` or ``linear`` gets two inputs on different clocks,
+  joined tick by tick as a run joins them, and must give the batch result),
+  ``check_numerical_extremes``, ``check_rewind``;
 - sensor models: ``check_sensor_model_contract``, ``check_sensor_model_streaming``,
   ``check_sensor_model_extremes``;
 - maps: ``check_map_contract``, ``check_map_streaming_matches_batch``,
@@ -34,6 +37,9 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
   all-occupied map, a region smaller than one line spacing);
 - robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_extremes`` (a
   zero-length movement, movements that leave the workspace), ``check_rewind``.
+
+A :class:`~hapticframe.kinds.Device` the kit builds is configured and activated first,
+and deactivated and cleaned up when a check is done with it (``release_component``).
 
 Every loop the kit drives is bounded (reads, steps, ``max_movements``), so a plugin that
 never ends fails a check instead of hanging it; no check is timed.
@@ -48,7 +54,14 @@ from ._common import (
     check_lazy_import,
     check_spec_record,
 )
-from ._harness import DEFAULT_SCENE, CheckFailure, KitMap, make_component, synthetic_batch
+from ._harness import (
+    DEFAULT_SCENE,
+    CheckFailure,
+    KitMap,
+    make_component,
+    release_component,
+    synthetic_batch,
+)
 from ._rewind import check_rewind
 from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
 from ._spatial import (
@@ -69,6 +82,7 @@ from ._spatial import (
     planner_episode,
 )
 from ._streams import (
+    check_aligned_inputs_stream_as_batch,
     check_numerical_extremes,
     check_sensor_contract,
     check_sensor_read_all_matches_reads,
@@ -85,6 +99,7 @@ __all__ = [
     "DEFAULT_SCENE",
     "HEAVY_MODULES",
     "KitMap",
+    "check_aligned_inputs_stream_as_batch",
     "check_builds",
     "check_config_round_trip",
     "check_deterministic",
@@ -115,6 +130,7 @@ __all__ = [
     "map_observations",
     "parametrize_with_checks",
     "planner_episode",
+    "release_component",
     "run_checks",
     "synthetic_batch",
 ]

@@ -18,6 +18,7 @@ from .._specs import PluginSpec
 from ..kinds import (
     BuildContext,
     Component,
+    Device,
     ExploratoryMovement,
     Map,
     MapEstimate,
@@ -34,6 +35,7 @@ __all__ = [
     "crossing_movement",
     "make_component",
     "raised_by_record_validation",
+    "release_component",
     "synthetic_batch",
 ]
 
@@ -136,10 +138,15 @@ def make_component(
     of; it is also the type a type checker sees returned (default:
     :class:`~hapticframe.kinds.Component`).
 
+    A :class:`~hapticframe.kinds.Device` (and every device among the inputs) is configured
+    and activated, as a run does before its loop; :func:`release_component` (or the
+    device's ``close()``) takes it down again.
+
     Raises
     ------
     CheckFailure
-        When the factory builds something that is not an instance of ``interface``.
+        When the factory builds something that is not an instance of ``interface``, or a
+        device fails to configure or activate.
     """
     if _depth > 5:
         raise CheckFailure(f"check_inputs of {spec.name!r} nest too deeply (a cycle?)")
@@ -180,7 +187,30 @@ def make_component(
             f"{spec.factory!r} built {type(built).__name__}, not a "
             f"hapticframe.kinds.{wanted.__name__}"
         )
+    if isinstance(built, Device):
+        try:
+            built.configure()
+            built.activate()
+        except Exception as exc:
+            release_component(built)
+            raise CheckFailure(
+                f"device {spec.name!r} failed to come up (configure, activate): "
+                f"{type(exc).__name__}: {exc}"
+            ) from exc
     return built
+
+
+def release_component(component: Component) -> None:
+    """Close a component the kit built: a device is deactivated and cleaned up first (as a
+    run does after its loop), then ``close()`` runs whatever happened before."""
+    try:
+        if isinstance(component, Device):
+            try:
+                component.deactivate()
+            finally:
+                component.cleanup()
+    finally:
+        component.close()
 
 
 def synthetic_batch(

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from .._dataflow import InputAligner, merge_batches
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
@@ -14,6 +15,7 @@ from ..kinds import (
     Classifier,
     ClassProbabilities,
     FeatureExtractor,
+    InputAlignment,
     Robot,
     SampleBatch,
     Sensor,
@@ -25,6 +27,7 @@ from ._harness import (
     crossing_movement,
     make_component,
     raised_by_record_validation,
+    release_component,
     synthetic_batch,
 )
 
@@ -32,6 +35,7 @@ __all__ = [
     "LIVE_READS",
     "MAX_FINITE_DURATION_S",
     "MAX_FINITE_READS",
+    "check_aligned_inputs_stream_as_batch",
     "check_sensor_read_all_matches_reads",
     "check_sensor_valid_samples_finite",
     "drive_sensor",
@@ -162,7 +166,7 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
         if not delivered:
             raise CheckFailure(f"{len(batches)} reads delivered no samples")
     finally:
-        sensor.close()
+        release_component(sensor)
 
 
 @check(Kind.SENSOR)
@@ -178,7 +182,7 @@ def check_sensor_valid_samples_finite(
     try:
         batches = _drive(spec, sensor)
     finally:
-        sensor.close()
+        release_component(sensor)
     for i, batch in enumerate(batches):
         if not len(batch):
             continue
@@ -250,14 +254,14 @@ def check_sensor_read_all_matches_reads(
     try:
         reads = _whole(_drive(spec, streamed), streamed, "the successive read()s")
     finally:
-        streamed.close()
+        release_component(streamed)
     drained = make_component(spec, registry=registry, interface=Sensor)
     try:
         whole = drained.read_all()
     except RuntimeError as exc:
         raise CheckFailure(f"read_all() did not end: {exc}") from exc
     finally:
-        drained.close()
+        release_component(drained)
     difference = _batches_differ(reads, whole)
     if difference:
         raise CheckFailure(
@@ -269,7 +273,7 @@ def check_sensor_read_all_matches_reads(
     try:
         recordings = list(itertools.islice(split.iter_recordings(), MAX_FINITE_READS))
     finally:
-        split.close()
+        release_component(split)
     difference = _batches_differ(_whole(recordings, split, "the recordings"), whole)
     if difference:
         raise CheckFailure(
@@ -327,7 +331,7 @@ def check_stream_contract(spec: PluginSpec, *, registry: Registry | None = None)
     except Exception as exc:
         raise _fail_on_error(spec, "finite synthetic input", exc) from exc
     finally:
-        component.close()
+        release_component(component)
 
 
 @check(Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER)
@@ -336,12 +340,7 @@ def check_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None
     component = _stream_component(spec, registry)
     batch = synthetic_batch(spec, 240, rng=np.random.default_rng(2))
     try:
-        if isinstance(component, Classifier):
-            whole = component.predict_proba(batch)
-            whole_t, whole_a = whole.timestamps_s, {"probabilities": whole.probabilities}
-        else:
-            out = component.transform(batch)
-            whole_t, whole_a = out.timestamps_s, dict(out.channels)
+        whole_t, whole_a = _batch_outputs(component, batch)
         component.reset()
         sizes = np.random.default_rng(3).integers(1, 38, size=240)
         parts, start = [], 0
@@ -351,7 +350,24 @@ def check_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None
             parts.append(_outputs(component, batch.select(slice(start, start + int(size)))))
             start += int(size)
     finally:
-        component.close()
+        release_component(component)
+    _compare_stream(parts, whole_t, whole_a)
+
+
+def _batch_outputs(component: Any, batch: SampleBatch) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    if isinstance(component, Classifier):
+        whole = component.predict_proba(batch)
+        return whole.timestamps_s, {"probabilities": whole.probabilities}
+    out = component.transform(batch)
+    return out.timestamps_s, dict(out.channels)
+
+
+def _compare_stream(
+    parts: list[tuple[np.ndarray, dict[str, np.ndarray]]],
+    whole_t: np.ndarray,
+    whole_a: dict[str, np.ndarray],
+    how: str = "update() in chunks",
+) -> None:
     times = np.concatenate([p[0] for p in parts]) if parts else np.empty(0)
     if times.shape != whole_t.shape or not np.allclose(times, whole_t, atol=1e-12):
         raise CheckFailure(
@@ -367,8 +383,88 @@ def check_streaming_matches_batch(spec: PluginSpec, *, registry: Registry | None
             )
             raise CheckFailure(
                 f"streaming and batch outputs of {name!r} differ (max |diff| {worst:.3g}); "
-                "update() in chunks must equal the batch path"
+                f"{how} must equal the batch path"
             )
+
+
+def two_clock_inputs(
+    spec: PluginSpec, alignment: InputAlignment, n: int, rng: np.random.Generator
+) -> tuple[SampleBatch, SampleBatch]:
+    """Two inputs on different clocks in the layout of ``spec.consumes``.
+
+    The first ``consumes`` channel is the first input, at ``spec.sample_rate_hz``; the
+    other channels are a second input at about a third of that rate (faster when
+    ``alignment.max_age_s`` asks for it), with jittered timestamps, starting before the
+    first input and ending after it, so that every joined sample is valid.
+    """
+    names = list(spec.consumes)
+    first = synthetic_batch(spec, n, rng=rng)
+    dt = 1.0 / spec.sample_rate_hz
+    period = min(2.7 * dt, 0.45 * alignment.max_age_s)
+    t_first = first.timestamps_s
+    m = int(np.ceil((t_first[-1] - t_first[0]) / period)) + 3
+    jitter = rng.uniform(-0.05, 0.05, m) * period
+    t_second = t_first[0] - 0.5 * period + period * np.arange(m) + jitter
+    second = synthetic_batch(spec, m, rng=rng)
+    return (
+        SampleBatch(t_first, {names[0]: first.channels[names[0]]}),
+        SampleBatch(t_second, {k: second.channels[k] for k in names[1:]}),
+    )
+
+
+@check(Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER)
+def check_aligned_inputs_stream_as_batch(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
+    """Inputs on different clocks, joined tick by tick, give the batch result (to 1e-9).
+
+    For a component whose ``input_alignment`` is ``hold`` or ``linear``: the first
+    ``consumes`` channel comes from one input at ``sample_rate_hz``, the other channels from
+    a second input at another rate (:func:`two_clock_inputs`). Both are cut into random
+    ticks (the second input's a little later, as a run reads its sensors one after the
+    other), joined by the run's aligner and fed to ``update()``; the outputs must
+    equal the batch path (``transform`` or ``predict_proba``) on the whole recordings
+    joined at once, as training joins them. A component that aligns exactly, or consumes
+    one channel, passes without further checks.
+    """
+    component = _stream_component(spec, registry)
+    try:
+        alignment = component.input_alignment
+        if alignment.method == "exact" or len(spec.consumes) < 2:
+            return
+        rng = np.random.default_rng(6)
+        first, second = two_clock_inputs(spec, alignment, 240, rng)
+        consumer = f"kit-{spec.name}"
+        whole_t, whole_a = _batch_outputs(
+            component, merge_batches([first, second], consumer, alignment)
+        )
+        component.reset()
+        aligner = InputAligner(alignment, consumer)
+        # Tick boundaries anywhere between samples, 1 to 37 first-input samples apart; the
+        # second input is read up to a few first-input periods later in each tick, as
+        # sensors read one after the other are.
+        ends = np.cumsum(rng.integers(1, 38, size=240))
+        ends = ends[ends < len(first)]
+        dt = 1.0 / spec.sample_rate_hz
+        cuts = [*(first.timestamps_s[ends - 1] + rng.uniform(0, dt, len(ends))), np.inf]
+        skews = rng.uniform(0, 3 * dt, len(cuts))
+        parts, low, low_second = [], -np.inf, -np.inf
+        for high, skew in zip(cuts, skews, strict=True):
+            high_second = max(high + skew, low_second)
+            ticks = [
+                first.select((first.timestamps_s > low) & (first.timestamps_s <= high)),
+                second.select((second.timestamps_s > low_second)
+                              & (second.timestamps_s <= high_second)),
+            ]
+            parts.append(_outputs(component, aligner.push(ticks)))
+            low, low_second = high, high_second
+    except CheckFailure:
+        raise
+    except Exception as exc:
+        raise _fail_on_error(spec, "two inputs on different clocks", exc) from exc
+    finally:
+        release_component(component)
+    _compare_stream(parts, whole_t, whole_a, "update() on inputs aligned tick by tick")
 
 
 @check(Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER)
@@ -395,7 +491,7 @@ def check_numerical_extremes(spec: PluginSpec, *, registry: Registry | None = No
                             f"{fill} input of {n} sample(s): silent NaNs are not allowed"
                         )
     finally:
-        component.close()
+        release_component(component)
 
 
 def sensor_outputs(sensor: Sensor, spec: PluginSpec) -> list[Any]:

@@ -11,6 +11,11 @@ tool's pose, velocity, acceleration and the environment's force and torque on it
 :class:`~hapticframe.kinds.PhysicalTruth`, which drives emulated wrist force/torque sensors and
 IMUs (``docs/simulated-devices.md``). With ``acceleration_m_per_s2`` set, each movement follows
 a trapezoidal speed profile, so that the tool's inertia shows in those sensors.
+
+At the end of a run the robot writes its per-step truth into ``ground_truth.npz`` in the run's
+directory (see :meth:`SandboxRobot.finalize`): time, true state (0 free, 1 jamming, 2
+contact), true force, position and movement of every step, the labels a classifier is
+calibrated against (``hapticframe train`` with the ``trace-recording`` sensor).
 """
 
 from __future__ import annotations
@@ -320,7 +325,37 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._close_movement()
 
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
+        """Write ``ground_truth.npz`` (and ``forces.png`` with figures); return metrics.
+
+        ``ground_truth.npz`` in the run's directory holds the simulator's truth, one row
+        per robot step of every movement (plain arrays, no pickles):
+
+        - ``timestamps_s`` (n,): the step's time (the robot's ``timestamp_s``);
+        - ``state`` (n,) int64: 0 free movement, 1 granular jamming, 2 direct contact
+          (names in ``state_names``);
+        - ``force_n`` (n, 2): the true interaction force on the fingertip (no noise);
+        - ``position_m`` (n, 2): the fingertip position;
+        - ``movement_index`` (n,) int64: the 0-based exploratory movement;
+        - ``depth_m`` (n,): the raking depth.
+
+        These are the labels for calibrating classifiers from a recorded run: the
+        ``trace-recording`` sensor replays the run's ``trace.npz`` with them
+        (``labels: <run directory>``).
+        """
         self._close_movement()
+        out_dir = Path(outcome.out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        truth = self.ground_truth
+        np.savez_compressed(
+            out_dir / "ground_truth.npz",
+            timestamps_s=truth.timestamps_s,
+            state=truth.states,
+            force_n=truth.forces_n,
+            position_m=truth.positions_m,
+            movement_index=truth.movement_index,
+            depth_m=truth.depth_m,
+            state_names=np.array(STATE_NAMES),
+        )
         if outcome.figures:
             from ._plots import plot_movement_forces
 

@@ -35,6 +35,7 @@ from hapticframe.kinds import (
 )
 
 from .heavy_config import HeavyConfig
+from .lab_devices import DeviceSensorConfig, MixConfig
 from .labplugin import (
     CellConfig,
     CellMap,
@@ -371,6 +372,9 @@ class LineRobot(Robot):
             self._s = s
 
 
+D = "tests.support.lab_devices"
+_TWO_CLOCKS = {"force_n": (2,), "accel_m_per_s2": (2,)}
+
 GOOD = [
     SensorSpec("lab-sweep", "ok", SweepConfig, "tests.support.labplugin:SweepSensor",
                capabilities=frozenset({"finite"})),
@@ -387,6 +391,13 @@ GOOD = [
                capabilities=frozenset({"finite"})),
     PlannerSpec("lab-inset-lines", "ok", LinePlannerConfig, f"{M}:InsetLinesPlanner",
                 check_config={"spacing_m": 0.005}),
+    # A device that can be read only while active: the kit brings it up and down.
+    SensorSpec("lab-device", "ok", DeviceSensorConfig, f"{D}:DeviceSensor",
+               check_config={"crc_errors_per_read": 1}),
+    # Two inputs on different clocks, held or interpolated.
+    FeatureExtractorSpec("lab-mix", "ok", MixConfig, f"{D}:MixExtractor", consumes=_TWO_CLOCKS),
+    FeatureExtractorSpec("lab-mix-linear", "ok", MixConfig, f"{D}:MixExtractor",
+                         consumes=_TWO_CLOCKS, check_config={"method": "linear"}),
 ]
 
 _FORCE = {"force_n": (2,)}
@@ -472,6 +483,9 @@ BROKEN = [
     (RobotSpec("waits-at-workspace-edge", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"wait_at_workspace_edge": True}), "check_robot_extremes",
      "a movement that leaves the workspace did not end within"),
+    (FeatureExtractorSpec("forgets-between-ticks", "x", MixConfig, f"{D}:MixExtractor",
+                          consumes=_TWO_CLOCKS, check_config={"forgetful": True}),
+     "check_aligned_inputs_stream_as_batch", "inputs aligned tick by tick must equal"),
 ]
 
 __all__ = ["BROKEN", "GOOD", "Region"]
