@@ -293,7 +293,7 @@ def calibrate_observer(
                 {"force_n": f_ok, "acceleration_m_per_s2": fresh}))
         with warnings.catch_warnings(record=True) as issued:
             warnings.simplefilter("always")
-            observer.fit(batches)  # type: ignore[attr-defined]
+            observer.fit(batches)
         caught = [str(w.message) for w in issued]
         report = dict(observer.training_report())  # type: ignore[attr-defined]
         health = {name: built[name].health.as_dict()  # type: ignore[attr-defined]
