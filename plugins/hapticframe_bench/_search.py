@@ -302,6 +302,7 @@ def run_suite(
     *,
     experiment_factory: ExperimentFactory = search_experiment,
     shapes: Sequence[str] = SHAPES,
+    planners: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run the search benchmark and write its report (see the module docstring).
 
@@ -317,6 +318,10 @@ def run_suite(
         set-up, :func:`~hapticframe_bench._template.search_experiment`.
     shapes : sequence of str
         Shapes to bury (default: circle and ellipse).
+    planners : mapping of str to str, optional
+        Role (``"search"``, ``"baseline"``) to planner type; default: the two-phase planner
+        as ``"search"`` and the coverage planner as ``"baseline"``. A role left out is not
+        run (its aggregates are then empty).
 
     Returns
     -------
@@ -337,7 +342,9 @@ def run_suite(
         np.random.default_rng(options.seed), trials, (0.0, REGION_WIDTH_M, 0.0, REGION_HEIGHT_M),
         shapes,
     )
-    planners = {"search": SEARCH_PLANNER, "baseline": BASELINE_PLANNER}
+    if planners is None:
+        planners = {"search": SEARCH_PLANNER, "baseline": BASELINE_PLANNER}
+    planners = dict(planners)
     total = trials * len(shapes) * len(planners)
     records: list[dict[str, Any]] = []
     versions: dict[str, Any] = {}

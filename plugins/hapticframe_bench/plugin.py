@@ -17,13 +17,20 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``perception``, ``bhm`` and ``latency``."""
+    """Yield the suites: ``search``, ``search-devices``, ``perception``, ``bhm`` and ``latency``."""
     yield BenchSpec(
         name="search",
         summary="Haptic search, Table 3.2: two-phase planner vs coverage baseline, circle "
         "and ellipse at random placements.",
         factory="hapticframe_bench._search:run_search",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="search-devices",
+        summary="Haptic search through emulated FT 300 + BNO055 and the force observer "
+        "beside the pure simulation (issue 14): accuracy, per-step cost, calibration, health.",
+        factory="hapticframe_bench._search_devices:run_search_devices",
+        install_hint="pip install 'hapticframe[hardware]'  (pyserial for the emulated ports)",
     )
     yield BenchSpec(
         name="perception",
