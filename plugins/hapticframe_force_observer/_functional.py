@@ -335,7 +335,7 @@ def fit_force_observer(
     -----
     Rows with a non-finite force or acceleration component are left out (counted in
     ``rows_dropped``). Both signs of the gain are solved and the smaller residual kept;
-    when they tie (a single excited direction), the sign whose rotation is smaller wins.
+    when they tie (a single excited direction), the positive gain (a mass) is kept.
     """
     f_all = _as_rows(forces_n, "forces_n")
     a_all = _as_rows(accelerations, "accelerations")
@@ -382,12 +382,9 @@ def fit_force_observer(
         if gain == 0.0:
             rotation, mass = np.eye(3), 0.0
         else:
-            w = b / gain
-            r_pos, r_neg = _smallest_rotation(u, w), _smallest_rotation(u, -w)
-            if rotation_angle_rad(r_neg) < rotation_angle_rad(r_pos) - 1e-12:
-                rotation, mass = r_neg, -gain
-            else:
-                rotation, mass = r_pos, gain
+            # m R u = b and m (−R) u = −b fit equally: the data cannot tell the sign, so the
+            # physical one (a mass is positive) is taken.
+            rotation, mass = _smallest_rotation(u, b / gain), gain
         others = " and ".join(_format_vector(v) for v in axes[1:])
         message = (
             f"the accelerations vary along one direction only, {_format_vector(u)} in the IMU "

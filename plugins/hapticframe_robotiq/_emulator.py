@@ -95,7 +95,9 @@ FAULT_KINDS: Mapping[str, str] = {
 STANDARD_FAULTS: tuple[Mapping[str, Any], ...] = (
     {"kind": "bad_crc", "rate_hz": 0.2},
     {"kind": "frame_drop_bytes", "rate_hz": 0.1},
-    {"kind": "header_in_payload", "rate_hz": 0.2, "params": {"offset": 4}},
+    # In a torque word (My = 20 N·m): the parser test without a force spike that a
+    # classifier would rightly take for an interaction.
+    {"kind": "header_in_payload", "rate_hz": 0.2, "params": {"offset": 10}},
     {"kind": "garbage", "rate_hz": 0.1, "params": {"count": 6}},
     {"kind": "fragment", "rate_hz": 0.05, "duration_s": 1.0},
     {"kind": "stall", "rate_hz": 0.05, "duration_s": 0.05},
