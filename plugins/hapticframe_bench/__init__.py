@@ -4,6 +4,9 @@
   Table 3.2, with the bundled simulator, classifier, sensor model, maps and planners;
 - ``perception`` (:mod:`._perception`): Tables 2.2, 2.3, 2.4 and A.1 on the synthetic
   BioTac dataset, with the streaming chain's latency;
+- ``search-devices`` (:mod:`._search_devices`): the same search through the emulated
+  FT 300 and BNO055 and the force observer, beside the pure simulation, after calibrating
+  the observer on free motions;
 - ``bhm`` (:mod:`._bhm`): the Bayesian Hilbert map's timing targets;
 - ``latency`` (:mod:`._latency`): the streaming feature chain and a classifier step per
   frame, and our EMD against PyEMD.
@@ -30,6 +33,7 @@ if TYPE_CHECKING:
     from ._perception import run_perception
     from ._placements import Placement, draw_placements
     from ._search import run_search, run_suite
+    from ._search_devices import calibrate_observer, chain_experiment, run_search_devices
     from ._separability import linear_svm_separability
     from ._targets import Target, TargetCheck, check_targets
     from ._template import search_experiment
@@ -40,6 +44,8 @@ __all__ = [
     "TargetCheck",
     "aggregate_trials",
     "benchmark_bhm",
+    "calibrate_observer",
+    "chain_experiment",
     "check_targets",
     "compare_emd_with_pyemd",
     "draw_placements",
@@ -52,6 +58,7 @@ __all__ = [
     "run_latency_bench",
     "run_perception",
     "run_search",
+    "run_search_devices",
     "run_suite",
     "search_experiment",
     "synthetic_biotac_frames",
@@ -66,6 +73,9 @@ _HOMES = {
     "trial_figures": "._aggregate",
     "run_search": "._search",
     "run_suite": "._search",
+    "calibrate_observer": "._search_devices",
+    "chain_experiment": "._search_devices",
+    "run_search_devices": "._search_devices",
     "search_experiment": "._template",
     "run_perception": "._perception",
     "benchmark_bhm": "._bhm",
