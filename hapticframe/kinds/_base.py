@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 
 from .._kind import Kind
-from ._records import MovementResult
+from ._records import ChannelInfo, MovementResult
 
 if TYPE_CHECKING:
     from .._scene import Scene
@@ -49,6 +49,21 @@ class BuildContext:
     def input_of_kind(self, kind: Kind) -> list[Component]:
         """The inputs of one kind, in the order given."""
         return [c for c in self.inputs.values() if c.kind is kind]
+
+    def input_channel(self, name: str) -> ChannelInfo | None:
+        """What the first input that provides channel ``name`` declares of it (a sensor's
+        ``channels``, a feature extractor's ``output_channels``), or None when none does.
+
+        A consumer reads the rate it designs a filter for here, before any sample arrives.
+        """
+        for component in self.inputs.values():
+            for attribute in ("channels", "output_channels"):
+                declared = getattr(component, attribute, None)
+                if isinstance(declared, Mapping) and name in declared:
+                    info = declared[name]
+                    if isinstance(info, ChannelInfo):
+                        return info
+        return None
 
 
 @dataclass(frozen=True)

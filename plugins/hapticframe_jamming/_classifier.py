@@ -239,11 +239,8 @@ class ForceRateJammingClassifier(Classifier):
     def _resolve_sample_rate(config: ForceRateJammingConfig, context: BuildContext) -> float:
         if config.sample_rate_hz is not None:
             return float(config.sample_rate_hz)
-        for component in context.inputs.values():
-            channels = getattr(component, "channels", None)
-            if channels is not None and config.force_channel in channels:
-                return float(channels[config.force_channel].rate_hz)
-        return DEFAULT_SAMPLE_RATE_HZ
+        info = context.input_channel(config.force_channel)
+        return DEFAULT_SAMPLE_RATE_HZ if info is None else float(info.rate_hz)
 
     def _build(self) -> None:
         cfg = self.config

@@ -90,3 +90,35 @@ def test_run_evaluation_map_must_name_a_map(lab_dir, capsys, chosen, said):
     path.write_text(path.read_text().replace("seed: 3", setting))
     assert lab_main(["run", str(path), "--out", str(lab_dir / "run"), "--quiet"]) == 1
     assert f"run.evaluation_map {chosen!r} names {said}, not a map" in capsys.readouterr().err
+
+
+def test_build_context_finds_an_input_channel_of_a_sensor_or_an_extractor():
+    from collections.abc import Mapping
+
+    from hapticframe.kinds import (
+        BuildContext,
+        ChannelInfo,
+        FeatureExtractor,
+        SampleBatch,
+        Sensor,
+    )
+
+    class Source(Sensor):
+        channels: Mapping[str, ChannelInfo] = {"force_n": ChannelInfo((3,), "N", 125.0)}
+
+        def read(self) -> SampleBatch:
+            return SampleBatch.empty(self.channels)
+
+    class Features(FeatureExtractor):
+        output_channels: Mapping[str, ChannelInfo] = {"f": ChannelInfo((2,), "1", 40.0)}
+
+        def update(self, batch: SampleBatch) -> SampleBatch:
+            return batch
+
+    rng = np.random.default_rng(0)
+    source = Source(None, BuildContext("s", rng))
+    features = Features(None, BuildContext("e", rng))
+    context = BuildContext("c", rng, inputs={"s": source, "e": features})
+    assert context.input_channel("force_n") == ChannelInfo((3,), "N", 125.0)
+    assert context.input_channel("f").rate_hz == 40.0
+    assert context.input_channel("missing") is None
