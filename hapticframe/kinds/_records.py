@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..geometry import rotation_matrix_from_wxyz
+
 __all__ = [
     "ChannelInfo",
     "ClassProbabilities",
@@ -658,11 +660,4 @@ class PhysicalTruth:
     @property
     def rotation_matrix(self) -> FloatArray:
         """The (3, 3) rotation matrix of :attr:`orientation_wxyz` (world ← tool)."""
-        w, x, y, z = self.orientation_wxyz.tolist()
-        return np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
+        return rotation_matrix_from_wxyz(self.orientation_wxyz)

@@ -240,7 +240,7 @@ def calibrate_observer(
         ``residual_rms_n`` (after the fitted observer), the observer's ``training_report``,
         ``samples``, ``warnings`` and ``wall_time_s``.
     """
-    from hapticframe_force_observer import rotation_from_wxyz  # the observer's public API
+    from hapticframe.geometry import rotation_matrix_from_wxyz
 
     started = time.perf_counter()
     experiment = validate_mapping(_calibration_experiment(seed), source="<calibration>",
@@ -298,8 +298,8 @@ def calibrate_observer(
         report = dict(observer.training_report())  # type: ignore[attr-defined]
         health = {name: built[name].health.as_dict()  # type: ignore[attr-defined]
                   for name in ("wrist", "imu")}
-    fitted_r = rotation_from_wxyz(report["rotation_wxyz"])
-    true_r = rotation_from_wxyz(EMULATED_RIG["imu_rotation_wxyz"])
+    fitted_r = rotation_matrix_from_wxyz(report["rotation_wxyz"])
+    true_r = rotation_matrix_from_wxyz(EMULATED_RIG["imu_rotation_wxyz"])
     cos = (np.trace(fitted_r.T @ true_r) - 1.0) / 2.0
     # What one excited direction u determines: the gain m R u. (m, R) and (-m, R') with
     # R' u = -R u fit equally; the rest of R, and with it ε (which absorbs m R g), is not.

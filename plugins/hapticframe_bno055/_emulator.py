@@ -46,6 +46,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hapticframe.devices import DeviceModel, FaultEvent, FaultSchedule
+from hapticframe.geometry import (
+    rotation_matrix_from_rpy_deg,
+    rotation_matrix_from_wxyz,
+    wxyz_from_rotation_matrix,
+)
 
 from ._protocol import (
     CHIP_ID_VALUE,
@@ -63,7 +68,6 @@ from ._protocol import (
     encode_status,
     fusion_mode,
 )
-from ._rotation import matrix_from_quaternion, matrix_from_rpy_deg, quaternion_from_matrix
 
 __all__ = [
     "GRAVITY_M_PER_S2",
@@ -173,7 +177,7 @@ class Bno055Model(DeviceModel):
         self.truth = truth
         self.faults = faults
         self._rng = rng
-        self.mount_rotation = matrix_from_rpy_deg(mount_rpy_deg)
+        self.mount_rotation = rotation_matrix_from_rpy_deg(mount_rpy_deg)
         self.accel_noise_std_m_per_s2 = float(accel_noise_std_m_per_s2)
         self.calibration_stat = calibration_stat & 0xFF
         self._byte_time_s = 10.0 / baudrate
@@ -457,7 +461,7 @@ class Bno055Model(DeviceModel):
             omega_w = np.zeros(3)
         else:
             state = self.truth(t)
-            r_wt = matrix_from_quaternion(state.orientation_wxyz)
+            r_wt = rotation_matrix_from_wxyz(state.orientation_wxyz)
             a_w = np.asarray(state.linear_acceleration_m_per_s2, dtype=np.float64)
             omega_w = np.asarray(state.angular_velocity_rad_per_s, dtype=np.float64)
         r_wi = r_wt @ self.mount_rotation
@@ -466,5 +470,5 @@ class Bno055Model(DeviceModel):
         lia = r_wi.T @ a_w
         gravity = r_wi.T @ g_w
         gyro = r_wi.T @ omega_w
-        return accel, lia, gravity, gyro, quaternion_from_matrix(r_wi)
+        return accel, lia, gravity, gyro, wxyz_from_rotation_matrix(r_wi)
 

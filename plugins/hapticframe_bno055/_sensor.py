@@ -24,7 +24,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
 
 import numpy as np
 
@@ -43,7 +42,15 @@ from hapticframe.devices import (
     SerialTransport,
     TransportError,
 )
-from hapticframe.kinds import BuildContext, ChannelInfo, Component, SampleBatch, Sensor
+from hapticframe.geometry import rotation_matrix_from_wxyz
+from hapticframe.kinds import (
+    BuildContext,
+    ChannelInfo,
+    Component,
+    PhysicalTruthSource,
+    SampleBatch,
+    Sensor,
+)
 
 from ._config import Bno055SensorConfig
 from ._emulator import GRAVITY_M_PER_S2, Bno055Model, standard_faults
@@ -64,7 +71,6 @@ from ._protocol import (
     parse_reply,
     status_name,
 )
-from ._rotation import matrix_from_quaternion
 
 __all__ = ["BAUDRATE", "CHANNELS", "Bno055Health", "Bno055ProtocolError", "Bno055Sensor"]
 
@@ -158,7 +164,7 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         self._last_t = -math.inf
         self._reply_time_s = 0.0
 
-    def _find_truth_source(self, inputs: Mapping[str, Component]) -> Any | None:
+    def _find_truth_source(self, inputs: Mapping[str, Component]) -> PhysicalTruthSource | None:
         if not inputs:
             return None
         if len(inputs) != 1:
@@ -166,8 +172,6 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
                 f"sensor {self.id!r} (type 'bno055') takes at most one input, the robot it is "
                 f"mounted on; got {list(inputs)}"
             )
-        from hapticframe.kinds import PhysicalTruthSource
-
         (name, robot), = inputs.items()
         if not isinstance(robot, PhysicalTruthSource):
             raise ValueError(
@@ -584,7 +588,7 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         ):
             return False
         if config.check_gravity_against_quaternion:
-            expected = matrix_from_quaternion(quaternion).T @ np.array(
+            expected = rotation_matrix_from_wxyz(quaternion).T @ np.array(
                 [0.0, 0.0, GRAVITY_M_PER_S2]
             )
             if float(np.linalg.norm(expected - gravity)) > config.gravity_tolerance_m_per_s2:

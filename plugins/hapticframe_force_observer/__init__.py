@@ -18,8 +18,6 @@ __all__ = [
     "ObserverFit",
     "apply_force_observer",
     "fit_force_observer",
-    "rotation_from_wxyz",
-    "wxyz_from_rotation",
 ]
 
 _LAZY = {
@@ -27,8 +25,6 @@ _LAZY = {
     "ObserverFit": "._functional",
     "apply_force_observer": "._functional",
     "fit_force_observer": "._functional",
-    "rotation_from_wxyz": "._functional",
-    "wxyz_from_rotation": "._functional",
     "ForceObserver": "._observer",
 }
 

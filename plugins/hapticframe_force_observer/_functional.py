@@ -43,6 +43,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hapticframe.geometry import wxyz_from_rotation_matrix
+
 __all__ = [
     "MIN_EXCITATION_M_PER_S2",
     "MIN_RELATIVE_EXCITATION",
@@ -51,8 +53,6 @@ __all__ = [
     "apply_force_observer",
     "fit_force_observer",
     "rotation_angle_rad",
-    "rotation_from_wxyz",
-    "wxyz_from_rotation",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -68,55 +68,6 @@ _TIE = 1e-12
 
 class ExcitationWarning(UserWarning):
     """The recording does not excite enough acceleration directions to identify ``R``."""
-
-
-def rotation_from_wxyz(quaternion: ArrayLike) -> FloatArray:
-    """Rotation matrix of a quaternion ``(w, x, y, z)`` (normalised first).
-
-    Raises
-    ------
-    ValueError
-        When the quaternion is not 4 finite numbers or has (nearly) zero norm.
-    """
-    q = np.asarray(quaternion, dtype=np.float64).reshape(-1)
-    if q.shape != (4,) or not np.all(np.isfinite(q)):
-        raise ValueError(f"a quaternion is 4 finite numbers (w, x, y, z), got {q.tolist()}")
-    norm = float(np.linalg.norm(q))
-    if norm < 1e-9:
-        raise ValueError("a rotation quaternion cannot be zero")
-    w, x, y, z = q / norm
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def wxyz_from_rotation(rotation: ArrayLike) -> FloatArray:
-    """Unit quaternion ``(w, x, y, z)`` with ``w >= 0`` of a rotation matrix.
-
-    Shepperd's method: the largest of the four diagonal combinations is divided by, so the
-    result is accurate for every rotation (including half turns).
-    """
-    m = np.asarray(rotation, dtype=np.float64)
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    candidates = [trace, m[0, 0], m[1, 1], m[2, 2]]
-    k = int(np.argmax(candidates))
-    if k == 0:
-        s = 2.0 * np.sqrt(1.0 + trace)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif k == 1:
-        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif k == 2:
-        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    out = np.asarray(q, dtype=np.float64)
-    out /= np.linalg.norm(out)
-    return -out if out[0] < 0 else out
 
 
 def rotation_angle_rad(rotation: ArrayLike) -> float:
@@ -202,7 +153,7 @@ class ObserverFit:
     @property
     def rotation_wxyz(self) -> FloatArray:
         """``R`` as a unit quaternion ``(w, x, y, z)``."""
-        return wxyz_from_rotation(self.rotation)
+        return wxyz_from_rotation_matrix(self.rotation)
 
     @property
     def condition(self) -> float | None:

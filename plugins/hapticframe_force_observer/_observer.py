@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
+from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
 from ._config import ForceObserverConfig
@@ -44,7 +45,6 @@ from ._functional import (
     apply_force_observer,
     check_rotation,
     fit_force_observer,
-    rotation_from_wxyz,
 )
 
 if TYPE_CHECKING:
@@ -127,7 +127,7 @@ class ForceObserver(FeatureExtractor):
         self._parameters = ObserverFit(
             0.0 if config.mass_kg is None else config.mass_kg,
             np.eye(3) if config.imu_rotation_wxyz is None
-            else rotation_from_wxyz(config.imu_rotation_wxyz),
+            else rotation_matrix_from_wxyz(config.imu_rotation_wxyz),
             np.zeros(3) if config.bias_n is None else np.asarray(config.bias_n),
         )
         if config.model_dir is not None:

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe.devices import DeviceModel, FaultEvent, FaultSchedule, append_crc16
+from hapticframe.geometry import rotation_matrix_from_wxyz
 
 from ._protocol import (
     FUNCTION_READ_HOLDING,
@@ -122,17 +123,6 @@ class TruthLike(Protocol):
     def end_effector_mass_kg(self) -> float: ...
 
 
-def _rotation(wxyz: Any) -> NDArray[np.float64]:
-    w, x, y, z = np.asarray(wxyz, dtype=float) / np.linalg.norm(wxyz)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 @dataclass(frozen=True)
 class Ft300Physics:
     """What the emulated sensor measures besides the environment's wrench.
@@ -167,7 +157,7 @@ def wrench_from_truth(
     the force observer for any IMU mounting R_ti, so the mounting does not enter here: a
     load at rest reads +m_e g along tool +z.
     """
-    r_wt = _rotation(truth.orientation_wxyz)
+    r_wt = rotation_matrix_from_wxyz(truth.orientation_wxyz)
     specific = np.asarray(truth.linear_acceleration_m_per_s2, dtype=float) + np.array(
         [0.0, 0.0, STANDARD_GRAVITY_M_PER_S2]
     )

@@ -73,3 +73,36 @@ def test_scene_shapes_contain_and_centroid():
     scene = Scene(objects=[ellipse, square])
     assert scene.occupied([[0.3, 0.2], [0.0, 0.0]]).tolist() == [True, False]
     assert scene.material.friction_angle_deg == 42.0 and scene.material.dilation_angle_deg == 12.0
+
+
+def test_rotations_agree_with_scipy():
+    from scipy.spatial.transform import Rotation
+
+    from hapticframe.geometry import (
+        rotation_matrix_from_rpy_deg,
+        rotation_matrix_from_wxyz,
+        wxyz_from_rotation_matrix,
+    )
+
+    rng = np.random.default_rng(4)
+    half_turns = [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 2.0], [0.0, 0.6, 0.8, 0.0]]
+    for q in [*rng.standard_normal((50, 4)), *half_turns]:
+        q = np.asarray(q)
+        reference = Rotation.from_quat(np.roll(q, -1))  # scipy is scalar last
+        matrix = rotation_matrix_from_wxyz(q)
+        np.testing.assert_allclose(matrix, reference.as_matrix(), atol=1e-12)
+        back = wxyz_from_rotation_matrix(matrix)
+        assert back[0] >= 0
+        np.testing.assert_allclose(rotation_matrix_from_wxyz(back), matrix, atol=1e-12)
+    for rpy in rng.uniform(-180, 180, (50, 3)):
+        reference = Rotation.from_euler("xyz", rpy, degrees=True)  # fixed axes: Rz Ry Rx
+        np.testing.assert_allclose(rotation_matrix_from_rpy_deg(rpy), reference.as_matrix(),
+                                   atol=1e-12)
+
+
+@pytest.mark.parametrize("q", [[0.0, 0.0, 0.0, 0.0], [1.0, np.nan, 0.0, 0.0], [1.0, 0.0, 0.0]])
+def test_a_quaternion_that_is_no_rotation_is_refused(q):
+    from hapticframe.geometry import rotation_matrix_from_wxyz
+
+    with pytest.raises(ValueError, match="quaternion"):
+        rotation_matrix_from_wxyz(q)

@@ -8,6 +8,7 @@ import pytest
 import serial
 
 from hapticframe.devices import FakeClock, FaultEvent, FaultSchedule, PtyEmulator
+from hapticframe.geometry import rotation_matrix_from_rpy_deg, wxyz_from_rotation_matrix
 from hapticframe_bno055._emulator import (
     GRAVITY_M_PER_S2,
     MODEL_FAULT_KINDS,
@@ -23,7 +24,6 @@ from hapticframe_bno055._protocol import (
     encode_read,
     encode_write,
 )
-from hapticframe_bno055._rotation import matrix_from_rpy_deg, quaternion_from_matrix
 
 READ_DATA = encode_read(DATA_START, DATA_LENGTH)
 
@@ -175,15 +175,15 @@ def test_spontaneous_reset_fault():
 
 
 def test_physics_follows_the_truth_and_the_mount():
-    tilt = matrix_from_rpy_deg([20.0, 0.0, 0.0])  # the tool, rolled 20° in the world
+    tilt = rotation_matrix_from_rpy_deg([20.0, 0.0, 0.0])  # the tool, rolled 20° in the world
     truth = SimpleNamespace(
-        orientation_wxyz=quaternion_from_matrix(tilt),
+        orientation_wxyz=wxyz_from_rotation_matrix(tilt),
         linear_acceleration_m_per_s2=np.array([1.0, 0.0, 0.0]),
         angular_velocity_rad_per_s=np.array([0.0, 0.0, 0.5]),
     )
     model = configured(truth=lambda t: truth, mount_rpy_deg=(0.0, 0.0, 90.0))
     block = decode_data_block(exchange(model, READ_DATA, 0.1)[2:])
-    r_wi = tilt @ matrix_from_rpy_deg([0.0, 0.0, 90.0])
+    r_wi = tilt @ rotation_matrix_from_rpy_deg([0.0, 0.0, 90.0])
     g = np.array([0.0, 0.0, GRAVITY_M_PER_S2])
     a_w = truth.linear_acceleration_m_per_s2
     np.testing.assert_allclose(block.acceleration_m_per_s2, r_wi.T @ (a_w + g), atol=0.005)
@@ -191,7 +191,7 @@ def test_physics_follows_the_truth_and_the_mount():
     np.testing.assert_allclose(block.gravity_m_per_s2, r_wi.T @ g, atol=0.005)
     np.testing.assert_allclose(block.angular_velocity_rad_per_s, r_wi.T @ [0, 0, 0.5],
                                atol=math.radians(1 / 32))
-    np.testing.assert_allclose(block.orientation_wxyz, quaternion_from_matrix(r_wi), atol=1e-4)
+    np.testing.assert_allclose(block.orientation_wxyz, wxyz_from_rotation_matrix(r_wi), atol=1e-4)
 
 
 def test_noise_is_seeded_and_held_within_a_fusion_tick():

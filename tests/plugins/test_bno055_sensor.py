@@ -7,10 +7,10 @@ import pytest
 
 import hapticframe.kinds as kinds
 from hapticframe.devices import DeviceError, LifecycleState
+from hapticframe.geometry import rotation_matrix_from_rpy_deg, wxyz_from_rotation_matrix
 from hapticframe.kinds import BuildContext, concatenate_batches
 from hapticframe.testing import run_checks
 from hapticframe_bno055._config import Bno055SensorConfig
-from hapticframe_bno055._rotation import matrix_from_rpy_deg, quaternion_from_matrix
 from hapticframe_bno055._sensor import CHANNELS, Bno055Sensor
 from hapticframe_bno055.plugin import SPECS
 
@@ -245,13 +245,13 @@ class _TruthSource:
 
     def __init__(self):
         self.truth_time_s = 12.0  # the simulation need not start at 0
-        self.rotation = matrix_from_rpy_deg([20.0, 0.0, 0.0])
+        self.rotation = rotation_matrix_from_rpy_deg([20.0, 0.0, 0.0])
 
     def physical_truth(self, timestamp_s):
         zero = np.zeros(3)
         return kinds.PhysicalTruth(
             timestamp_s=min(timestamp_s, self.truth_time_s), position_m=zero,
-            orientation_wxyz=quaternion_from_matrix(self.rotation),
+            orientation_wxyz=wxyz_from_rotation_matrix(self.rotation),
             linear_velocity_m_per_s=zero,
             linear_acceleration_m_per_s2=np.array([1.5, 0.0, 0.0]),
             angular_velocity_rad_per_s=np.array([0.0, 0.0, 0.4]), force_n=zero, torque_nm=zero,

@@ -12,6 +12,7 @@ from pydantic import ValidationError
 
 import hapticframe.kinds
 from hapticframe import FeatureExtractorSpec
+from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import (
     BuildContext,
     ChannelInfo,
@@ -26,7 +27,6 @@ from hapticframe_force_observer import (
     ExcitationWarning,
     ForceObserver,
     ForceObserverConfig,
-    rotation_from_wxyz,
 )
 from hapticframe_force_observer import plugin as observer_plugin
 from hapticframe_force_observer._functional import rotation_angle_rad
@@ -35,7 +35,7 @@ RATE_HZ = 100.0
 G = 9.80665
 MASS_KG = 0.8
 Q_TRUE = np.array([0.97, 0.12, -0.18, 0.10]) / np.linalg.norm([0.97, 0.12, -0.18, 0.10])
-R_TRUE = rotation_from_wxyz(Q_TRUE)
+R_TRUE = rotation_matrix_from_wxyz(Q_TRUE)
 BIAS_N = np.array([1.5, -0.7, 2.0])
 FORCE, ACCEL = "force_n", "acceleration_m_per_s2"
 

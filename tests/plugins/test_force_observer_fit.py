@@ -7,24 +7,23 @@ import warnings
 import numpy as np
 import pytest
 
+from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe_force_observer import (
     ExcitationWarning,
     ObserverFit,
     apply_force_observer,
     fit_force_observer,
-    rotation_from_wxyz,
-    wxyz_from_rotation,
 )
 from hapticframe_force_observer._functional import _procrustes, rotation_angle_rad
 
 G = 9.80665
 MASS_KG = 0.8
-R_TRUE = rotation_from_wxyz([0.97, 0.12, -0.18, 0.10])  # about 28° of misalignment
+R_TRUE = rotation_matrix_from_wxyz([0.97, 0.12, -0.18, 0.10])  # about 28° of misalignment
 BIAS_N = np.array([1.5, -0.7, 2.0])
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:
-    return rotation_from_wxyz(rng.standard_normal(4))
+    return rotation_matrix_from_wxyz(rng.standard_normal(4))
 
 
 def free_motions(
@@ -190,16 +189,10 @@ def test_bad_inputs_raise():
         ObserverFit(1.0, np.eye(3), np.array([0.0, np.nan, 0.0]))
 
 
-def test_quaternion_round_trip_and_report_is_strict_json():
+def test_report_is_strict_json():
     import json
 
     rng = np.random.default_rng(9)
-    for _ in range(20):
-        r = random_rotation(rng)
-        np.testing.assert_allclose(rotation_from_wxyz(wxyz_from_rotation(r)), r, atol=1e-12)
-    half_turn = np.diag([1.0, -1.0, -1.0])
-    np.testing.assert_allclose(rotation_from_wxyz(wxyz_from_rotation(half_turn)), half_turn,
-                               atol=1e-12)
     a = np.zeros((100, 3))
     a[:, 0] = rng.normal(0.0, 1.0, 100)
     with pytest.warns(ExcitationWarning):

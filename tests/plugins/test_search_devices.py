@@ -40,11 +40,10 @@ def test_example_validates_with_the_device_chain() -> None:
     assert wrist["tare_s"] == 0.0  # the observer's bias replaces the tare
     # The observer's inline parameters describe the emulated rig.
     assert observer["bias_n"] == pytest.approx(wrist["offset_n"])
-    from hapticframe_bno055._rotation import matrix_from_rpy_deg
-    from hapticframe_force_observer import rotation_from_wxyz
+    from hapticframe.geometry import rotation_matrix_from_rpy_deg, rotation_matrix_from_wxyz
 
-    np.testing.assert_allclose(rotation_from_wxyz(observer["imu_rotation_wxyz"]),
-                               matrix_from_rpy_deg(imu["mount_rpy_deg"]), atol=1e-6)
+    np.testing.assert_allclose(rotation_matrix_from_wxyz(observer["imu_rotation_wxyz"]),
+                               rotation_matrix_from_rpy_deg(imu["mount_rpy_deg"]), atol=1e-6)
     robot = config["robots"][0]["config"]
     assert observer["mass_kg"] == robot["end_effector_mass_kg"]
     assert config["classifiers"][0]["inputs"] == ["observer"]
