@@ -29,6 +29,7 @@ from hapticframe.devices import (
     Backoff,
     ByteTransport,
     Clock,
+    ClockSync,
     DeviceError,
     DeviceLifecycle,
     FakeClock,
@@ -185,6 +186,13 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         self._last_counts: tuple[int, ...] | None = None
         self._same_run = 0
         self._last_t = -math.inf
+        # The stream's own clock: a frame every 10 ms, counted from the stream's start and
+        # mapped onto host time (receipt times only say when a read found the frames). No
+        # drift fit: over its one-second window a crystal's drift is a few microseconds,
+        # while a slope fitted to jittery receipts would swing the mapping by milliseconds.
+        self._stream_clock = ClockSync(FRAME_PERIOD_S, window=100, max_drift=0.0)
+        self._stream_seq: int | None = None
+        self._rejected_frames = 0  # frames that failed their CRC since the last valid one
         self._rows: list[tuple[float, tuple[int, ...], bool, bool]] = []
         saturation = (round(config.range_n * FORCE_COUNTS_PER_N),
                       round(config.range_nm * TORQUE_COUNTS_PER_NM))
@@ -494,6 +502,9 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
 
     def _start_stream(self) -> None:
         """Write 0x0200 to register 410; accept the echo, or stream frames when it is lost."""
+        self._stream_clock.reset()  # a new stream: its frames count from zero again
+        self._stream_seq = None
+        self._rejected_frames = 0
         slave = self.config.slave_id
         request = write_request(REGISTER_OUTPUT_MODE, [STREAM_MODE_VALUE], slave=slave)
         link = self._link()
@@ -556,15 +567,18 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
     def _poll(self) -> None:
         """One look at the port: parse, deliver, run the watchdogs (recover when they fire)."""
         now = self.clock.now()
+        silent_since = self._last_byte_s
         try:
             data = self._read_link()
         except TransportError as exc:
             self.recover(exc)
             return
+        rejected_before = self._parser.stats.crc_errors
         frames = self._parser.feed(data)
+        self._rejected_frames += self._parser.stats.crc_errors - rejected_before
         self.health.add_parser(self._parser.stats)
         if frames:
-            self._accept(frames, now)
+            self._accept(frames, now, silent_s=now - silent_since)
             return
         if now - self._last_byte_s > self.config.byte_timeout_s and not self._stalled:
             self._stalled = True
@@ -578,22 +592,15 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
                 )
             )
 
-    def _accept(self, frames: list[bytes], now: float) -> None:
+    def _accept(self, frames: list[bytes], now: float, silent_s: float = 0.0) -> None:
         self._last_frame_s = now
         n = len(frames)
         if not n:
             return
-        # Frames the device sent and we never got: a gap of two periods or more before the
-        # first of these (back-dated, so a late burst after a stall fills its own gap). The
-        # slack absorbs the jitter of receipt times; a single lost frame shows as a CRC error.
-        first = now - (n - 1) * FRAME_PERIOD_S
-        gap = first - self._last_t
-        if math.isfinite(gap) and gap > 2.5 * FRAME_PERIOD_S:
-            self.health.dropped_samples += math.floor(gap / FRAME_PERIOD_S + 0.3) - 1
+        times = self._sample_times(n, now, silent_s)
         for k, frame in enumerate(frames):
             counts = decode_stream_frame(frame)
-            # Frames that arrived together were sent one period apart.
-            t = max(now - (n - 1 - k) * FRAME_PERIOD_S, self._last_t + 1e-6)
+            t = max(times[k], self._last_t + 1e-6)
             self._last_t = t
             if counts == self._last_counts:
                 self._same_run += 1
@@ -617,6 +624,44 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
                     self._finish_tare()
             if t >= self._origin_s:
                 self._rows.append((t, counts, force_ok, torque_ok))
+
+    def _sample_times(self, n: int, now: float, silent_s: float) -> list[float]:
+        """Host times of ``n`` frames that one read found at ``now``.
+
+        Frames that arrive together were sent one period apart, so each is first dated back
+        from ``now``. Those receipt times still jitter with the reads (a frame found 8 ms
+        late behind a slow write, the next on time), and a force rate over them would swing
+        with the jitter: instead each frame is numbered on the stream's own 100 Hz clock and
+        :class:`~hapticframe.devices.ClockSync` maps the numbers onto host time through the
+        promptest receipts. Frames lost before these are counted from the evidence: the
+        frames that failed their CRC, or, for frames that never came (a stall that dropped
+        them), a silent link and a receipt whole periods past the next frame's slot. A late
+        frame on a busy link (a slow adapter delivering a backlog) is late, not a sign of
+        lost ones. Where the evidence is unclear the count errs low: a frame counted lost
+        that was not would date the next one a period early, onto its predecessor, while
+        one missed shifts the dates by a period for a window's length, evenly spaced.
+        """
+        sync = self._stream_clock
+        rejected, self._rejected_frames = self._rejected_frames, 0
+        numbers = []
+        for k in range(n):
+            receipt = now - (n - 1 - k) * FRAME_PERIOD_S
+            if self._stream_seq is None:  # a new stream: the outage before it cost frames
+                number = 0
+                if math.isfinite(self._last_t):
+                    outage = receipt - self._last_t
+                    self.health.dropped_samples += max(0, round(outage / FRAME_PERIOD_S) - 1)
+            else:  # frames the device sent and we never got are dropped samples
+                late = receipt - sync.host_time((self._stream_seq + 1) * FRAME_PERIOD_S)
+                silent = k == 0 and silent_s >= 1.5 * FRAME_PERIOD_S
+                lost_in_time = max(0, math.floor(late / FRAME_PERIOD_S)) if silent else 0
+                lost = max(lost_in_time, rejected if k == 0 else 0)
+                number = self._stream_seq + 1 + lost
+                self.health.dropped_samples += lost
+            self._stream_seq = number
+            sync.update(number * FRAME_PERIOD_S, receipt)
+            numbers.append(number)
+        return [sync.host_time(number * FRAME_PERIOD_S) for number in numbers]
 
     def _finish_tare(self) -> None:
         needed = max(1, math.floor(0.5 * self.config.tare_s / FRAME_PERIOD_S))

@@ -171,3 +171,35 @@ def test_a_real_port_that_cannot_open_fails_configure_with_a_device_error():
     with pytest.raises(CheckFailure, match="/nonexistent/ttyUSB9") as failure:
         make_component(SPEC, config={"port": "/nonexistent/ttyUSB9"})
     assert isinstance(failure.value.__cause__, DeviceError)
+
+
+@pytest.mark.parametrize(
+    ("fault", "lost"),
+    [
+        # A slow link: frames arrive up to a period late, in bursts; none is lost.
+        ({"kind": "fragment", "at_s": 0.5, "duration_s": 20.0}, False),
+        ({"kind": "stall", "rate_hz": 1.0, "duration_s": 0.05}, False),
+        # Frames lost: the parser discards them, or the link drops what a stall held.
+        ({"kind": "bad_crc", "rate_hz": 1.0}, True),
+        ({"kind": "stall", "rate_hz": 1.0, "duration_s": 0.1, "params": {"drop": 1}}, True),
+    ],
+)
+def test_sample_times_keep_the_stream_period_whatever_the_reads_jitter(fault, lost):
+    # A force rate is a difference over these times: a frame dated 2 ms after the previous
+    # one (it was read late, the next on time) would make a 5x rate spike out of noise.
+    sensor = make_component(
+        SPEC, config={"port": "emulated", "tare_s": 0.0, "noise_std_n": 0.3, "faults": [fault]}
+    )
+    try:
+        batch = concatenate_batches([sensor.read() for _ in range(2000)])
+        health = sensor.health.as_dict()
+    finally:
+        sensor.close()
+    periods = np.diff(batch.timestamps_s) / 0.01
+    np.testing.assert_allclose(periods, np.round(periods), atol=1e-6)
+    assert periods.min() > 0.999
+    missing = int(np.round(periods).sum() - len(periods))
+    assert (missing > 0) == lost
+    # Without a sequence counter a lost frame is inferred; the driver errs low (a frame
+    # counted lost that was not would date the next one onto its predecessor).
+    assert 0.9 * missing <= health["dropped_samples"] <= missing
