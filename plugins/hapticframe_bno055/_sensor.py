@@ -219,20 +219,17 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
     def read(self) -> SampleBatch:
         """One sample per poll due since the previous read (maybe none).
 
-        Configures and activates the device first when nobody did.
-
         Raises
         ------
         DeviceError
-            When the device stopped answering and bounded recovery failed.
+            When the device is not active (``configure()`` and ``activate()`` come first, as
+            a run and the conformance kit do), or stopped answering and bounded recovery
+            failed.
         """
-        if self.lifecycle_state is LifecycleState.UNCONFIGURED:
-            self.configure()
-        if self.lifecycle_state is LifecycleState.INACTIVE:
-            self.activate()
         if self.lifecycle_state is not LifecycleState.ACTIVE:
             raise DeviceError(
-                f"device {self.id!r} cannot be read: it is {self.lifecycle_state.value}",
+                f"device {self.id!r} cannot be read: it is {self.lifecycle_state.value}; "
+                "configure() and activate() it first",
                 device_id=self.id,
             )
         target = self._target_time()

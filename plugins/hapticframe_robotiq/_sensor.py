@@ -244,16 +244,10 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
 
     def _ensure_active(self) -> None:
         state = self.lifecycle_state
-        if state is LifecycleState.UNCONFIGURED:
-            self.configure()
-            state = self.lifecycle_state
-        if state is LifecycleState.INACTIVE:
-            self.activate()
-            state = self.lifecycle_state
         if state is not LifecycleState.ACTIVE:
             raise DeviceError(
                 f"device {self.id!r} (robotiq-ft300 on {self.config.port}) is {state.value}, "
-                "not active",
+                "not active; configure() and activate() it first",
                 device_id=self.id,
             )
 

@@ -121,6 +121,8 @@ faults = [{"kind": "garbage", "at_s": 0.2, "params": {"count": 40}},
           {"kind": "disconnect", "at_s": 2.0, "duration_s": 0.2}]
 config = LoadCellConfig(faults=faults, samples_per_read=2)
 sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(3)))
+sensor.configure()
+sensor.activate()
 batches = [sensor.read() for _ in range(200)]  # 4 s of device time
 model = sensor.emulator.model
 counts = np.concatenate([b.channels["force_n"][:, 0] for b in batches]) / 0.01 + 2048
@@ -178,6 +180,8 @@ from hf_loadcell.sensor import LoadCellSensor, encode
 
 config = LoadCellConfig(port="loop://")
 sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(0)))
+sensor.configure()
+sensor.activate()
 idle = len(sensor.read())
 port = sensor.transport.port
 port.write(encode(0, 2148) + b"#noise\\n" + encode(1, 2048)[:-3] + b"X\\n" + encode(2, 1948))

@@ -25,12 +25,17 @@ AT_REST = {
 }
 
 
-def make(inputs=None, **config):
+def make(inputs=None, *, activate=True, **config):
+    """A sensor, configured and activated as a run does (``activate=False``: as built)."""
     config = {"accel_noise_std_m_per_s2": 0.0, **config}
-    return Bno055Sensor(
+    sensor = Bno055Sensor(
         Bno055SensorConfig(**config),
         BuildContext(id="imu", rng=np.random.default_rng(0), inputs=inputs or {}),
     )
+    if activate:
+        sensor.configure()
+        sensor.activate()
+    return sensor
 
 
 def read_all(sensor, reads):
@@ -208,14 +213,16 @@ def test_a_device_that_never_answers_raises_after_bounded_recovery():
 
 
 def test_configure_fails_clearly_on_a_silent_device():
-    sensor = make(faults=[{"kind": "no_reply", "at_s": 0.0, "params": {"count": 10**9}}])
+    sensor = make(
+        faults=[{"kind": "no_reply", "at_s": 0.0, "params": {"count": 10**9}}], activate=False
+    )
     with pytest.raises(DeviceError, match="CHIP_ID"):
         sensor.configure()
     sensor.close()
 
 
 def test_a_port_that_does_not_exist_fails_configure():
-    sensor = make(port="/nonexistent/ttyBNO055")
+    sensor = make(port="/nonexistent/ttyBNO055", activate=False)
     assert sensor.live
     with pytest.raises(DeviceError, match="configure failed"):
         sensor.configure()
@@ -296,3 +303,15 @@ def test_kit_conformance():
     failed = [r for r in results if r.status != "PASS"]
     assert not failed, failed
     assert {r.check for r in results} >= {"check_sensor_contract", "check_deterministic"}
+
+
+def test_reading_before_activate_is_refused():
+    sensor = make(activate=False)
+    with pytest.raises(DeviceError, match="activate"):
+        sensor.read()
+    sensor.configure()
+    with pytest.raises(DeviceError, match="inactive"):
+        sensor.read()
+    sensor.activate()
+    assert len(read_all(sensor, 5))
+    sensor.close()

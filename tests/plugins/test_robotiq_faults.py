@@ -66,6 +66,8 @@ def _start(faults: list[dict[str, Any]], **config: Any) -> Run:
 
 def _run(faults: list[dict[str, Any]], seconds: float = 3.0, **config: Any) -> Run:
     run = _start(faults, **config)
+    run.sensor.configure()
+    run.sensor.activate()
     for _ in range(round(seconds / 0.01)):
         run.batches.append(run.sensor.read())
     return run
@@ -292,6 +294,8 @@ def test_the_tare_zeroes_the_offset_and_a_requested_tare_removes_a_drift():
 
 
 def _read_until_error(run: Run) -> None:
+    run.sensor.configure()
+    run.sensor.activate()
     for _ in range(1000):
         run.sensor.read()
 

@@ -69,6 +69,8 @@ def test_faults_through_the_pty_disconnect_and_standard():
     )
     sensor = Ft300Sensor(config, _context())
     try:
+        sensor.configure()
+        sensor.activate()
         batch = concatenate_batches([b for b in (sensor.read() for _ in range(150)) if len(b)])
         health = sensor.health
         assert health.reconnects == 1 and health.crc_errors >= 1, health.as_dict()
@@ -79,6 +81,8 @@ def test_faults_through_the_pty_disconnect_and_standard():
         sensor.close()
     standard = Ft300Sensor(Ft300Config(port="emulated", faults="standard"), _context())
     try:
+        standard.configure()
+        standard.activate()
         for _ in range(200):
             standard.read()
         assert standard.lifecycle_state is LifecycleState.ACTIVE
@@ -118,6 +122,8 @@ def test_emulated_sensor_measures_the_robot_truth_in_simulation_time():
     sensor = Ft300Sensor(config, _context(inputs={"robot": robot}))
     assert isinstance(sensor.clock, FakeClock)
     try:
+        sensor.configure()
+        sensor.activate()
         batches = []
         for step in range(1, 201):
             robot.truth_time_s = step * 0.01  # the simulation advances 10 ms per step
@@ -203,3 +209,19 @@ def test_sample_times_keep_the_stream_period_whatever_the_reads_jitter(fault, lo
     # Without a sequence counter a lost frame is inferred; the driver errs low (a frame
     # counted lost that was not would date the next one onto its predecessor).
     assert 0.9 * missing <= health["dropped_samples"] <= missing
+
+
+def test_reading_before_activate_is_refused():
+    from hapticframe.devices import DeviceError
+
+    sensor = Ft300Sensor(Ft300Config(port="emulated"), _context())
+    try:
+        with pytest.raises(DeviceError, match="activate"):
+            sensor.read()
+        sensor.configure()
+        with pytest.raises(DeviceError, match="inactive"):
+            sensor.read()
+        sensor.activate()
+        sensor.read()
+    finally:
+        sensor.close()
