@@ -57,11 +57,12 @@ class DeviceLifecycle:
     move. A hook that raises during ``configure``/``activate`` puts the device in ERROR and
     surfaces as :class:`DeviceError`.
 
-    - ``on_configure``: validate settings, allocate (do not talk to the device yet).
-    - ``on_activate``: open the transport, identify the device, start streaming.
-    - ``on_deactivate``: stop streaming, close the transport. Must tolerate a link that is
-      already gone; :class:`OSError` from it is swallowed.
-    - ``on_cleanup``: release what ``on_configure`` allocated.
+    - ``on_configure``: open the transport and identify the device (as ros2_control's
+      ``on_configure`` sets up communication); nothing moves or streams yet.
+    - ``on_activate``: start the data flow (streaming, the operating mode, a tare).
+    - ``on_deactivate``: stop the data flow. Must tolerate a link that is already gone;
+      :class:`OSError` from it is swallowed.
+    - ``on_cleanup``: close the transport and release what ``on_configure`` took.
     - ``on_recover(error)``: bring the device back after ``error`` (close, wait a backoff
       delay on the device's clock, reopen, handshake); raise to fail.
 
@@ -110,16 +111,16 @@ class DeviceLifecycle:
 
     # --- hooks -------------------------------------------------------------------------
     def on_configure(self) -> None:
-        """Prepare the device (no I/O with it yet)."""
+        """Open the link and identify the device (nothing moves or streams yet)."""
 
     def on_activate(self) -> None:
-        """Open the link and start the device."""
+        """Start the data flow (streaming, an operating mode, a tare)."""
 
     def on_deactivate(self) -> None:
-        """Stop the device and close the link (tolerate a link that is already gone)."""
+        """Stop the data flow (tolerate a link that is already gone)."""
 
     def on_cleanup(self) -> None:
-        """Release what :meth:`on_configure` allocated."""
+        """Close the link and release what :meth:`on_configure` took."""
 
     def on_recover(self, error: Exception) -> None:
         """Bring the device back after ``error``; raise when it cannot be (default: cannot)."""
