@@ -233,6 +233,10 @@ def _merge_exact(batches: Sequence[SampleBatch], consumer: str) -> SampleBatch:
     return SampleBatch(first.timestamps_s, channels, valid)
 
 
+#: The longest span of a later input's samples an :class:`InputAligner` keeps, in seconds.
+MAX_KEPT_S = 10.0
+
+
 class InputAligner:
     """Resamples a consumer's later inputs onto its first input's timestamps, tick by tick.
 
@@ -303,7 +307,14 @@ class InputAligner:
         # (a pending one, or any after the first input's latest): its lower neighbour.
         horizon = float(times[ready]) if ready < len(times) else self._last_t
         for k, known in enumerate(known_inputs):
-            first = max(int(np.searchsorted(known.timestamps_s, horizon, side="right")) - 1, 0)
+            if len(known):
+                # A first input that delivers nothing for long (or lags far behind) must not
+                # make the others' samples pile up: a sample more than MAX_KEPT_S older than
+                # its input's latest is needed by no timestamp a live stream still brings.
+                horizon_k = max(horizon, float(known.timestamps_s[-1]) - MAX_KEPT_S)
+            else:
+                horizon_k = horizon
+            first = max(int(np.searchsorted(known.timestamps_s, horizon_k, side="right")) - 1, 0)
             self._tails[k] = known.select(slice(first, None)) if first else known
         self._pending = primary.select(slice(ready, None)) if ready < len(times) else None
         if ready < len(times):

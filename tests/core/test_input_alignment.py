@@ -261,3 +261,21 @@ def test_the_kit_checks_a_two_clock_consumer_streams_as_batch():
     failed = results["check_aligned_inputs_stream_as_batch"]
     assert failed.status == "FAIL"
     assert "inputs aligned tick by tick must equal the batch path" in failed.message
+
+
+def test_an_aligner_keeps_bounded_memory_while_its_first_input_is_silent():
+    from hapticframe._dataflow import MAX_KEPT_S
+
+    aligner = InputAligner(InputAlignment("hold"), "observer")
+    silent = SampleBatch(np.empty(0), {"force_n": np.empty((0, 3))})
+    for k in range(3000):  # 30 s of a 100 Hz IMU while the force sensor says nothing
+        t = 0.01 * (k + 1)
+        imu = SampleBatch(np.array([t]), {"acceleration_m_per_s2": np.full((1, 3), t)})
+        assert len(aligner.push([silent, imu])) == 0
+    kept = aligner.checkpoint()[0][0]
+    assert len(kept) <= MAX_KEPT_S / 0.01 + 2
+    # The force sensor comes back: its samples get the IMU's latest, held.
+    force = SampleBatch(np.array([30.005]), {"force_n": np.zeros((1, 3))})
+    imu = SampleBatch(np.array([30.01]), {"acceleration_m_per_s2": np.full((1, 3), 30.01)})
+    joined = aligner.push([force, imu])
+    np.testing.assert_allclose(joined.channels["acceleration_m_per_s2"], [[30.0, 30.0, 30.0]])
