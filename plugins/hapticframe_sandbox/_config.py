@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from hapticframe import PluginConfig
+from hapticframe import PluginConfig, RegionConfig
 
 __all__ = ["SandboxForceSensorConfig", "SandboxRobotConfig"]
 
@@ -111,6 +111,13 @@ class SandboxRobotConfig(PluginConfig):
         ge=0,
         description="Height of the wrist sensor's origin above the fingertip: the lever arm "
         "of the environment force's torque.",
+    )
+    workspace: RegionConfig | None = Field(
+        None,
+        description="The rectangle the fingertip can reach (x_min_m, x_max_m, y_min_m, "
+        "y_max_m); None reaches everywhere. A closed loop with several robots gives each "
+        "movement to a robot whose workspace holds it and continues a movement that leaves "
+        "one robot's workspace with another.",
     )
 
     @model_validator(mode="after")

@@ -36,6 +36,7 @@ from hapticframe.kinds import (
     MovementResult,
     PhysicalTruth,
     PhysicalTruthSource,
+    Region,
     Robot,
     RobotState,
     RunOutcome,
@@ -202,6 +203,12 @@ class SandboxRobot(Robot, PhysicalTruthSource):
     @property
     def halt_reason(self) -> str:
         return self._halt_reason
+
+    @property
+    def workspace(self) -> Region | None:
+        """Where the fingertip can reach (``config.workspace``); None: everywhere."""
+        given = self.config.workspace
+        return None if given is None else given.to_region()
 
     def begin(self, movement: ExploratoryMovement) -> None:
         self._close_movement()
