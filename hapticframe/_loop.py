@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 
 from ._dataflow import Dataflow
 from ._errors import RunError
+from ._robots import WORKSPACE_LIMIT, RobotTeam
 from ._session import Session
 from .kinds import Component, Device, MovementResult, Planner, Robot
 
@@ -77,49 +78,80 @@ def run_loop(session: Session) -> None:
     flow = Dataflow(session.experiment, session.components, session.recorder,
                     session.training_sensors)
     if planners or robots:
-        if len(planners) != 1 or len(robots) != 1:
+        if len(planners) != 1 or not robots:
             raise RunError(
-                "a closed-loop run needs exactly one planner and one robot "
+                "a closed-loop run needs exactly one planner and at least one robot "
                 f"(found {len(planners)} planner(s) and {len(robots)} robot(s))"
             )
-        _closed_loop(session, flow, planners[0], robots[0])
+        _closed_loop(session, flow, planners[0], robots)
     else:
         _open_loop(session, flow)
 
 
-def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robot) -> None:
+def _closed_loop(
+    session: Session, flow: Dataflow, planner: Planner, robots: list[Robot]
+) -> None:
     settings = session.settings
     limit = min(settings.max_movements, planner.max_movements)
-    chain: list[Component] = [robot, *(session.components[i] for i in flow.rewindable)]
+    team = RobotTeam(robots, flow)
+    rewindable = [session.components[i] for i in flow.rewindable]
     lookahead = settings.lookahead_steps
     devices = devices_of(session.components)
     # A live device: each robot step waits for its control period on the wall clock.
-    pacer = _pacer(devices, 1.0 / robot.control_rate_hz)
-    if pacer.period_s is not None:
+    pacers = {r.id: _pacer(devices, 1.0 / r.control_rate_hz) for r in robots}
+    if any(p.period_s is not None for p in pacers.values()):
         lookahead = 1
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
             return
         flow.start_stream()
-        robot.begin(movement)
-        if lookahead > 1 and any(c.checkpoint() is None for c in chain):
-            lookahead = 1  # a component that cannot rewind: one step at a time
-        steps, halted_by_loop = _movement(session, flow, robot, index, chain, lookahead, pacer)
+        # The movement's parts: one robot's, or several when one robot's workspace ends.
+        robot = team.pick(movement.start_m, movement.end_m)
+        part = movement
+        used: list[Robot] = []
+        steps = 0
+        reason = "" if robot is not None else WORKSPACE_LIMIT
+        while robot is not None:
+            part, cut = team.part_for(robot, part)
+            used.append(robot)
+            robot.begin(part)
+            chain: list[Component] = [robot, *rewindable]
+            if lookahead > 1 and any(c.checkpoint() is None for c in chain):
+                lookahead = 1  # a component that cannot rewind: one step at a time
+            taken, halted_by_loop = _movement(
+                session, flow, robot, index, chain, lookahead, pacers[robot.id]
+            )
+            steps += taken
+            team.after_part(robot, taken)
+            reason = halted_by_loop or robot.halt_reason
+            if not (reason == WORKSPACE_LIMIT or (cut and not reason)):
+                break
+            # The robot stopped at its workspace limit: another continues the line.
+            reason = WORKSPACE_LIMIT
+            flow.flush_maps()
+            following = team.continuation(movement, robot, used)
+            if following is None:
+                break
+            reason = ""
+            robot, part = following
+            force_max_n = flow.force_max_n
+            flow.start_stream()  # the next arm's sensor: a new stream for the classifier
+            flow.force_max_n = force_max_n
         flow.flush_maps()
-        reason = halted_by_loop or robot.halt_reason
         result = MovementResult(
             index=index,
             movement=movement,
             halted=bool(reason),
             halt_reason=reason,
-            final_state=robot.state,
+            final_state=used[-1].state if used else None,
             final_class=flow.latest_class(),
             max_force_n=flow.force_max_n,
+            extra={"robots": tuple(r.id for r in used)} if team.several else {},
         )
         session.movements.append(result)
         _note_force(session, flow.force_max_n)
-        _progress(session, result, steps, devices)
+        _progress(session, result, steps, devices, team.path_label(used))
         for component in session.components.values():
             component.on_movement_end(result)
     session.echo(f"stopped after {limit} movements (the movement limit)")
@@ -227,7 +259,8 @@ def _note_force(session: Session, force_n: float) -> None:
 
 
 def _progress(
-    session: Session, result: MovementResult, steps: int, devices: Mapping[str, Device]
+    session: Session, result: MovementResult, steps: int, devices: Mapping[str, Device],
+    robots: str = "",
 ) -> None:
     m = result.movement
     # The force a sensor measured (noise included), as metrics.json's max_measured_force_n;
@@ -242,5 +275,5 @@ def _progress(
     session.echo(
         f"EM {result.index + 1:>3} {m.phase or '':<7} "
         f"{result.halt_reason or 'completed':<12} state {state:<8} "
-        f"{steps:>5d} steps{force:<27}{label}{device_faults(devices)}"
+        f"{steps:>5d} steps{force:<27}{robots}{label}{device_faults(devices)}"
     )

@@ -159,10 +159,10 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             )
             for obj in self._scene.objects
         ]
-        # Depth schedule (section 3.5.1): shrinks after each movement that reached an object.
-        self._schedule_depth = config.depth_m
-        self._next_reduction = config.depth_reduction_m
-        self._interactions = 0
+        # One sandbox, shared with the sandbox robots named in inputs: its clock and the
+        # depth schedule (section 3.5.1), which shrinks after each movement that reached
+        # an object.
+        self._world = _Sandbox.join(self, context.inputs)
         # Clock and current movement.
         self._time = 0.0
         self._index = -1
@@ -216,7 +216,9 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._index += 1
         self._closed = False
         self._halt_reason = ""
-        depth = self._schedule_depth if movement.depth_m is None else float(movement.depth_m)
+        world = self._world
+        self._em = world.settled
+        depth = world.schedule_depth if movement.depth_m is None else float(movement.depth_m)
         if not (math.isfinite(depth) and depth > 0):
             raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
         self._depth = depth
@@ -243,7 +245,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._eta_rad = (
             math.radians(cfg.side_crescent_angle_deg)
             if cfg.side_crescent_angle_deg is not None
-            else side_crescent_angle(self._interactions // 2)
+            else side_crescent_angle(world.interactions // 2)
         )
         self._steady_drag = F.free_drag_n(depth, cfg.drag_coefficient_n_per_m2)
         # A fresh shear-band cycle at a random phase, and a stationary drag fluctuation.
@@ -290,8 +292,9 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             # The mean acceleration over the step: velocities integrate exactly from it.
             acceleration = (speed - self._truth_speed) / self._dt
             self._truth_speed = speed
-        # Time from the global step count: exact, and strictly increasing across movements.
-        self._time = (len(self._log_t) + 1) * self._dt
+        # Time from the sandbox's step count: exact, and strictly increasing across
+        # movements and the robots that share the sandbox.
+        self._time = (self._world.steps + 1) * self._dt
         (sx, sy), (dx, dy), travelled = self._start_xy, self._direction_xy, self._travelled
         position = (sx + travelled * dx, sy + travelled * dy)
         force, true_state = self._interaction(position, advance)
@@ -330,6 +333,12 @@ class SandboxRobot(Robot, PhysicalTruthSource):
 
     def on_movement_end(self, result: MovementResult) -> None:
         self._close_movement()
+        self._world.movement_ended(result.index)
+
+    @property
+    def sandbox_robots(self) -> tuple[SandboxRobot, ...]:
+        """The robots that share this robot's sandbox (itself included), in build order."""
+        return tuple(self._world.robots)
 
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         """Write ``ground_truth.npz`` (and ``forces.png`` with figures); return metrics.
@@ -350,9 +359,15 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         (``labels: <run directory>``).
         """
         self._close_movement()
+        world = self._world
+        if world.robots[0] is not self:
+            return {}  # the sandbox's first robot writes the shared truth and its metrics
+        for robot in world.robots:
+            robot._close_movement()
         out_dir = Path(outcome.out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-        truth = self.ground_truth
+        truth, robot_ids = world.ground_truth()
+        extra = {} if robot_ids is None else {"robot_id": robot_ids}
         np.savez_compressed(
             out_dir / "ground_truth.npz",
             timestamps_s=truth.timestamps_s,
@@ -362,16 +377,16 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             movement_index=truth.movement_index,
             depth_m=truth.depth_m,
             state_names=np.array(STATE_NAMES),
+            **extra,
         )
+        movements = world.movement_truths()
         if outcome.figures:
             from ._plots import plot_movement_forces
 
-            plot_movement_forces(
-                self.ground_truth, self._movements, Path(outcome.out_dir) / "forces.png"
-            )
+            plot_movement_forces(truth, movements, Path(outcome.out_dir) / "forces.png")
         return {
-            "max_force_n": float(self._max_force),
-            "object_interactions": int(sum(m.interacted for m in self._movements)),
+            "max_force_n": float(max(r._max_force for r in world.robots)),
+            "object_interactions": int(world.interactions),
         }
 
     # --- physical truth (PhysicalTruthSource) --------------------------------------------
@@ -487,7 +502,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
     @property
     def current_depth_m(self) -> float:
         """Depth the next movement will use unless it commands its own."""
-        return float(self._schedule_depth)
+        return float(self._world.schedule_depth)
 
     @property
     def shear_band_angle_deg(self) -> float:
@@ -623,7 +638,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._log_pos.append(position)
         self._log_state.append(state)
         self._log_force.append(force)
-        self._log_index.append(self._index)
+        self._log_index.append(self._em)
         self._log_depth.append(self._depth)
         return magnitude
 
@@ -634,7 +649,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._closed = True
         self._active = False
         truth = MovementTruth(
-            index=self._index,
+            index=self._em,
             depth_m=self._depth,
             rupture_distance_m=self._rupture,
             side_crescent_angle_deg=math.degrees(self._eta_rad),
@@ -647,10 +662,142 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             halt_reason=self._halt_reason,
         )
         self._movements.append(truth)
-        if truth.interacted:
-            # Soil displaced around the object: rake shallower next time (1, 0.5, 0.25 cm ...).
-            self._interactions += 1
-            self._schedule_depth = max(
-                self.config.min_depth_m, self._schedule_depth - self._next_reduction
+        self._world.part_closed(truth.interacted)
+
+
+
+#: Config fields every robot of one sandbox must share: its clock and depth schedule.
+_SHARED_FIELDS = (
+    "control_rate_hz", "depth_m", "depth_reduction_m", "depth_reduction_ratio", "min_depth_m",
+)
+
+
+class _Sandbox:
+    """What the sandbox robots of one scene share: the clock and the depth schedule.
+
+    A sandbox robot that names other sandbox robots in its ``inputs`` joins their sandbox
+    (the scene's objects and material are the same for all); each robot keeps its own
+    ground-truth log. Time is the sandbox's step count over all its robots, so steps are
+    strictly ordered across robots. The schedule changes once per exploratory movement,
+    when every robot's part of it has ended (:meth:`movement_ended`, or a robot's next
+    ``begin`` when it runs alone).
+    """
+
+    def __init__(self, first: SandboxRobot) -> None:
+        cfg = first.config
+        self.robots: list[SandboxRobot] = [first]
+        self.schedule_depth = cfg.depth_m
+        self.next_reduction = cfg.depth_reduction_m
+        self.interactions = 0
+        #: Exploratory movements settled so far (the index the next one logs).
+        self.settled = 0
+        self._parts = 0
+        self._interacted = False
+
+    @classmethod
+    def join(cls, robot: SandboxRobot, inputs: Mapping[str, Any]) -> _Sandbox:
+        others = list(inputs.values())
+        if not others:
+            return cls(robot)
+        wrong = [k for k, v in inputs.items() if not isinstance(v, SandboxRobot)]
+        if wrong:
+            raise ValueError(
+                f"robot {robot.id!r} (type 'sandbox') shares a sandbox only with robots of "
+                f"type 'sandbox'; {', '.join(repr(w) for w in wrong)} is not one"
             )
-            self._next_reduction *= self.config.depth_reduction_ratio
+        world: _Sandbox = others[0]._world
+        if any(o._world is not world for o in others):
+            raise ValueError(f"robot {robot.id!r}: its input robots are in different sandboxes")
+        first = world.robots[0]
+        for name in _SHARED_FIELDS:
+            if getattr(robot.config, name) != getattr(first.config, name):
+                raise ValueError(
+                    f"robot {robot.id!r} shares the sandbox of {first.id!r} and must have the "
+                    f"same {name} ({getattr(first.config, name)})"
+                )
+        world.robots.append(robot)
+        return world
+
+    @property
+    def steps(self) -> int:
+        """Steps taken by every robot of the sandbox."""
+        robots = self.robots
+        if len(robots) == 1:
+            return len(robots[0]._log_t)
+        return sum(len(r._log_t) for r in robots)
+
+    def part_closed(self, interacted: bool) -> None:
+        """One robot's part of a movement has ended; settle when it was the last open."""
+        self._parts += 1
+        self._interacted = self._interacted or interacted
+        self._settle()
+
+    def movement_ended(self, index: int) -> None:
+        """The run loop's movement ``index`` has ended (every robot hears it)."""
+        self._settle()
+        if not any(not r._closed for r in self.robots):
+            self.settled = max(self.settled, index + 1)
+
+    def _settle(self) -> None:
+        if self._parts == 0 or any(not r._closed for r in self.robots):
+            return
+        if self._interacted:
+            # Soil displaced around the object: rake shallower next time (1, 0.5, 0.25 cm ...).
+            cfg = self.robots[0].config
+            self.interactions += 1
+            self.schedule_depth = max(cfg.min_depth_m, self.schedule_depth - self.next_reduction)
+            self.next_reduction *= cfg.depth_reduction_ratio
+        self.settled += 1
+        self._parts = 0
+        self._interacted = False
+
+    def ground_truth(self) -> tuple[GroundTruthLog, NDArray[np.str_] | None]:
+        """Every robot's log in time order, and the robot of each row (None when alone)."""
+        if len(self.robots) == 1:
+            return self.robots[0].ground_truth, None
+        logs = [r.ground_truth for r in self.robots]
+        order = np.argsort(np.concatenate([g.timestamps_s for g in logs]), kind="stable")
+        ids = np.concatenate([np.full(len(g), r.id) for g, r in zip(logs, self.robots,
+                                                                     strict=True)])
+        merged = GroundTruthLog(
+            **{name: np.concatenate([getattr(g, name) for g in logs])[order]
+               for name in ("timestamps_s", "positions_m", "states", "forces_n",
+                            "movement_index", "depth_m")}
+        )
+        return merged, ids[order]
+
+    def movement_truths(self) -> list[MovementTruth]:
+        """The truth of every exploratory movement in order: the parts of a movement that
+        several robots made (the same index) joined into one."""
+        if len(self.robots) == 1:
+            return list(self.robots[0].movements)
+        parts: dict[int, list[MovementTruth]] = {}
+        for truth in sorted((m for r in self.robots for m in r.movements),
+                            key=lambda m: m.start_time_s):
+            parts.setdefault(truth.index, []).append(truth)
+        return [_joined(p) for _, p in sorted(parts.items())]
+
+
+def _joined(parts: list[MovementTruth]) -> MovementTruth:
+    """One movement's truth from its parts, in time order."""
+    if len(parts) == 1:
+        return parts[0]
+    first, last = parts[0], parts[-1]
+
+    def earliest(values: list[float]) -> float:
+        finite = [v for v in values if not math.isnan(v)]
+        return min(finite) if finite else math.nan
+
+    return MovementTruth(
+        index=first.index,
+        depth_m=first.depth_m,
+        rupture_distance_m=first.rupture_distance_m,
+        side_crescent_angle_deg=first.side_crescent_angle_deg,
+        start_time_s=first.start_time_s,
+        end_time_s=last.end_time_s,
+        jamming_onset_s=earliest([p.jamming_onset_s for p in parts]),
+        contact_onset_s=earliest([p.contact_onset_s for p in parts]),
+        max_state=max(p.max_state for p in parts),
+        max_force_n=max(p.max_force_n for p in parts),
+        halt_reason=last.halt_reason,
+    )

@@ -17,6 +17,9 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         config=SandboxRobotConfig,
         factory="hapticframe_sandbox._robot:SandboxRobot",
         capabilities=frozenset({"simulated"}),
+        # Another sandbox robot in inputs: this one works in the same sandbox (clock and
+        # depth schedule shared), e.g. a second arm with its own workspace.
+        inputs=(Kind.ROBOT,),
     )
 
 
