@@ -367,7 +367,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         out_dir = Path(outcome.out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         truth, robot_ids = world.ground_truth()
-        extra = {} if robot_ids is None else {"robot_id": robot_ids}
+        extra: dict[str, Any] = {} if robot_ids is None else {"robot_id": robot_ids}
         np.savez_compressed(
             out_dir / "ground_truth.npz",
             timestamps_s=truth.timestamps_s,

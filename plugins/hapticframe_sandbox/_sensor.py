@@ -35,8 +35,8 @@ class SandboxForceSensor(Sensor):
 
     def __init__(self, config: SandboxForceSensorConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        robots = list(context.inputs.values())
-        if not robots or not all(isinstance(r, SandboxRobot) for r in robots):
+        robots = [r for r in context.inputs.values() if isinstance(r, SandboxRobot)]
+        if not robots or len(robots) != len(context.inputs):
             found = ", ".join(f"{k!r} ({type(v).__name__})" for k, v in context.inputs.items())
             raise ValueError(
                 f"sensor {context.id!r} (type 'sandbox-force') needs one input, a robot "
