@@ -53,7 +53,7 @@ def scripted(monkeypatch):
     """The planner proposes the given lines, then stops."""
     lines: list[tuple[tuple[float, float], tuple[float, float]]] = []
 
-    def propose(self):  # type: ignore[no-untyped-def]
+    def propose(self):
         if not lines:
             return None
         start, end = lines.pop(0)
