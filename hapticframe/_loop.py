@@ -14,8 +14,9 @@ from collections.abc import Callable, Mapping
 
 from ._dataflow import Dataflow
 from ._errors import RunError
+from ._safety import OUTSIDE_WORKSPACE, SafetyMonitor, outside_workspace
 from ._session import Session
-from .kinds import Component, Device, MovementResult, Planner, Robot
+from .kinds import Component, Device, ExploratoryMovement, MovementResult, Planner, Robot
 
 __all__ = ["device_faults", "devices_of", "run_loop"]
 
@@ -97,15 +98,20 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
     pacer = _pacer(devices, 1.0 / robot.control_rate_hz)
     if pacer.period_s is not None:
         lookahead = 1
+    safety = SafetyMonitor(settings, flow, session.safety_halts)
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
             return
+        if _refused_outside_workspace(session, robot, movement, index, devices):
+            continue
         flow.start_stream()
         robot.begin(movement)
+        safety.begin(robot, index)
         if lookahead > 1 and any(c.checkpoint() is None for c in chain):
             lookahead = 1  # a component that cannot rewind: one step at a time
-        steps, halted_by_loop = _movement(session, flow, robot, index, chain, lookahead, pacer)
+        steps, halted_by_loop = _movement(
+            session, flow, robot, index, chain, lookahead, pacer, safety)
         flow.flush_maps()
         reason = halted_by_loop or robot.halt_reason
         result = MovementResult(
@@ -125,18 +131,44 @@ def _closed_loop(session: Session, flow: Dataflow, planner: Planner, robot: Robo
     session.echo(f"stopped after {limit} movements (the movement limit)")
 
 
+def _refused_outside_workspace(
+    session: Session, robot: Robot, movement: ExploratoryMovement, index: int,
+    devices: Mapping[str, Device],
+) -> bool:
+    """Refuse, before ``begin``, a movement that leaves the robot's workspace: it is
+    recorded as halted (``outside_workspace``, no steps) and every component, the planner
+    included, sees the result. True when refused."""
+    why = outside_workspace(robot, movement)
+    if not why:
+        return False
+    result = MovementResult(
+        index=index, movement=movement, halted=True, halt_reason=OUTSIDE_WORKSPACE,
+        final_state=robot.state, extra={"refused": why},
+    )
+    session.movements.append(result)
+    session.safety_halts.append({
+        "reason": OUTSIDE_WORKSPACE, "robot": robot.id, "movement": index, "detail": why,
+    })
+    _progress(session, result, 0, devices)
+    for component in session.components.values():
+        component.on_movement_end(result)
+    return True
+
+
 def _movement(
     session: Session, flow: Dataflow, robot: Robot, index: int, chain: list[Component],
-    lookahead: int, pacer: _Pacer | None = None,
+    lookahead: int, pacer: _Pacer | None = None, safety: SafetyMonitor | None = None,
 ) -> tuple[int, str]:
-    """Step the robot through the movement it has begun; returns the steps taken and
-    ``"interaction"`` when the loop halted it.
+    """Step the robot through the movement it has begun; returns the steps taken and the
+    reason when the loop halted it (``"interaction"``, or a safety halt of ``safety``:
+    ``"force_limit"``, ``"force_stream_stalled"``).
 
     With ``lookahead > 1`` the robot runs up to that many steps ahead and the chain
     classifies them as one batch. A batch in which the primary classifier reports an
     interaction is rewound (``chain``: the robot, streamed sensors, extractors and
     classifiers) and replayed one step at a time, so the loop halts at the same step,
-    with the same records, as without look-ahead. Batches end on multiples of
+    with the same records, as without look-ahead; so is a batch that may hold a safety
+    halt (a force sample over the limit, a stalled force stream). Batches end on multiples of
     ``run.map_update_every_steps`` so that maps are updated at the same steps too.
     """
     # Settings read once: the step loop below runs some 20,000 times per search.
@@ -166,7 +198,9 @@ def _movement(
             if not states:
                 break
             outputs, classified = flow.read_and_classify()
-            if halt_on_interaction and flow.holds_interaction(classified):
+            if (halt_on_interaction and flow.holds_interaction(classified)) or (
+                safety is not None and safety.batch_needs_replay(states, outputs)
+            ):
                 for component, snapshot in zip(chain, snapshots, strict=True):
                     component.rewind(snapshot)
                 flow.rewind(aligned)
@@ -175,6 +209,8 @@ def _movement(
             for state in states:
                 flow.record_robot_state(robot_id, state, index)
             flow.commit(outputs, classified)
+            if safety is not None:
+                safety.batch_committed()
             steps += len(states)
         else:
             if pacer is not None:
@@ -185,6 +221,8 @@ def _movement(
             steps += 1
             flow.record_robot_state(robot_id, state, index)
             flow.tick()
+            if safety is not None and not halted_by_loop:
+                halted_by_loop = safety.after_commit()
             if halt_on_interaction and not halted_by_loop:
                 detected = flow.interaction_detected()
                 if detected is not None:
