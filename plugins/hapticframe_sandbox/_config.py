@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from hapticframe import PluginConfig
+from hapticframe import PluginConfig, RegionConfig
 
 __all__ = ["SandboxForceSensorConfig", "SandboxRobotConfig"]
 
@@ -88,6 +88,12 @@ class SandboxRobotConfig(PluginConfig):
     )
     force_limit_n: float = Field(
         80.0, gt=0, description="The robot halts itself above this true force magnitude."
+    )
+    workspace: RegionConfig | None = Field(
+        None,
+        description="The region (x/y bounds, metres) the fingertip may reach; the robot "
+        "refuses a movement whose start or end lies outside it, and the run records it as "
+        "halted (outside_workspace). None: no limit.",
     )
     sector_radial_samples: int = Field(
         40, ge=2, description="Samples per ray when locating objects in the failure zone."

@@ -36,6 +36,7 @@ from hapticframe.kinds import (
     MovementResult,
     PhysicalTruth,
     PhysicalTruthSource,
+    Region,
     Robot,
     RobotState,
     RunOutcome,
@@ -137,6 +138,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
                 "to the experiment"
             )
         self._scene = context.scene
+        self._workspace = None if config.workspace is None else config.workspace.to_region()
         self._rng = context.rng
         self._dt = 1.0 / config.control_rate_hz
         material = context.scene.material
@@ -203,7 +205,23 @@ class SandboxRobot(Robot, PhysicalTruthSource):
     def halt_reason(self) -> str:
         return self._halt_reason
 
+    @property
+    def workspace(self) -> Region | None:
+        """``config.workspace`` as a region (None: the fingertip may go anywhere)."""
+        return self._workspace
+
     def begin(self, movement: ExploratoryMovement) -> None:
+        region = self._workspace
+        if region is not None:
+            ends = np.vstack([movement.start_m, movement.end_m])
+            outside = ends[~region.contains(ends)]
+            if len(outside):
+                x, y = outside[0].tolist()
+                raise ValueError(
+                    f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, "
+                    f"{y:.4g}) m (x {region.x_min_m:g}...{region.x_max_m:g} m, y "
+                    f"{region.y_min_m:g}...{region.y_max_m:g} m)"
+                )
         self._close_movement()
         cfg = self.config
         self._index += 1
