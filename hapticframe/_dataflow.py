@@ -400,6 +400,11 @@ def _resample(
 class Dataflow:
     """Ticks the perception chain of an experiment and routes observations to maps."""
 
+    #: Safety bookkeeping (set per run in ``__init__``; these defaults: no limit, nothing seen).
+    force_limit_n: float | None = None
+    force_violation: tuple[float, float] | None = None
+    valid_force_samples: int = 0
+
     def __init__(
         self,
         experiment: Experiment,

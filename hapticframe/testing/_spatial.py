@@ -535,14 +535,17 @@ def check_robot_refuses_outside_workspace(
         before_x = region.x_min_m - 0.1 * width - 0.01
         bounds = (f"x {region.x_min_m:g}...{region.x_max_m:g} m, "
                   f"y {region.y_min_m:g}...{region.y_max_m:g} m")
-        cases = {
-            "a movement that ends outside the workspace": (center, (beyond_x, center[1])),
-            "a movement that starts outside the workspace": ((before_x, center[1]), center),
+        cy = float(center[1])
+        cases: dict[str, tuple[ArrayLike, ArrayLike]] = {
+            "a movement that ends outside the workspace": (center, (beyond_x, cy)),
+            "a movement that starts outside the workspace": ((before_x, cy), center),
             "a movement that leaves it across y": (
-                center, (center[0], region.y_max_m + 0.1 * height + 0.01)),
+                center, (float(center[0]), region.y_max_m + 0.1 * height + 0.01)),
         }
         for what, (start, end) in cases.items():
-            movement = ExploratoryMovement(start, end, 0.05, phase="kit", label="kit")
+            movement = ExploratoryMovement(
+                np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), 0.05,
+                phase="kit", label="kit")
             try:
                 robot.begin(movement)
             except ValueError as exc:

@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 from hapticframe._cli import main
+from hapticframe._dataflow import Dataflow
+from hapticframe.kinds import ChannelInfo, SampleBatch
 from hapticframe.testing import check_robot_refuses_outside_workspace, check_robot_stops_at_once
 from hapticframe_sandbox import plugin as sandbox_plugin
 
@@ -221,3 +223,29 @@ def test_the_sandbox_stops_at_once_and_refuses_to_leave_its_workspace():
     workspace = {"x_min_m": 0.1, "x_max_m": 0.6, "y_min_m": 0.05, "y_max_m": 0.45}
     check_robot_refuses_outside_workspace(sandbox_spec(workspace=workspace))
     check_robot_refuses_outside_workspace(sandbox_spec())  # none declared: nothing to refuse
+
+
+# --- the dataflow's bookkeeping ------------------------------------------------------------
+
+
+class _ForceSensor:
+    def __init__(self) -> None:
+        self.channels = {"f": ChannelInfo((2,), "N", 100.0), "p": ChannelInfo((), "Pa", 100.0)}
+
+
+@pytest.mark.parametrize("per_sample", [True, False])
+def test_only_valid_samples_count_and_the_first_over_the_limit_is_kept(per_sample):
+    flow = object.__new__(Dataflow)  # only the force bookkeeping is exercised
+    flow.force_max_n, flow.force_limit_n = float("nan"), 80.0
+    t = np.arange(6) / 100
+    force = np.array([[3.0, 4.0], [60.0, 80.0], [90.0, 0.0], [np.nan, np.nan], [0, 200], [1, 0]])
+    valid = np.array([True, False, True, False, True, True])  # 100 N at 0.01 s is not valid
+    pressure = np.zeros(6)
+    batch = SampleBatch(t, {"f": force, "p": pressure}, {"f": valid})
+    parts = [batch.select(slice(i, i + 1)) for i in range(6)] if per_sample else [batch]
+    for part in parts:
+        flow._track_force(_ForceSensor(), part)  # type: ignore[arg-type]
+    assert flow.valid_force_samples == 4
+    assert flow.take_force_violation() == (0.02, 90.0)
+    assert flow.take_force_violation() is None  # taken
+    assert flow.force_max_n == 200.0  # the console's figure counts every finite sample

@@ -196,7 +196,8 @@ class LinesPlanner(Planner):
             return None
         x0, y0, x1, y1 = self.config.lines[self._next]
         self._next += 1
-        return ExploratoryMovement((x0, y0), (x1, y1), self.config.speed_m_per_s)
+        speed = self.config.speed_m_per_s
+        return ExploratoryMovement(np.array([x0, y0]), np.array([x1, y1]), speed)
 
     def on_movement_end(self, result: MovementResult) -> None:
         RESULTS.append(result)
