@@ -400,6 +400,11 @@ def _resample(
 class Dataflow:
     """Ticks the perception chain of an experiment and routes observations to maps."""
 
+    #: Safety bookkeeping (set per run in ``__init__``; these defaults: no limit, nothing seen).
+    force_limit_n: float | None = None
+    force_violation: tuple[float, float] | None = None
+    valid_force_samples: int = 0
+
     def __init__(
         self,
         experiment: Experiment,
@@ -422,6 +427,12 @@ class Dataflow:
         self.latest: dict[str, ClassProbabilities] = {}
         self.pending: dict[str, list[Observations]] = {m: [] for m in self.maps}
         self.force_max_n = float("nan")
+        # Safety (hapticframe._safety): the run's force limit, the first valid sample above
+        # it since the movement began, and a count of valid force samples (the stall check
+        # watches it grow).
+        self.force_limit_n: float | None = experiment.model.run.force_limit_n
+        self.force_violation: tuple[float, float] | None = None
+        self.valid_force_samples = 0
         self._robot_keys: dict[str, tuple[str, ...]] = {}
         self._recorded_classes: dict[str, tuple[str, ...]] = {}
         # One aligner per consumer whose inputs run on different clocks: it keeps their
@@ -436,6 +447,11 @@ class Dataflow:
             channels = components.sensors[sensor_id].channels
             for name, info in channels.items():
                 recorder.set(f"sensor/{sensor_id}/{name}/unit", np.array(info.unit))
+        #: The streamed sensors that have a force channel (unit ``N``).
+        self.force_sensors = [
+            i for i in self.sensors
+            if any(info.unit == "N" for info in components.sensors[i].channels.values())
+        ]
 
     def _plan_sensor_models(self) -> None:
         """Pick each sensor model's classifier and pose source, or say what is missing."""
@@ -608,12 +624,16 @@ class Dataflow:
             self.recorder.add(f"{kind}/{cid}/{name}", array)
 
     def _track_force(self, sensor: Sensor, batch: SampleBatch) -> None:
+        """The largest finite force magnitude (``force_max_n``), and for safety the valid
+        samples: counted, and the first above ``force_limit_n`` kept (``force_violation``)."""
         n = len(batch)
         if not n:
             return
+        limit = self.force_limit_n
         for name, info in sensor.channels.items():
             if info.unit == "N":
                 values = batch.channels[name]
+                valid = batch.valid.get(name)
                 if n == 1 and 1 <= values.size <= 2:
                     # One sample of at most two components (a closed loop's force reading):
                     # the same sum of squares and square root in plain floats.
@@ -623,17 +643,71 @@ class Dataflow:
                         self.force_max_n = (
                             norm if math.isnan(self.force_max_n) else max(self.force_max_n, norm)
                         )
+                        if valid is None or bool(valid[0]):
+                            self.valid_force_samples += 1
+                            if limit is not None and norm > limit:
+                                self._note_violation(float(batch.timestamps_s[0]), norm)
                     continue
                 values = values.reshape(n, -1)
                 norms = np.linalg.norm(values, axis=1)
-                finite = norms[np.isfinite(norms)]
+                usable = np.isfinite(norms)
+                finite = norms[usable]
                 if finite.size:
                     self.force_max_n = float(np.fmax(self.force_max_n, finite.max()))
+                if valid is not None:
+                    usable &= valid
+                self.valid_force_samples += int(np.count_nonzero(usable))
+                if limit is not None:
+                    over = np.flatnonzero(usable & (norms > limit))
+                    if over.size:
+                        first = int(over[0])
+                        self._note_violation(float(batch.timestamps_s[first]), float(norms[first]))
+
+    def _note_violation(self, timestamp_s: float, force_n: float) -> None:
+        # The earliest violating sample of a commit (sensors are committed one by one).
+        if self.force_violation is None or timestamp_s < self.force_violation[0]:
+            self.force_violation = (timestamp_s, force_n)
+
+    def take_force_violation(self) -> tuple[float, float] | None:
+        """The first valid force sample above the limit committed since the last call (or
+        since the movement began): ``(timestamp_s, magnitude_n)``; None when there was none."""
+        violation, self.force_violation = self.force_violation, None
+        return violation
+
+    def valid_force(
+        self, outputs: Mapping[str, SampleBatch]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The timestamps and magnitudes of the valid, finite force samples in ``outputs``
+        (what :meth:`read_and_classify` read), in time order; what a look-ahead batch is
+        checked against before it is committed."""
+        times: list[NDArray[np.float64]] = []
+        norms: list[NDArray[np.float64]] = []
+        for sensor_id in self.force_sensors:
+            batch = outputs[sensor_id]
+            n = len(batch)
+            if not n:
+                continue
+            for name, info in self.components.sensors[sensor_id].channels.items():
+                if info.unit != "N":
+                    continue
+                magnitude = np.linalg.norm(batch.channels[name].reshape(n, -1), axis=1)
+                usable = np.isfinite(magnitude)
+                valid = batch.valid.get(name)
+                if valid is not None:
+                    usable &= valid
+                times.append(batch.timestamps_s[usable])
+                norms.append(magnitude[usable])
+        if not times:
+            return np.empty(0), np.empty(0)
+        t, f = np.concatenate(times), np.concatenate(norms)
+        order = np.argsort(t, kind="stable")
+        return t[order], f[order]
 
     def start_stream(self) -> None:
         """A new movement starts a new stream: forget classifier and feature state."""
         self.latest.clear()
         self.force_max_n = float("nan")
+        self.force_violation = None
         for cid in self.extractors + self.classifiers:
             self.components[cid].reset()
         for aligner in self.aligners.values():

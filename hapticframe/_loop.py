@@ -14,9 +14,10 @@ from collections.abc import Callable, Mapping
 
 from ._dataflow import Dataflow
 from ._errors import RunError
-from ._robots import WORKSPACE_LIMIT, RobotTeam
+from ._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
+from ._safety import OUTSIDE_WORKSPACE, SafetyMonitor
 from ._session import Session
-from .kinds import Component, Device, MovementResult, Planner, Robot
+from .kinds import Component, Device, ExploratoryMovement, MovementResult, Planner, Robot
 
 __all__ = ["device_faults", "devices_of", "run_loop"]
 
@@ -101,26 +102,31 @@ def _closed_loop(
     pacers = {r.id: _pacer(devices, 1.0 / r.control_rate_hz) for r in robots}
     if any(p.period_s is not None for p in pacers.values()):
         lookahead = 1
+    safety = SafetyMonitor(settings, flow, session.safety_halts)
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
             return
-        flow.start_stream()
         # The movement's parts: one robot's, or several when one robot's workspace ends.
         robot = team.pick(movement.start_m, movement.end_m)
+        if robot is None:  # no workspace holds its start: refused before any motion
+            _refuse_outside_workspace(session, robots, movement, index, devices)
+            continue
+        flow.start_stream()
         part = movement
         used: list[Robot] = []
         steps = 0
-        reason = "" if robot is not None else WORKSPACE_LIMIT
+        reason = ""
         while robot is not None:
             part, cut = team.part_for(robot, part)
             used.append(robot)
             robot.begin(part)
+            safety.begin(robot, index)
             chain: list[Component] = [robot, *rewindable]
             if lookahead > 1 and any(c.checkpoint() is None for c in chain):
                 lookahead = 1  # a component that cannot rewind: one step at a time
             taken, halted_by_loop = _movement(
-                session, flow, robot, index, chain, lookahead, pacers[robot.id]
+                session, flow, robot, index, chain, lookahead, pacers[robot.id], safety
             )
             steps += taken
             team.after_part(robot, taken)
@@ -157,18 +163,51 @@ def _closed_loop(
     session.echo(f"stopped after {limit} movements (the movement limit)")
 
 
+def _refuse_outside_workspace(
+    session: Session, robots: list[Robot], movement: ExploratoryMovement, index: int,
+    devices: Mapping[str, Device],
+) -> None:
+    """Refuse, before any ``begin``, a movement that starts where no robot's workspace
+    reaches: it is recorded as halted (``outside_workspace``, no steps) and every component,
+    the planner included, sees the result. (A movement that starts inside and leaves is
+    raked to the workspace limit instead, and continued by another robot when one can.)"""
+    x, y = (float(v) for v in movement.start_m)
+    limits = "; ".join(
+        f"{r.id!r}: x {w.x_min_m:g}...{w.x_max_m:g} m, y {w.y_min_m:g}...{w.y_max_m:g} m"
+        for r in robots if (w := workspace_of(r)) is not None
+    )
+    why = (
+        f"no robot's workspace holds its start ({x:.4g}, {y:.4g}) m and the line on from it "
+        f"({limits})"
+    )
+    result = MovementResult(
+        index=index, movement=movement, halted=True, halt_reason=OUTSIDE_WORKSPACE,
+        final_state=robots[0].state, extra={"refused": why},
+    )
+    session.movements.append(result)
+    session.safety_halts.append({
+        "reason": OUTSIDE_WORKSPACE, "robots": [r.id for r in robots], "movement": index,
+        "detail": why,
+    })
+    _progress(session, result, 0, devices)
+    for component in session.components.values():
+        component.on_movement_end(result)
+
+
 def _movement(
     session: Session, flow: Dataflow, robot: Robot, index: int, chain: list[Component],
-    lookahead: int, pacer: _Pacer | None = None,
+    lookahead: int, pacer: _Pacer | None = None, safety: SafetyMonitor | None = None,
 ) -> tuple[int, str]:
-    """Step the robot through the movement it has begun; returns the steps taken and
-    ``"interaction"`` when the loop halted it.
+    """Step the robot through the movement it has begun; returns the steps taken and the
+    reason when the loop halted it (``"interaction"``, or a safety halt of ``safety``:
+    ``"force_limit"``, ``"force_stream_stalled"``).
 
     With ``lookahead > 1`` the robot runs up to that many steps ahead and the chain
     classifies them as one batch. A batch in which the primary classifier reports an
     interaction is rewound (``chain``: the robot, streamed sensors, extractors and
     classifiers) and replayed one step at a time, so the loop halts at the same step,
-    with the same records, as without look-ahead. Batches end on multiples of
+    with the same records, as without look-ahead; so is a batch that may hold a safety
+    halt (a force sample over the limit, a stalled force stream). Batches end on multiples of
     ``run.map_update_every_steps`` so that maps are updated at the same steps too.
     """
     # Settings read once: the step loop below runs some 20,000 times per search.
@@ -198,7 +237,9 @@ def _movement(
             if not states:
                 break
             outputs, classified = flow.read_and_classify()
-            if halt_on_interaction and flow.holds_interaction(classified):
+            if (halt_on_interaction and flow.holds_interaction(classified)) or (
+                safety is not None and safety.batch_needs_replay(states, outputs)
+            ):
                 for component, snapshot in zip(chain, snapshots, strict=True):
                     component.rewind(snapshot)
                 flow.rewind(aligned)
@@ -207,6 +248,8 @@ def _movement(
             for state in states:
                 flow.record_robot_state(robot_id, state, index)
             flow.commit(outputs, classified)
+            if safety is not None:
+                safety.batch_committed()
             steps += len(states)
         else:
             if pacer is not None:
@@ -217,6 +260,8 @@ def _movement(
             steps += 1
             flow.record_robot_state(robot_id, state, index)
             flow.tick()
+            if safety is not None and not halted_by_loop:
+                halted_by_loop = safety.after_commit()
             if halt_on_interaction and not halted_by_loop:
                 detected = flow.interaction_detected()
                 if detected is not None:

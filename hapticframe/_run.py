@@ -11,8 +11,10 @@ Devices (:class:`~hapticframe.kinds.Device`) are configured and activated once e
 is built and released, in reverse order, when the run ends in any way. A
 :class:`~hapticframe.devices.DeviceError` (a device that cannot recover) first halts every
 robot (and deactivates a robot that is a device), then fails the run with a message naming
-the device (exit status 1). Each device's health counters go to ``metrics.json``
-(``devices``), or to ``run.json`` (``details.devices``) when the run did not finish.
+the device (exit status 1); SIGINT and SIGTERM stop the robots the same way before the run
+ends as interrupted (``details.halted_robots`` in ``run.json``). Each device's health
+counters go to ``metrics.json`` (``devices``), or to ``run.json`` (``details.devices``)
+when the run did not finish.
 """
 
 from __future__ import annotations
@@ -34,10 +36,11 @@ from ._errors import HapticframeError, RunError, RunInterrupted, UsageError
 from ._evaluate import score_run
 from ._loop import devices_of, run_loop
 from ._results import RunSummary, run_record, save_outputs, write_json
+from ._safety import FORCE_LIMIT, stop_robots
 from ._session import Session
 from ._train import collect_recordings, fit_components, training_reports
 from .devices import DeviceError
-from .kinds import Component, Device, Robot
+from .kinds import Component
 
 __all__ = ["RunSummary", "run_experiment"]
 
@@ -107,26 +110,38 @@ def _blame(exc: BaseException, components: Mapping[str, Component]) -> str:
     return found
 
 
-def _stop_robots(components: Mapping[str, Component]) -> tuple[list[str], list[str]]:
-    """Halt every robot (``"device failure"``) and deactivate those that are devices; the
-    ids halted, and what failed while doing so (each robot is tried whatever the others
-    do)."""
-    halted: list[str] = []
-    failures: list[str] = []
-    for cid, component in components.items():
-        if not isinstance(component, Robot):
-            continue
-        try:
-            component.halt("device failure")
-            halted.append(cid)
-        except Exception as exc:
-            failures.append(f"halting {cid!r} failed: {type(exc).__name__}: {exc}")
-        if isinstance(component, Device):
-            try:
-                component.deactivate()
-            except Exception as exc:
-                failures.append(f"deactivating {cid!r} failed: {type(exc).__name__}: {exc}")
+@contextmanager
+def _signals_held() -> Iterator[None]:
+    """Ignore SIGINT and SIGTERM while the robots are being stopped (main thread only): a
+    second Ctrl-C must not cut the halting of the robots short."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _stop_robots(session: Session, reason: str) -> tuple[list[str], list[str]]:
+    """Halt every robot (``reason``) and deactivate those that are devices, before any
+    other component is released; ``run.json`` records them (``details.halted_robots``)."""
+    with _signals_held():
+        halted, failures = stop_robots(session.components, reason)
+    if halted or failures:
+        session.details["halted_robots"] = {"reason": reason, "robots": halted}
+    if failures:
+        session.details["halt_errors"] = failures
     return halted, failures
+
+
+def _latency_metric(session: Session) -> int | None:
+    """The largest halt latency of the run's force-limit halts (robot steps), or None."""
+    latencies = [int(h["latency_samples"]) for h in session.safety_halts
+                 if h.get("reason") == FORCE_LIMIT]
+    return max(latencies) if latencies else None
 
 
 def _device_health(components: Mapping[str, Component]) -> dict[str, dict[str, int]]:
@@ -188,6 +203,8 @@ def run_experiment(
                 _fit_before_run(session)
                 run_loop(session)
                 metrics = score_run(session)
+                if session.components.robots:
+                    metrics["halt_latency_samples_max"] = _latency_metric(session)
                 health = _device_health(components)
                 if health:
                     metrics["devices"] = health
@@ -195,19 +212,21 @@ def run_experiment(
                 session.status = "ok"
             except DeviceError as exc:
                 # Stop every actuator before anything else is released.
-                halted, failures = _stop_robots(components)
+                halted, failures = _stop_robots(session, "device failure")
                 session.status = "failed"
                 error = f"device failure{_blame(exc, components)}: {exc}"
                 if halted:
                     error += f" (halted {', '.join(repr(r) for r in halted)})"
                 if failures:
-                    session.details["halt_errors"] = failures
                     error += "; " + "; ".join(failures)
                 raise RunError(f"the run failed: {error}") from exc
             except RunInterrupted as exc:
+                # As for a device failure: every actuator stops before anything is released.
+                _stop_robots(session, "interrupted")
                 session.status, signal_name, error = "interrupted", exc.signal_name, None
                 raise
             except KeyboardInterrupt as exc:
+                _stop_robots(session, "interrupted")
                 session.status, signal_name = "interrupted", "SIGINT"
                 raise RunInterrupted("SIGINT") from exc
             except HapticframeError as exc:
@@ -224,6 +243,8 @@ def run_experiment(
         # The stack has closed every component by now.
     finally:
         if session is not None:
+            if session.safety_halts:
+                session.details["safety_halts"] = session.safety_halts
             if session.status != "ok":
                 try:
                     health = _device_health(session.components)

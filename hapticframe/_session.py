@@ -41,6 +41,9 @@ class Session:
     #: The largest force magnitude any streamed sensor measured (a channel in ``N``), NaN
     #: when none did: the console's per-movement figure and ``metrics.json`` both use it.
     max_measured_force_n: float = float("nan")
+    #: Every halt of the run loop's safety checks (force limit, stalled force stream,
+    #: workspace refusal), in order: ``run.json``'s ``details.safety_halts``.
+    safety_halts: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def settings(self) -> RunSettings:

@@ -119,8 +119,8 @@ def test_no_robot_can_continue_the_movement_ends_halted_at_the_workspace_limit(
     assert metrics["movements"] == 2
     assert "workspace_limit" in progress[0] and "arm-a  " in progress[0]
     assert trace["robot/arm-a/position_m"][-1, 0] == pytest.approx(0.30)
-    # A start that no workspace holds: halted before any step.
-    assert "workspace_limit" in progress[1] and "    0 steps" in progress[1]
+    # A start that no workspace holds: refused before any step.
+    assert "outside_workspace" in progress[1] and "    0 steps" in progress[1]
     assert "robot/arm-b/timestamps_s" not in trace
 
 

@@ -81,6 +81,19 @@ class RunSettings(BaseModel):
     evaluation_spacing_m: float = Field(
         0.0025, gt=0, le=0.05, description="Grid spacing for outline and centroid estimates."
     )
+    force_limit_n: float | None = Field(
+        80.0, gt=0,
+        description="Safety: the first valid sample of a streamed sensor's force channel "
+        "(unit N; the magnitude over its components) above this halts the robot in the same "
+        "tick, reason 'force_limit' (dissertation 3.5.3.3: 80 N). The halt latency in robot "
+        "steps goes to metrics.json (halt_latency_samples_max). null disables the limit.",
+    )
+    force_stall_s: float | None = Field(
+        0.25, gt=0,
+        description="Safety: while a movement is active, no valid force sample for this long "
+        "(by the robot's state timestamps) halts the robot, reason 'force_stream_stalled'. "
+        "Only in runs that stream a force sensor; null disables it.",
+    )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,
         description="With a live device (real hardware), the shortest wall-clock time between "

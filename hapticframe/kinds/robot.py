@@ -9,6 +9,13 @@ Contract
 - :meth:`Robot.halt` stops the current movement (the run loop calls it when the classifier
   reports an interaction); a robot may also halt by itself (a force limit) and say why in
   :attr:`Robot.halt_reason`.
+- :attr:`Robot.workspace` (optional, default ``None``): the region the fingertip may reach.
+  A robot that declares one refuses (``ValueError`` from :meth:`Robot.begin`) a movement
+  whose start or end lies outside it, so that even a direct caller cannot move there; the
+  run loop checks it too, before ``begin``, and records the movement as halted
+  (``halt_reason="outside_workspace"``, no steps).
+- After :meth:`Robot.halt` the next :meth:`Robot.step` returns ``None``: no command is sent
+  after a halt (the run's safety halts, an interrupt and a device failure rely on it).
 - :meth:`Robot.execute` is the batch path: it runs one movement to its end and returns the
   states.
 """
@@ -20,7 +27,7 @@ from typing import ClassVar
 
 from .._kind import Kind
 from ._base import Component
-from ._records import ExploratoryMovement, RobotState
+from ._records import ExploratoryMovement, Region, RobotState
 
 __all__ = ["Robot"]
 
@@ -51,6 +58,15 @@ class Robot(Component):
     @abstractmethod
     def halt(self, reason: str) -> None:
         """Stop the current movement now."""
+
+    @property
+    def workspace(self) -> Region | None:
+        """The region the fingertip may reach, or None (no limit declared: the default).
+
+        A robot that declares one must refuse, with ``ValueError`` from :meth:`begin`, a
+        movement whose start or end lies outside it (``check_robot_refuses_outside_workspace``).
+        """
+        return None
 
     @property
     def halt_reason(self) -> str:

@@ -35,8 +35,12 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
   ``check_map_extremes``;
 - planners: ``check_planner_contract``, ``check_planner_extremes`` (an all-unknown map, an
   all-occupied map, a region smaller than one line spacing);
-- robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_extremes`` (a
-  zero-length movement, movements that leave the workspace), ``check_rewind``.
+- robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_stops_at_once``
+  (after ``halt()``, before the first step or mid-movement, no step returns a state and
+  the fingertip stays put), ``check_robot_refuses_outside_workspace`` (a robot that declares
+  a ``workspace`` raises ``ValueError`` from ``begin()`` for a movement leaving it),
+  ``check_robot_extremes`` (a zero-length movement, movements that leave the workspace),
+  ``check_rewind``.
 
 A :class:`~hapticframe.kinds.Device` the kit builds is configured and activated first,
 and deactivated and cleaned up when a check is done with it (``release_component``).
@@ -74,6 +78,8 @@ from ._spatial import (
     check_robot_contract,
     check_robot_extremes,
     check_robot_halt,
+    check_robot_refuses_outside_workspace,
+    check_robot_stops_at_once,
     check_sensor_model_contract,
     check_sensor_model_extremes,
     check_sensor_model_streaming,
@@ -114,6 +120,8 @@ __all__ = [
     "check_robot_contract",
     "check_robot_extremes",
     "check_robot_halt",
+    "check_robot_refuses_outside_workspace",
+    "check_robot_stops_at_once",
     "check_sensor_contract",
     "check_sensor_model_contract",
     "check_sensor_model_extremes",

@@ -45,6 +45,8 @@ __all__ = [
     "KitMap",
     "check_planner_extremes",
     "check_robot_extremes",
+    "check_robot_refuses_outside_workspace",
+    "check_robot_stops_at_once",
     "located_measurement",
     "map_observations",
     "planner_episode",
@@ -457,6 +459,111 @@ def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> N
         robot.halt("kit")
         if robot.step() is not None:
             raise CheckFailure("step() returned a state after halt(); it must return None")
+    finally:
+        robot.close()
+
+
+def _inside_movement(robot: Robot) -> ExploratoryMovement:
+    """The kit's crossing movement, or for a robot that declares a workspace, a movement
+    across the middle of it."""
+    region = robot.workspace
+    if region is None:
+        return crossing_movement(DEFAULT_SCENE)
+    center, (width, _) = region.center_m, region.size_m
+    half = np.array([0.4 * width, 0.0])
+    return ExploratoryMovement(center - half, center + half, 0.05, phase="kit",
+                               label="kit crossing")
+
+
+@check(Kind.ROBOT)
+def check_robot_stops_at_once(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """After ``halt()`` no command follows: every later ``step()`` returns None and the
+    fingertip stays where it stopped, whether the halt comes before the first step or
+    mid-movement (what the run's force limit, an interrupt and a device failure rely on)."""
+    robot = make_component(spec, registry=registry, interface=Robot)
+    try:
+        movement = _inside_movement(robot)
+        robot.begin(movement)
+        robot.halt("kit")
+        if robot.step() is not None:
+            raise CheckFailure(
+                "step() returned a state after a halt() that came right after begin(): a halt "
+                "must stop the robot before its first command too"
+            )
+        robot.begin(movement)
+        last: RobotState | None = None
+        for _ in range(5):
+            state = robot.step()
+            if state is not None:
+                last = state
+        robot.halt("kit")
+        for attempt in range(1, 4):
+            if robot.step() is not None:
+                raise CheckFailure(
+                    f"step() returned a state {attempt} call(s) after halt(): no command may "
+                    "follow a halt"
+                )
+        if last is not None:
+            moved = float(np.linalg.norm(robot.state.position_m - last.position_m))
+            if not moved <= 1e-9:
+                raise CheckFailure(f"the fingertip moved {moved:.3g} m after halt()")
+    finally:
+        robot.close()
+
+
+@check(Kind.ROBOT)
+def check_robot_refuses_outside_workspace(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
+    """A robot that declares a ``workspace`` refuses a movement that leaves it or starts
+    outside it: ``begin()`` raises ``ValueError`` with a message, so that even a direct
+    caller cannot move there, and no step follows; a movement inside it still runs. (A
+    robot that declares none passes.)"""
+    robot = make_component(spec, registry=registry, interface=Robot)
+    try:
+        region = robot.workspace
+        if region is None:
+            return
+        if not isinstance(region, Region):
+            raise CheckFailure(
+                f"workspace is a {type(region).__name__}; it must be a hapticframe.kinds.Region "
+                "or None"
+            )
+        center = region.center_m
+        width, height = region.size_m
+        beyond_x = region.x_max_m + 0.1 * width + 0.01
+        before_x = region.x_min_m - 0.1 * width - 0.01
+        bounds = (f"x {region.x_min_m:g}...{region.x_max_m:g} m, "
+                  f"y {region.y_min_m:g}...{region.y_max_m:g} m")
+        cy = float(center[1])
+        cases: dict[str, tuple[ArrayLike, ArrayLike]] = {
+            "a movement that ends outside the workspace": (center, (beyond_x, cy)),
+            "a movement that starts outside the workspace": ((before_x, cy), center),
+            "a movement that leaves it across y": (
+                center, (float(center[0]), region.y_max_m + 0.1 * height + 0.01)),
+        }
+        for what, (start, end) in cases.items():
+            movement = ExploratoryMovement(
+                np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), 0.05,
+                phase="kit", label="kit")
+            try:
+                robot.begin(movement)
+            except ValueError as exc:
+                if not str(exc) or raised_by_record_validation(exc):
+                    raise _invalid(spec, what, exc) from exc
+                if robot.step() is not None:
+                    raise CheckFailure(
+                        f"begin() refused {what}, but step() then returned a state"
+                    ) from None
+                continue
+            robot.halt("kit")
+            raise CheckFailure(
+                f"begin() accepted {what} ({bounds}): a robot that declares a workspace must "
+                "raise ValueError, so that even a direct caller cannot move there"
+            )
+        states = _robot_states(robot, _inside_movement(robot))
+        if not states:
+            raise CheckFailure("a movement inside the workspace gave no states")
     finally:
         robot.close()
 

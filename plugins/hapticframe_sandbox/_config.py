@@ -115,9 +115,10 @@ class SandboxRobotConfig(PluginConfig):
     workspace: RegionConfig | None = Field(
         None,
         description="The rectangle the fingertip can reach (x_min_m, x_max_m, y_min_m, "
-        "y_max_m); None reaches everywhere. A closed loop with several robots gives each "
-        "movement to a robot whose workspace holds it and continues a movement that leaves "
-        "one robot's workspace with another.",
+        "y_max_m); None reaches everywhere. The robot refuses a line that leaves it; a run "
+        "rakes a movement that leaves it up to the boundary (workspace_limit) and continues "
+        "it with another robot whose workspace holds the rest, and refuses one that starts "
+        "where no workspace reaches (outside_workspace).",
     )
 
     @model_validator(mode="after")

@@ -57,6 +57,8 @@ __all__ = [
 ]
 
 FREE, JAMMING, CONTACT = 0, 1, 2
+#: How far past its workspace a movement may reach (rounding of a cut at the boundary).
+WORKSPACE_SLACK_M = 1e-6
 #: Names of the ground-truth states, indexed by state number.
 STATE_NAMES = ("free", "jamming", "contact")
 
@@ -138,6 +140,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
                 "to the experiment"
             )
         self._scene = context.scene
+        self._workspace = None if config.workspace is None else config.workspace.to_region()
         self._rng = context.rng
         self._dt = 1.0 / config.control_rate_hz
         material = context.scene.material
@@ -206,11 +209,28 @@ class SandboxRobot(Robot, PhysicalTruthSource):
 
     @property
     def workspace(self) -> Region | None:
-        """Where the fingertip can reach (``config.workspace``); None: everywhere."""
-        given = self.config.workspace
-        return None if given is None else given.to_region()
+        """``config.workspace`` as a region (None: the fingertip may go anywhere)."""
+        return self._workspace
 
     def begin(self, movement: ExploratoryMovement) -> None:
+        region = self._workspace
+        if region is not None:
+            ends = np.vstack([movement.start_m, movement.end_m])
+            # A micrometre of slack: a line cut at a neighbouring arm's workspace boundary
+            # ends there up to rounding.
+            slack = WORKSPACE_SLACK_M
+            inside = (
+                (ends[:, 0] >= region.x_min_m - slack) & (ends[:, 0] <= region.x_max_m + slack)
+                & (ends[:, 1] >= region.y_min_m - slack) & (ends[:, 1] <= region.y_max_m + slack)
+            )
+            outside = ends[~inside]
+            if len(outside):
+                x, y = outside[0].tolist()
+                raise ValueError(
+                    f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, "
+                    f"{y:.4g}) m (x {region.x_min_m:g}...{region.x_max_m:g} m, y "
+                    f"{region.y_min_m:g}...{region.y_max_m:g} m)"
+                )
         self._close_movement()
         cfg = self.config
         self._index += 1

@@ -309,6 +309,9 @@ class LineRobotConfig(PluginConfig):
     rewind_keeps_progress: bool = False
     nan_on_zero_length: bool = False
     wait_at_workspace_edge: bool = False
+    halt_only_when_moving: bool = False
+    declare_workspace: bool = False
+    enforce_workspace: bool = True
 
 
 class LineRobot(Robot):
@@ -329,7 +332,18 @@ class LineRobot(Robot):
     def state(self) -> RobotState:
         return self._state
 
+    @property
+    def workspace(self) -> Region | None:
+        """The kit scene's region, when ``declare_workspace`` is set."""
+        if not self.config.declare_workspace:
+            return None
+        return self.context.scene.region.to_region()
+
     def begin(self, movement: ExploratoryMovement) -> None:
+        region = self.workspace
+        if region is not None and self.config.enforce_workspace:  # the broken variant does not
+            if not region.contains(np.vstack([movement.start_m, movement.end_m])).all():
+                raise ValueError(f"robot {self.id!r}: the movement leaves the workspace")
         self._movement, self._s = movement, 0.0
         if self.config.restart_clock:
             self._t = 0.0
@@ -359,6 +373,8 @@ class LineRobot(Robot):
         return self._state
 
     def halt(self, reason: str) -> None:
+        if self.config.halt_only_when_moving and self._s == 0.0:
+            return  # the broken variant loses a halt that comes before the first step
         if not self.config.ignore_halt:
             self._movement = None
 
@@ -386,6 +402,8 @@ GOOD = [
     MapSpec("lab-cells", "ok", CellConfig, "tests.support.labplugin:CellMap",
             capabilities=frozenset({"exact-update"})),
     RobotSpec("lab-line", "ok", LineRobotConfig, f"{M}:LineRobot"),
+    RobotSpec("lab-line-workspace", "ok", LineRobotConfig, f"{M}:LineRobot",
+              check_config={"declare_workspace": True}),
     # NaN in samples the batch marks invalid is how a sensor reports a loss: accepted.
     SensorSpec("lab-flagged-dropouts", "ok", SweepConfig, f"{M}:FlaggedDropoutSensor",
                capabilities=frozenset({"finite"})),
@@ -454,6 +472,13 @@ BROKEN = [
     (RobotSpec("ignores-halt", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"ignore_halt": True}),
      "check_robot_halt", "after halt()"),
+    (RobotSpec("halt-lost-before-first-step", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"halt_only_when_moving": True}),
+     "check_robot_stops_at_once", "right after begin()"),
+    (RobotSpec("moves-outside-workspace", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"declare_workspace": True, "enforce_workspace": False}),
+     "check_robot_refuses_outside_workspace",
+     "begin() accepted a movement that ends outside the workspace"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
     (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
