@@ -1,12 +1,13 @@
-"""Safety, the same for every robot: the run loop's force limit, stalled force stream and
-workspace refusal, and stopping every robot when a run is interrupted or a device fails.
+"""Safety, the same for every robot: the run loop's force limit and stalled force stream,
+and stopping every robot when a run is interrupted or a device fails.
 
 The run loop (:mod:`hapticframe._loop`) asks a :class:`SafetyMonitor` after each committed
 tick whether to halt the robot, and whether a look-ahead batch must be replayed one step at
 a time before it is committed (so a halt comes at the same step with or without look-ahead);
-it asks :func:`outside_workspace` before it begins a movement. :func:`stop_robots` is what
-:mod:`hapticframe._run` calls on a :class:`~hapticframe.devices.DeviceError`, SIGINT or
-SIGTERM, before anything else is released.
+it refuses a movement no workspace can start (:data:`OUTSIDE_WORKSPACE`) before it begins
+one. :func:`stop_robots` is what :mod:`hapticframe._run` calls on a
+:class:`~hapticframe.devices.DeviceError`, SIGINT or SIGTERM, before anything else is
+released.
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ import numpy as np
 
 from ._config import RunSettings
 from ._dataflow import Dataflow
-from .kinds import Component, Device, ExploratoryMovement, Robot, RobotState, SampleBatch
+from .kinds import Component, Device, Robot, RobotState, SampleBatch
 
 __all__ = ["FORCE_LIMIT", "FORCE_STREAM_STALLED", "OUTSIDE_WORKSPACE", "SafetyMonitor",
-           "outside_workspace", "stop_robots"]
+           "stop_robots"]
 
 #: Halt reasons of the run loop's safety checks (``MovementResult.halt_reason``).
 FORCE_LIMIT = "force_limit"
@@ -135,25 +136,6 @@ class SafetyMonitor:
             "robot_time_s": robot_time_s,
             **extra,
         })
-
-
-def outside_workspace(robot: Robot, movement: ExploratoryMovement) -> str:
-    """Why ``movement`` lies outside ``robot.workspace`` (``""`` when it does not, or when
-    the robot declares no workspace)."""
-    region = robot.workspace
-    if region is None:
-        return ""
-    ends = np.vstack([movement.start_m, movement.end_m])
-    inside = region.contains(ends)
-    if bool(np.all(inside)):
-        return ""
-    which = "start" if not inside[0] else "end"
-    x, y = ends[0] if not inside[0] else ends[1]
-    return (
-        f"its {which} ({x:.4g}, {y:.4g}) m lies outside the workspace of {robot.id!r} "
-        f"(x {region.x_min_m:g}...{region.x_max_m:g} m, y {region.y_min_m:g}..."
-        f"{region.y_max_m:g} m)"
-    )
 
 
 def stop_robots(
