@@ -380,7 +380,8 @@ class DynamixelBus(DeviceModel):
     # -- faults ------------------------------------------------------------------------------
 
     def _take(self, kind: str, servo_id: int | None, now_s: float) -> FaultEvent | None:
-        """A fired fault of ``kind`` for this servo (or for any servo), consumed."""
+        """A fired fault of ``kind`` for this servo (``servo_id`` None: whatever its
+        target), consumed."""
         if self.faults is None:
             return None
         armed = self._bus.armed
@@ -388,7 +389,9 @@ class DynamixelBus(DeviceModel):
             target = event.params.get("id")
             armed.append(_Armed(kind, event, None if target is None else int(target)))
         for index, item in enumerate(armed):
-            if item.kind == kind and (item.servo_id is None or item.servo_id == servo_id):
+            if item.kind == kind and (
+                servo_id is None or item.servo_id is None or item.servo_id == servo_id
+            ):
                 del armed[index]
                 return item.event
         return None
