@@ -439,10 +439,13 @@ class DynamixelBus(DeviceModel):
             else:
                 self.stats["ignored"] += 1
             return
-        servo = self._find(packet.id)
-        if servo is None:
+        target = self._find(packet.id)
+        if target is None:
             self.stats["ignored"] += 1
             return
+        self._unicast(target, inst, params, now_s)
+
+    def _unicast(self, servo: EmulatedServo, inst: int, params: bytes, now_s: float) -> None:
         due = now_s + self._return_delay_s(servo)
         if inst == INST_PING:
             self._reply(servo, 0, self._ping_data(servo), due, required=0)
@@ -644,7 +647,7 @@ class DynamixelBus(DeviceModel):
         bus.order += 1
         bus.out.append(_Out(due_s, data, bus.order))
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> dict[int, dict[str, Any]]:
         """A summary for logs: servos, positions, torque, hardware errors."""
         return {
             servo.id: {

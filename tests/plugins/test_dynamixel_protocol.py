@@ -6,7 +6,9 @@ import math
 
 import numpy as np
 import pytest
-from dynamixel_sdk import protocol2_packet_handler as sdk_p2
+from dynamixel_sdk import protocol2_packet_handler as sdk_p2  # type: ignore[import-untyped]
+
+from hapticframe.devices import FaultEvent, FaultSchedule
 from hapticframe_dynamixel import (
     ERR_ACCESS,
     ERR_ALERT,
@@ -38,8 +40,6 @@ from hapticframe_dynamixel import (
     unstuff,
     write_packet,
 )
-
-from hapticframe.devices import FaultEvent, FaultSchedule
 
 # --- known answers --------------------------------------------------------------------------
 
