@@ -302,3 +302,32 @@ def test_fault_kinds_are_documented_and_fire() -> None:
     assert len(_ask(bus, ping_packet(1), 0.6)) == 1  # the no_reply waits for servo 2
     assert _ask(bus, ping_packet(2), 0.7) == []
     assert [s.fault for s in bus.sent] == ["bad_crc", "", "no_reply"]
+
+
+def test_hardware_error_and_current_spike_faults() -> None:
+    faults = FaultSchedule(
+        [FaultEvent("hardware_error", at_s=0.5, params={"id": 2, "bit": 2}),
+         FaultEvent("current_spike", at_s=1.0, duration_s=0.1, params={"amps": 4.0})],
+        np.random.default_rng(0),
+    )
+    bus = DynamixelBus([1, 2], faults=faults)
+    for servo_id in (1, 2):
+        _ask(bus, write_packet(servo_id, 64, b"\x01"), 0.0)
+    [status] = _ask(bus, ping_packet(2), 0.6)
+    assert status.alert and bus.servo(2).hardware_error == 1 << 2
+    assert not bus.servo(2).torque_enabled  # Shutdown (52) has the overheating bit
+    assert bus.servo(1).hardware_error == 0
+    for t in np.arange(0.9, 1.2, 0.005):
+        bus.emit(float(t))
+    assert bus.servo(1).hardware_error == HW_ERROR_OVERLOAD
+    assert bus.stats["overloads"] == 1
+
+
+def test_broadcast_ping_and_power_cycle() -> None:
+    bus = DynamixelBus([3, 1, 2])
+    replies = _ask(bus, ping_packet(0xFE), 0.0)
+    assert [r.id for r in replies] == [1, 2, 3]
+    _ask(bus, write_packet(1, 7, b"\x09"), 0.1)  # a new ID (EEPROM, torque off)
+    _ask(bus, write_packet(9, 64, b"\x01"), 0.2)
+    bus.power_cycle()
+    assert bus.servo(9).get("ID") == 9 and not bus.servo(9).torque_enabled

@@ -294,3 +294,11 @@ def test_disconnect_via_the_harness(tmp_path: Path) -> None:
         assert ph.read1ByteTxRx(port, 1, ADDR_TORQUE) == (0, COMM_SUCCESS, 0)
         port.closePort()
     assert emulator.stats["disconnects"] == 1 and bus.stats["power_cycles"] == 1
+
+
+@pytest.mark.slow
+def test_broadcast_ping_finds_every_servo(link: Link) -> None:
+    """The SDK's broadcast ping waits out its whole window (about 0.8 s)."""
+    found, comm = link.ph.broadcastPing(link.port)
+    assert comm == COMM_SUCCESS
+    assert {servo_id: info[0] for servo_id, info in found.items()} == {1: 1020, 2: 1020, 3: 1020}
