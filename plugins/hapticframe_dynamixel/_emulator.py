@@ -18,6 +18,7 @@ servo N's next status packet; without an id it takes the next status packet of a
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -202,6 +203,8 @@ class DynamixelBus(DeviceModel):
     table : ControlTable
     initial_positions : mapping of int to int, optional
         Power-on shaft positions in pulses (default 2048, the middle).
+    log_statuses : int
+        How many status packets :attr:`sent` keeps.
     """
 
     def __init__(
@@ -218,6 +221,7 @@ class DynamixelBus(DeviceModel):
         overload_dwell_s: float = 0.02,
         table: ControlTable = XM430_W350,
         initial_positions: Mapping[int, int] | None = None,
+        log_statuses: int = 100_000,
     ) -> None:
         if load_unit not in ("nm", "a"):
             raise ValueError(f"load_unit must be 'nm' or 'a', got {load_unit!r}")
@@ -244,8 +248,8 @@ class DynamixelBus(DeviceModel):
             servo.load = (loads or {}).get(servo_id)
             self._refresh(servo, 0.0)
             self.servos.append(servo)
-        #: Every status packet sent (or withheld by a fault), in order.
-        self.sent: list[SentStatus] = []
+        #: The status packets sent (or withheld by a fault), newest last, bounded.
+        self.sent: deque[SentStatus] = deque(maxlen=log_statuses)
         self.stats: dict[str, int] = {
             "instructions": 0, "crc_errors": 0, "ignored": 0, "status_packets": 0,
             "overloads": 0, "reboots": 0, "power_cycles": 0,
