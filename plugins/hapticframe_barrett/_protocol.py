@@ -28,6 +28,12 @@ from enum import IntEnum
 from types import MappingProxyType
 
 __all__ = [
+    "CAN_ERR_BUSOFF",
+    "CAN_ERR_PROT",
+    "CAN_ERR_RESTARTED",
+    "COMMON_TABLE",
+    "HAND_NODES",
+    "WAM_NODES",
     "FROM_MASK",
     "GROUP_BIT",
     "TO_MASK",
@@ -51,6 +57,11 @@ __all__ = [
     "parse_id",
     "property_table",
 ]
+
+#: SocketCAN error-frame class flags (``linux/can/error.h``), in an error frame's id.
+CAN_ERR_PROT = 0x08
+CAN_ERR_BUSOFF = 0x40
+CAN_ERR_RESTARTED = 0x100
 
 GROUP_BIT = 0x400
 FROM_MASK = 0x3E0
