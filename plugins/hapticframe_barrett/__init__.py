@@ -35,9 +35,9 @@ from ._host import (
 )
 from ._protocol import (
     CAN_ERR_BUSOFF,
-    COMMON_TABLE,
     CAN_ERR_PROT,
     CAN_ERR_RESTARTED,
+    COMMON_TABLE,
     HAND_NODES,
     WAM_NODES,
     Cmd,

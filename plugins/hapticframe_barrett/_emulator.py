@@ -152,7 +152,7 @@ class EmulatedPuck:
         return _GROUPS_OF_HAND if self.hand else _GROUPS_OF_WAM
 
     def counts(self) -> int:
-        return int(round(self._position))
+        return round(self._position)
 
     def advance(self, dt: float) -> None:
         """Move toward the target for ``dt`` seconds; arriving ends the move."""
@@ -186,7 +186,9 @@ class EmulatedPuck:
         return self.values.get(name, 0)
 
 
-def hand_pucks(vers: int = 160, *, speed: float = 50_000.0, start: int = 20_000) -> list[EmulatedPuck]:
+def hand_pucks(
+    vers: int = 160, *, speed: float = 50_000.0, start: int = 20_000
+) -> list[EmulatedPuck]:
     """A BarrettHand's pucks 11-14 (fingers with a secondary encoder, then the spread)."""
     return [
         EmulatedPuck(node, vers=vers, position=start, speed=speed, secondary=node != 14,
@@ -256,7 +258,8 @@ class PuckBus:
         self.wake_delay_s = wake_delay_s
         self.stats: dict[str, int] = dict.fromkeys(
             ("frames_in", "replies", "ignored", "mode_set_on_arm", "late", "malformed",
-             "duplicates", "missing_positions", "estops", "error_frames", "bus_offs", "sync_timeouts"), 0)
+             "duplicates", "missing_positions", "estops", "error_frames", "bus_offs",
+             "sync_timeouts"), 0)
         self.errors: list[Exception] = []
         self._lock = threading.RLock()
         self._last_s = clock.now()

@@ -160,6 +160,9 @@ class _Reply:
         self.value: int | None = None
         self.error: ProtocolError | None = None
 
+    def answered(self) -> bool:
+        return self.value is not None or self.error is not None
+
 
 class PuckHost:
     """Property access and position polls over one CAN bus.
@@ -374,8 +377,7 @@ class PuckHost:
                 reply.value = decoded.value
                 return True
 
-            self._collect(accept, lambda reply=reply: reply.value is not None
-                          or reply.error is not None, timeout)
+            self._collect(accept, reply.answered, timeout)
             if reply.value is not None:
                 return reply.value
             if reply.error is not None:
@@ -418,7 +420,7 @@ class PuckHost:
             for node in pending:
                 self.set(node, "STAT", int(Stat.READY))
             self.clock.sleep(self.wake_time_s)
-            still = []
+            still: list[int] = []
             for node in pending:
                 stat = self.try_get(node, "STAT", attempts=1)
                 (awake if stat == int(Stat.READY) else still).append(node)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import uuid
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import can
 import numpy as np
@@ -52,7 +53,7 @@ def rig() -> Iterator:
     made: list[Rig] = []
 
     def make(pucks: Sequence[EmulatedPuck] | None = None, events: Sequence[FaultEvent] = (),
-             seed: int = 0, **host_kw: float) -> Rig:
+             seed: int = 0, **host_kw: Any) -> Rig:
         channel = f"barrett-{uuid.uuid4().hex}"
         clock = FakeClock()
         faults = FaultSchedule(list(events), np.random.default_rng(seed))
@@ -255,7 +256,7 @@ def test_estop_mid_motion_is_seen_as_mode_idle(rig):
 
 
 def test_move_that_does_not_end_raises_in_bounded_time(rig):
-    r = rig(pucks=hand_pucks(speed=1_000.0))
+    r = rig(pucks=hand_pucks(speed=1_000.0, start=0))
     hand = r.hand
     hand.initialize(timeout_s=60.0)
     t0 = r.clock.now()
@@ -295,7 +296,7 @@ def test_emulator_gone_is_bounded_and_host_bus_closed_raises(rig):
         r.host.get(11, "MODE")
     assert r.clock.now() - t0 == pytest.approx(r.host.attempts * r.host.reply_timeout_s)
     r.bus.shutdown()
-    with pytest.raises(BarrettError, match="CAN (send|receive) failed"):
+    with pytest.raises(BarrettError, match=r"CAN (send|receive) failed"):
         r.host.get(11, "MODE")
 
 
