@@ -228,6 +228,11 @@ class PtyEmulator:
         Without it, :attr:`path` is the pty's own name, which changes on replug.
     fragment_rng : numpy.random.Generator or None, optional
         For the random choices of byte faults (default: the schedule's generator).
+    thread : bool or None, optional
+        None (default): pump in the clock's listener when the clock is a :class:`FakeClock`,
+        in a thread otherwise. True: pump in a daemon thread whatever the clock (for a host
+        library that blocks waiting for replies, such as ``dynamixel_sdk``, while the model's
+        time is a :class:`FakeClock` that the host advances). False: the listener.
 
     Attributes
     ----------
@@ -247,6 +252,7 @@ class PtyEmulator:
         faults: FaultSchedule | None = None,
         link_path: str | os.PathLike[str] | None = None,
         fragment_rng: np.random.Generator | None = None,
+        thread: bool | None = None,
     ) -> None:
         self.model = model
         self.clock = clock
@@ -257,7 +263,12 @@ class PtyEmulator:
         self._master: int | None = None
         self._slave: int | None = None
         self._tty_name = ""
-        self._synchronous = isinstance(clock, FakeClock)
+        # thread=None: a FakeClock pumps in its listener, any other clock in a thread;
+        # thread=True: a thread whatever the clock (a host that blocks waiting for replies
+        # on a FakeClock that only it advances); thread=False: the listener (FakeClock only).
+        if thread is False and not isinstance(clock, FakeClock):
+            raise ValueError("thread=False (pumping in the clock's listener) needs a FakeClock")
+        self._synchronous = isinstance(clock, FakeClock) if thread is None else not thread
         # Bytes a SerialTransport wrote to the host's end, and bytes read here, since plugging.
         self._host_written = 0
         self._host_read = 0
@@ -317,7 +328,8 @@ class PtyEmulator:
                 return self
             self._plug()
             self._running = True
-        if isinstance(self.clock, FakeClock):
+        if self._synchronous:
+            assert isinstance(self.clock, FakeClock)
             self.clock.add_listener(self._on_tick)
         else:
             self._stop.clear()
@@ -329,7 +341,7 @@ class PtyEmulator:
 
     def stop(self) -> None:
         """Stop servicing and remove the pty (and the symlink); idempotent."""
-        if isinstance(self.clock, FakeClock):
+        if self._synchronous and isinstance(self.clock, FakeClock):
             self.clock.remove_listener(self._on_tick)
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():

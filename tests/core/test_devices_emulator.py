@@ -290,6 +290,27 @@ def test_a_monotonic_clock_runs_a_service_thread():
             assert reply == b"THREADED\n"
 
 
+def test_thread_true_serves_a_fake_clock_in_a_thread():
+    """thread=True: a host that blocks waiting for a reply (as dynamixel_sdk does) is
+    answered although nobody advances the FakeClock; the model sees the clock's time."""
+    clock = FakeClock(5.0)
+    model = Echo()
+    seen: list[float] = []
+    receive = model.receive
+    model.receive = lambda data, now_s: (seen.append(now_s), receive(data, now_s))  # type: ignore[method-assign]
+    with PtyEmulator(model, clock=clock, thread=True) as emulator:
+        assert not clock._listeners  # no listener: the thread pumps
+        port = serial.Serial(emulator.path, timeout=5.0)
+        try:
+            port.write(b"blocked\n")
+            assert port.readline() == b"BLOCKED\n"
+        finally:
+            port.close()
+    assert seen and set(seen) == {5.0}
+    with pytest.raises(ValueError, match="FakeClock"):
+        PtyEmulator(Echo(), clock=MonotonicClock(), thread=False)
+
+
 def test_emulated_transport_streams_and_survives_a_disconnect():
     clock = FakeClock()
     faults = FaultSchedule(
