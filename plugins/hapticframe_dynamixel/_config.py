@@ -1,0 +1,135 @@
+"""Config of the ``dynamixel`` robot (import-light: pydantic only)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from hapticframe import PluginConfig, RegionConfig
+
+__all__ = ["AxisConfig", "DynamixelRobotConfig", "GantryConfig"]
+
+
+class AxisConfig(BaseModel):
+    """One gantry axis: a servo driving a lead screw or a pulley.
+
+    The axis coordinate is ``offset_m + metres_per_rad * angle``, the angle being the
+    servo's position in radians (4096 pulses per turn, pulse 0 = 0 rad).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    id: int = Field(ge=0, le=252, description="The servo's Dynamixel ID.")
+    metres_per_rad: float = Field(
+        gt=0, description="Travel per radian of the shaft (lead / 2π, or the pulley radius)."
+    )
+    offset_m: float = Field(0.0, description="The axis coordinate at pulse 0.")
+    min_pulse: int = Field(0, ge=0, le=4095, description="Min Position Limit (pulses).")
+    max_pulse: int = Field(4095, ge=0, le=4095, description="Max Position Limit (pulses).")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AxisConfig:
+        if self.max_pulse <= self.min_pulse:
+            raise ValueError("max_pulse must exceed min_pulse")
+        return self
+
+
+class GantryConfig(BaseModel):
+    """A Cartesian gantry: x and y in the map plane, z vertical (depth = −z)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    type: Literal["gantry"] = "gantry"
+    x: AxisConfig = AxisConfig(id=1, metres_per_rad=0.125)
+    y: AxisConfig = AxisConfig(id=2, metres_per_rad=0.125)
+    z: AxisConfig = AxisConfig(id=3, metres_per_rad=0.01, offset_m=-0.06)
+
+    @model_validator(mode="after")
+    def _distinct(self) -> GantryConfig:
+        ids = [self.x.id, self.y.id, self.z.id]
+        if len(set(ids)) != 3:
+            raise ValueError(f"the gantry's servo IDs must be distinct, got {ids}")
+        return self
+
+
+class DynamixelRobotConfig(PluginConfig):
+    """A chain of Dynamixel XM430-W350 servos (Protocol 2.0) moving the fingertip.
+
+    ``port: emulated`` runs the servos on an emulated bus behind a pseudo-terminal that the
+    unmodified ``dynamixel_sdk`` opens, in simulation time (deterministic).
+    """
+
+    port: str = Field(
+        "emulated", description="The serial device (e.g. /dev/ttyUSB0), or 'emulated'."
+    )
+    baudrate: int = Field(1_000_000, gt=0, description="Bus baud rate.")
+    control_rate_hz: float = Field(50.0, gt=0, le=1000, description="Control steps per second.")
+    kinematics: GantryConfig = Field(
+        default_factory=GantryConfig, description="The mechanism (a Cartesian gantry)."
+    )
+    workspace: RegionConfig = Field(
+        default_factory=RegionConfig,
+        description="The reachable rectangle (x_min_m, x_max_m, y_min_m, y_max_m); the robot "
+        "refuses a movement that leaves it.",
+    )
+    depth_m: float = Field(
+        0.044, gt=0, description="Raking depth for movements that do not give one."
+    )
+    transit_speed_m_per_s: float = Field(
+        0.1, gt=0, description="Speed of the move to a movement's start (no states recorded)."
+    )
+    tolerance_m: float = Field(
+        0.001, gt=0, description="A movement ends once the measured fingertip is this close "
+        "to its end (and the commanded point is there)."
+    )
+    settle_steps: int = Field(
+        100, ge=1, description="At most this many control steps past the commanded end to "
+        "settle within tolerance_m (then halt_reason 'not_settled')."
+    )
+    max_retries: int = Field(
+        3, ge=0, description="Retries of a failed bus transaction before a recovery."
+    )
+    max_recoveries: int = Field(
+        3, ge=1, description="Failed recoveries in a row before DeviceError."
+    )
+    reply_timeout_ms: float = Field(
+        100.0, gt=0, description="Emulator only: the SDK's reply timeout (real time)."
+    )
+    # -- emulator (port: emulated) -----------------------------------------------------------
+    time_constant_s: float = Field(
+        0.05, gt=0, description="Emulator: first-order lag of each servo behind its goal."
+    )
+    emulated_ids: tuple[int, ...] | None = Field(
+        None, description="Emulator: the servo IDs on the emulated bus (default: the "
+        "kinematics' IDs; leave one out to emulate a missing servo)."
+    )
+    faults: Literal["none", "standard"] | tuple[dict[str, Any], ...] = Field(
+        "none",
+        description="Emulator only: 'none', 'standard' (rare status faults), or a list of "
+        "fault events ({kind, at_s | rate_hz, duration_s, params}) of DynamixelBus.",
+    )
+
+    @field_validator("faults", mode="before")
+    @classmethod
+    def _fault_entries(cls, value: Any) -> Any:
+        if isinstance(value, list):
+            value = tuple(value)
+        if isinstance(value, tuple):
+            for entry in value:
+                if not isinstance(entry, dict) or "kind" not in entry:
+                    raise ValueError(
+                        f"each fault is a mapping with at least a 'kind', got {entry!r}"
+                    )
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> DynamixelRobotConfig:
+        if self.faults != "none" and not self.emulated:
+            raise ValueError("faults are injected by the emulator: they need port 'emulated'")
+        return self
+
+    @property
+    def emulated(self) -> bool:
+        """Whether ``port`` names the emulator."""
+        return self.port == "emulated"

@@ -1,0 +1,21 @@
+"""Registration of the ``dynamixel`` robot (import-light: no dynamixel_sdk here)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import RobotSpec, hookimpl
+
+from ._config import DynamixelRobotConfig
+
+
+@hookimpl
+def hapticframe_robots() -> Iterator[RobotSpec]:
+    yield RobotSpec(
+        name="dynamixel",
+        summary="A Cartesian gantry of Dynamixel XM430 servos (Protocol 2.0, dynamixel-sdk); "
+        "port 'emulated' runs them on a pseudo-terminal in simulation time.",
+        config=DynamixelRobotConfig,
+        factory="hapticframe_dynamixel._robot:DynamixelRobot",
+        capabilities=frozenset({"hardware"}),
+    )
