@@ -105,8 +105,8 @@ class _SteppedBus(DeviceModel):
 def _emulated_port(path: str, timeout_ms: float) -> Any:
     """A ``PortHandler`` whose reply timeout suits a pty on a loaded machine."""
 
-    class EmulatedPort(dynamixel_sdk.PortHandler):  # type: ignore[misc]
-        def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 (SDK name)
+    class EmulatedPort(dynamixel_sdk.PortHandler):
+        def setPacketTimeout(self, packet_length: int) -> None:
             self.packet_start_time = self.getCurrentTime()
             self.packet_timeout = self.tx_time_per_byte * packet_length + timeout_ms
 
@@ -250,6 +250,7 @@ class DynamixelRobot(Robot, DeviceLifecycle):
         try:  # hold where the servos are: the goal becomes the present position
             positions, _ = self._sync_read(retries=0)
             self._sync_write(np.rint(positions).astype(int), retries=0)
+            self._sync_read(retries=0)  # a reply after the write: the servos have the goal
         except Exception:
             self._torque_all(0)  # the bus misbehaves: stop by cutting the torque
 
@@ -493,7 +494,7 @@ class DynamixelRobot(Robot, DeviceLifecycle):
             result = self._call(self._ph.ping, self._port, servo_id)
             if result is None:
                 raise BusError("no ping data")
-            model, comm, error = result
+            model, comm, _ = result
             if comm != dynamixel_sdk.COMM_SUCCESS:
                 self._count(comm)
                 raise BusError(self._ph.getTxRxResult(comm))

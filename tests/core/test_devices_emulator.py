@@ -297,7 +297,7 @@ def test_thread_true_serves_a_fake_clock_in_a_thread():
     model = Echo()
     seen: list[float] = []
     receive = model.receive
-    model.receive = lambda data, now_s: (seen.append(now_s), receive(data, now_s))  # type: ignore[method-assign]
+    model.receive = lambda data, now_s: (seen.append(now_s), receive(data, now_s))
     with PtyEmulator(model, clock=clock, thread=True) as emulator:
         assert not clock._listeners  # no listener: the thread pumps
         port = serial.Serial(emulator.path, timeout=5.0)

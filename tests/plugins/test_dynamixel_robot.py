@@ -208,17 +208,21 @@ def _wrong_model(robot: DynamixelRobot) -> Any:
 
 
 def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() -> None:
-    # The emulated servos start at 2048 pulses; the transit to x = 0.05 takes ~3.4 s.
-    robot = build(faults=[{"kind": "hardware_error", "at_s": 4.0, "params": {"id": 1}}],
+    # The emulated servos start at 2048 pulses; the transit to x = 0.05 takes ~3.8 s.
+    robot = build(faults=[{"kind": "hardware_error", "at_s": 4.5, "params": {"id": 1}}],
                   reply_timeout_ms=20.0)
     robot.configure()
     robot.activate()
     try:
         robot.begin(line(0.05, 0.6))
+        steps = 0
+        while robot.clock.now() < 4.4:
+            assert robot.step() is not None
+            steps += 1
+        assert steps > 10
         with pytest.raises(DeviceError, match="did not recover"):
-            for _ in range(200):
-                assert robot.step() is not None
-        assert robot.clock.now() == pytest.approx(4.0, abs=0.05)
+            run_until_error(robot)
+        assert robot.clock.now() == pytest.approx(4.5, abs=0.05)
         assert robot.stats["hardware_errors"] >= 1
         assert robot.health.recoveries == robot.max_recoveries
         assert robot.lifecycle_state is LifecycleState.ERROR
@@ -227,6 +231,11 @@ def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() 
         assert robot.step() is None
     finally:
         robot.close()
+
+
+def run_until_error(robot: DynamixelRobot) -> None:
+    for _ in range(50):
+        assert robot.step() is not None
 
 
 def test_status_faults_are_counted_and_survived() -> None:
