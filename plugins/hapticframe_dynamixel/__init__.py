@@ -1,7 +1,9 @@
-"""Dynamixel Protocol 2.0: packets, the XM430-W350 control table, and an emulated bus.
+"""Dynamixel Protocol 2.0: packets, the XM430-W350 control table, an emulated bus, and the
+``dynamixel`` robot.
 
-The foundation of the ``dynamixel`` robot plugin. A library, not a plugin: it registers
-nothing. :mod:`._protocol` is pure (CRC-16/BUYPASS, byte stuffing, instruction and status
+:mod:`.plugin` registers the robot (:class:`DynamixelRobot`, a Cartesian gantry driven by
+``dynamixel_sdk``, imported only when the robot is asked for; :mod:`._kinematics` is pure
+numpy). :mod:`._protocol` is pure (CRC-16/BUYPASS, byte stuffing, instruction and status
 packets, an incremental parser that resynchronises as ``dynamixel_sdk`` does);
 :mod:`._control_table` holds the XM430-W350 table (model number 1020) and unit conversions;
 :class:`DynamixelBus` is a :class:`hapticframe.devices.DeviceModel` of several XM430 servos
@@ -13,6 +15,10 @@ fixed list of rates, and a pty does not enforce any).
 
 from __future__ import annotations
 
+import importlib
+from typing import Any
+
+from ._config import AxisConfig, DynamixelRobotConfig, GantryConfig
 from ._control_table import (
     CURRENT_UNIT_A,
     EEPROM_END,
@@ -41,6 +47,7 @@ from ._emulator import (
     EmulatedServo,
     SentStatus,
 )
+from ._kinematics import Axis, Gantry
 from ._protocol import (
     BROADCAST_ID,
     ERR_ACCESS,
@@ -81,6 +88,12 @@ from ._protocol import (
 )
 
 __all__ = [
+    "Axis",
+    "AxisConfig",
+    "DynamixelRobot",
+    "DynamixelRobotConfig",
+    "Gantry",
+    "GantryConfig",
     "BROADCAST_ID",
     "CURRENT_UNIT_A",
     "EEPROM_END",
@@ -142,3 +155,10 @@ __all__ = [
     "velocity_to_rpm",
     "write_packet",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    # The robot imports dynamixel_sdk: only when asked for.
+    if name == "DynamixelRobot":
+        return importlib.import_module("._robot", __name__).DynamixelRobot
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -278,7 +278,7 @@ def test_a_status_without_data_does_not_wedge_the_port(robot: DynamixelRobot) ->
 
 def test_same_seed_same_states_with_standard_faults() -> None:
     def run() -> tuple[np.ndarray, dict[str, int]]:
-        robot = make_component(SPEC, seed=3, config={"faults": "standard",
+        robot = make_component(SPEC, seed=3, config={"faults": FREQUENT,
                                                      "reply_timeout_ms": 20.0},
                                interface=Robot)
         try:
@@ -293,3 +293,40 @@ def test_same_seed_same_states_with_standard_faults() -> None:
     second, health_again = run()
     assert np.array_equal(first, second)
     assert health == health_again
+    assert health["timeouts"] + health["crc_errors"] >= 3  # the faults did fire
+
+
+FREQUENT = [{"kind": kind, "rate_hz": 1.0} for kind in ("no_reply", "bad_crc", "junk",
+                                                         "sync_missing")]
+
+
+def test_standard_faults_need_the_emulator() -> None:
+    with pytest.raises(ValueError, match="emulated"):
+        DynamixelRobotConfig(port="/dev/ttyUSB0", faults="standard")
+    assert DynamixelRobotConfig(faults="standard").faults == "standard"
+
+
+@pytest.mark.hardware
+def test_a_real_gantry_moves_and_holds() -> None:
+    """A real XM430 gantry (IDs 1-3 on HAPTICFRAME_DYNAMIXEL_PORT, at 1 Mbit/s): a 2 cm line
+    in the middle of the default workspace, then torque off. Keep clear of the gantry."""
+    import os
+    import time
+
+    port = os.environ.get("HAPTICFRAME_DYNAMIXEL_PORT")
+    if not port:
+        pytest.skip("set HAPTICFRAME_DYNAMIXEL_PORT to the U2D2's port")
+    robot = build(port=port)
+    robot.configure()
+    robot.activate()
+    try:
+        assert robot.live is True
+        movement = line(0.36, 0.38, speed=0.02)
+        robot.begin(movement)
+        states = []
+        while (state := robot.step()) is not None:
+            states.append(state)
+            time.sleep(1 / robot.control_rate_hz)  # the run paces a live robot
+        assert np.linalg.norm(states[-1].position_m - movement.end_m) < 0.002
+    finally:
+        robot.close()
