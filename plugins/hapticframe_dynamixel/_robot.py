@@ -55,10 +55,12 @@ from ._emulator import DynamixelBus
 from ._kinematics import Axis, Gantry
 from ._protocol import ERR_ALERT
 
-__all__ = ["EMULATOR_LEAD_S", "STANDARD_FAULTS", "DynamixelRobot"]
+__all__ = ["EMULATOR_LEAD_S", "RECOVERY_BACKOFF_S", "STANDARD_FAULTS", "DynamixelRobot"]
 
 #: Model time by which the emulated bus's status packets may follow their request.
 EMULATOR_LEAD_S = 0.005
+#: The first recovery waits this long (on the robot's clock), each next one twice as long.
+RECOVERY_BACKOFF_S = 0.05
 #: ``faults: standard``: rare status-packet faults, each survived by a retry.
 STANDARD_FAULTS: tuple[dict[str, Any], ...] = (
     {"kind": "no_reply", "rate_hz": 0.05},
@@ -397,24 +399,46 @@ class DynamixelRobot(Robot, DeviceLifecycle):
             self._link_dir = None
 
     def on_recover(self, error: Exception) -> None:
+        """Wait a backoff on the robot's clock, reopen the port after a link error, ping every
+        servo; fail while a servo has a latched hardware error or (when active) lost its
+        torque (a power cycle): neither is undone behind the operator's back."""
         port = self._port
         if port is None:
             raise error
+        backoff = RECOVERY_BACKOFF_S * 2 ** self.recovery_streak
+        if isinstance(self.clock, FakeClock):
+            self.clock.advance(backoff)
+            if self.emulator is not None:
+                self.emulator.pump()
+        else:
+            self.clock.sleep(backoff)
         port.is_using = False
+        if isinstance(error, OSError) or not port.is_open:
+            with contextlib.suppress(*_LINK_ERRORS):
+                port.closePort()
+            self.health.reconnects += 1
+            if not self._call(port.openPort):
+                raise OSError(f"cannot reopen {self.config.port}")
+            self._call(port.setBaudRate, self.config.baudrate)
         with contextlib.suppress(*_LINK_ERRORS):
             port.clearPort()
+        active = self.lifecycle_state.value == "active"
         for servo_id in self._ids:
-            model, comm, _ = self._call(self._ph.ping, port, servo_id)
-            if comm != dynamixel_sdk.COMM_SUCCESS or model != XM430_W350_MODEL_NUMBER:
+            result = self._call(self._ph.ping, port, servo_id)
+            if result is None or result[1] != dynamixel_sdk.COMM_SUCCESS:
                 raise BusError(f"servo {servo_id} does not answer ping")
-            value, comm, _ = self._call(self._ph.read1ByteTxRx, port, servo_id,
-                                        _ADDR["Hardware Error Status"])
-            if comm != dynamixel_sdk.COMM_SUCCESS:
-                raise BusError(f"servo {servo_id}: hardware error status unreadable")
-            if value:
-                raise HardwareAlert(
-                    f"servo {servo_id} hardware error status 0x{value:02x} (latched until a "
-                    "reboot: torque is off)")
+            if result[0] != XM430_W350_MODEL_NUMBER:
+                raise BusError(f"servo {servo_id} answers as model {result[0]}")
+            for name, bad in (("Hardware Error Status", lambda v: v != 0),
+                              ("Torque Enable", lambda v: active and v == 0)):
+                result = self._call(self._ph.read1ByteTxRx, port, servo_id, _ADDR[name])
+                if result is None or result[1] != dynamixel_sdk.COMM_SUCCESS:
+                    raise BusError(f"servo {servo_id}: {name} unreadable")
+                if bad(result[0]):
+                    raise HardwareAlert(
+                        f"servo {servo_id}: hardware error status 0x{result[0]:02x}, latched "
+                        "until a reboot (torque off)" if name == "Hardware Error Status" else
+                        f"servo {servo_id} lost its torque (power cycled?)")
 
     # --- the bus -------------------------------------------------------------------------------
 

@@ -16,7 +16,7 @@ from hapticframe_dynamixel import XM430_W350_MODEL_NUMBER
 from hapticframe_dynamixel import plugin as dxl_plugin
 from hapticframe_dynamixel._config import AxisConfig, DynamixelRobotConfig, GantryConfig
 from hapticframe_dynamixel._kinematics import Axis, Gantry
-from hapticframe_dynamixel._robot import DynamixelRobot
+from hapticframe_dynamixel._robot import RECOVERY_BACKOFF_S, DynamixelRobot
 
 pytest.importorskip("dynamixel_sdk")
 
@@ -222,12 +222,37 @@ def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() 
         assert steps > 10
         with pytest.raises(DeviceError, match="did not recover"):
             run_until_error(robot)
-        assert robot.clock.now() == pytest.approx(4.5, abs=0.05)
+        # Found at the first step past the fault, then three recoveries' backoffs.
+        backoffs = RECOVERY_BACKOFF_S * (1 + 2 + 4)
+        assert 4.5 + backoffs <= robot.clock.now() <= 4.5 + 1 / 50 + backoffs + 1e-9
         assert robot.stats["hardware_errors"] >= 1
         assert robot.health.recoveries == robot.max_recoveries
         assert robot.lifecycle_state is LifecycleState.ERROR
         assert torques(robot) == [0, 0, 0]
         assert robot.bus is not None and robot.bus.servo(1).hardware_error
+        assert robot.step() is None
+    finally:
+        robot.close()
+
+
+def test_an_unplugged_adapter_is_reopened_and_a_power_cycle_is_a_device_error() -> None:
+    """The link fails (OSError from the SDK's serial port): the robot waits a backoff in
+    simulation time, reopens the port once the emulated adapter is back, and finds the
+    power-cycled servos with their torque off: that is not resumed silently."""
+    robot = build(faults=[{"kind": "disconnect", "at_s": 4.5, "duration_s": 0.1}],
+                  reply_timeout_ms=20.0)
+    robot.configure()
+    robot.activate()
+    try:
+        robot.begin(line(0.05, 0.6))
+        while robot.clock.now() < 4.4:
+            assert robot.step() is not None
+        with pytest.raises(DeviceError, match="lost its torque"):
+            run_until_error(robot)
+        assert robot.health.reconnects >= 1
+        assert robot.emulator is not None and robot.emulator.stats["disconnects"] == 1
+        assert robot.bus is not None and robot.bus.stats["power_cycles"] == 1
+        assert torques(robot) == [0, 0, 0]
         assert robot.step() is None
     finally:
         robot.close()
