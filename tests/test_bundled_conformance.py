@@ -26,6 +26,7 @@ BUNDLED = {
     ("planner", "coverage"),
     ("planner", "two-phase-coverage"),
     ("robot", "sandbox"),
+    ("robot", "dynamixel"),
 }
 
 
