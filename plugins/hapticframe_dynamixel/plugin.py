@@ -18,4 +18,5 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         config=DynamixelRobotConfig,
         factory="hapticframe_dynamixel._robot:DynamixelRobot",
         capabilities=frozenset({"hardware"}),
+        install_hint="pip install 'hapticframe[hardware]' (dynamixel-sdk, pyserial)",
     )
