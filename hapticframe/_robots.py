@@ -42,12 +42,7 @@ def workspace_of(robot: Robot) -> Region | None:
 
 
 def _holds(region: Region | None, point: np.ndarray) -> bool:
-    if region is None:
-        return True
-    x, y = float(point[0]), float(point[1])
-    t = TOLERANCE_M
-    return (region.x_min_m - t <= x <= region.x_max_m + t
-            and region.y_min_m - t <= y <= region.y_max_m + t)
+    return region is None or bool(region.contains(point, TOLERANCE_M)[0])
 
 
 def exit_distance(

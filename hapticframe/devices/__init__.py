@@ -18,7 +18,7 @@ The guide is ``docs/devices.md``.
 from ._clock import Clock, ClockSync, FakeClock, MonotonicClock
 from ._crc import append_crc16, check_crc16, crc16_modbus
 from ._emulator import DeviceModel, EmulatedTransport, PtyEmulator
-from ._faults import FaultEvent, FaultSchedule, InjectedFault
+from ._faults import FaultEvent, FaultSchedule, FaultSetting, InjectedFault
 from ._framing import FixedFrameParser, LineFramer, ParserStats
 from ._health import DeviceHealth
 from ._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
@@ -43,6 +43,7 @@ __all__ = [
     "FakeClock",
     "FaultEvent",
     "FaultSchedule",
+    "FaultSetting",
     "FixedFrameParser",
     "InjectedFault",
     "LifecycleState",

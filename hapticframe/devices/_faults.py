@@ -10,11 +10,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import BeforeValidator
 
-__all__ = ["FaultEvent", "FaultSchedule", "InjectedFault"]
+__all__ = ["FaultEvent", "FaultSchedule", "FaultSetting", "InjectedFault"]
 
 #: The faults the emulator harness applies to the device→host byte stream.
 BYTE_FAULTS = ("drop_bytes", "garbage", "fragment", "stall", "disconnect")
@@ -216,3 +217,25 @@ class FaultSchedule:
     def count(self, kind: str) -> int:
         """How many occurrences of ``kind`` have been injected."""
         return sum(1 for fault in self.injected if fault.kind == kind)
+
+
+def _checked_fault_setting(value: Any) -> Any:
+    """A list of fault entries checked as :meth:`FaultSchedule.from_config` will check them
+    at run time, so that ``hapticframe validate`` reports a bad entry with its location."""
+    if isinstance(value, list):
+        value = tuple(value)
+    if isinstance(value, tuple):
+        for number, entry in enumerate(value):
+            if not isinstance(entry, Mapping):
+                raise ValueError(f"fault {number}: a mapping with at least a 'kind', got {entry!r}")
+        FaultSchedule.from_config(value, np.random.default_rng(0))
+        value = tuple(dict(entry) for entry in value)
+    return value
+
+
+#: The ``faults`` setting of an emulated device's config: ``"none"``, ``"standard"`` (the
+#: device's own schedule) or a list of entries ``{kind, at_s | rate_hz, duration_s, params}``.
+FaultSetting = Annotated[
+    Literal["none", "standard"] | tuple[dict[str, Any], ...],
+    BeforeValidator(_checked_fault_setting),
+]

@@ -189,7 +189,7 @@ class DeviceLifecycle:
         self._set_state(LifecycleState.FINALIZED)
         try:
             self.on_cleanup()
-        except OSError:
+        except OSError:  # closing a link whose device is gone: nothing left to release
             pass
 
     def recover(self, error: Exception) -> None:

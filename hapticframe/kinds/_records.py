@@ -267,13 +267,15 @@ class Region:
     def center_m(self) -> FloatArray:
         return np.array([(self.x_min_m + self.x_max_m) / 2, (self.y_min_m + self.y_max_m) / 2])
 
-    def contains(self, points_m: ArrayLike) -> NDArray[np.bool_]:
+    def contains(self, points_m: ArrayLike, tolerance_m: float = 0.0) -> NDArray[np.bool_]:
+        """Which points lie in the region grown by ``tolerance_m`` on every side."""
         p = np.atleast_2d(np.asarray(points_m, dtype=np.float64))
+        t = tolerance_m
         return (
-            (p[:, 0] >= self.x_min_m)
-            & (p[:, 0] <= self.x_max_m)
-            & (p[:, 1] >= self.y_min_m)
-            & (p[:, 1] <= self.y_max_m)
+            (p[:, 0] >= self.x_min_m - t)
+            & (p[:, 0] <= self.x_max_m + t)
+            & (p[:, 1] >= self.y_min_m - t)
+            & (p[:, 1] <= self.y_max_m + t)
         )
 
     def grid(self, spacing_m: float) -> tuple[FloatArray, FloatArray]:

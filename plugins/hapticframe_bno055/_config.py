@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.devices import FaultSetting
 
 __all__ = ["EMULATED_PORT", "Bno055SensorConfig"]
 
@@ -87,7 +88,7 @@ class Bno055SensorConfig(PluginConfig):
     accel_noise_std_m_per_s2: float = Field(
         0.015, ge=0, description="Emulated only: accelerometer noise per axis."
     )
-    faults: Literal["none", "standard"] | list[dict[str, Any]] = Field(
+    faults: FaultSetting = Field(
         "none",
         description="Emulated only: no faults, the 'standard' schedule, or a list of "
         "FaultEvent entries ({kind, at_s | rate_hz, duration_s, params}).",

@@ -340,7 +340,7 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         schedule: FaultSchedule | None = None
         if entries == "standard":
             schedule = FaultSchedule(standard_faults(), np.random.default_rng(int(seeds[0])))
-        elif isinstance(entries, list) and entries:
+        elif isinstance(entries, tuple) and entries:  # fault entries (FaultSetting)
             schedule = FaultSchedule.from_config(entries, np.random.default_rng(int(seeds[0])))
         truth = self._truth_source.physical_truth if self._truth_source is not None else None
         self._faults = schedule

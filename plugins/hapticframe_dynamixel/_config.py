@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
+from hapticframe.devices import FaultSetting
 
 __all__ = ["AxisConfig", "DynamixelRobotConfig", "GantryConfig"]
 
@@ -104,24 +105,11 @@ class DynamixelRobotConfig(PluginConfig):
         None, description="Emulator: the servo IDs on the emulated bus (default: the "
         "kinematics' IDs; leave one out to emulate a missing servo)."
     )
-    faults: Literal["none", "standard"] | tuple[dict[str, Any], ...] = Field(
+    faults: FaultSetting = Field(
         "none",
         description="Emulator only: 'none', 'standard' (rare status faults), or a list of "
         "fault events ({kind, at_s | rate_hz, duration_s, params}) of DynamixelBus.",
     )
-
-    @field_validator("faults", mode="before")
-    @classmethod
-    def _fault_entries(cls, value: Any) -> Any:
-        if isinstance(value, list):
-            value = tuple(value)
-        if isinstance(value, tuple):
-            for entry in value:
-                if not isinstance(entry, dict) or "kind" not in entry:
-                    raise ValueError(
-                        f"each fault is a mapping with at least a 'kind', got {entry!r}"
-                    )
-        return value
 
     @model_validator(mode="after")
     def _consistent(self) -> DynamixelRobotConfig:

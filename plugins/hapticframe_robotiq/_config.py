@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
-
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.devices import FaultSetting
 
 __all__ = ["EMULATED_PORT", "Ft300Config"]
 
@@ -92,7 +91,7 @@ class Ft300Config(PluginConfig):
     )
 
     # -- emulator (port: emulated) -----------------------------------------------------------
-    faults: Literal["none", "standard"] | tuple[dict[str, Any], ...] = Field(
+    faults: FaultSetting = Field(
         "none",
         description="Emulator only: 'none', 'standard' (a mix of the fault matrix at moderate "
         "rates for long runs), or a list of fault events ({kind, at_s | rate_hz, duration_s, "
@@ -115,19 +114,6 @@ class Ft300Config(PluginConfig):
     emulator_firmware: tuple[int, int, int] = Field(
         (3, 0, 1), description="Emulator: the firmware version it reports."
     )
-
-    @field_validator("faults", mode="before")
-    @classmethod
-    def _fault_entries(cls, value: Any) -> Any:
-        if isinstance(value, list):
-            value = tuple(value)
-        if isinstance(value, tuple):
-            for entry in value:
-                if not isinstance(entry, dict) or "kind" not in entry:
-                    raise ValueError(
-                        f"each fault is a mapping with at least a 'kind', got {entry!r}"
-                    )
-        return value
 
     @model_validator(mode="after")
     def _consistent(self) -> Ft300Config:

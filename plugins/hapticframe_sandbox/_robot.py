@@ -218,12 +218,7 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             ends = np.vstack([movement.start_m, movement.end_m])
             # A micrometre of slack: a line cut at a neighbouring arm's workspace boundary
             # ends there up to rounding.
-            slack = WORKSPACE_SLACK_M
-            inside = (
-                (ends[:, 0] >= region.x_min_m - slack) & (ends[:, 0] <= region.x_max_m + slack)
-                & (ends[:, 1] >= region.y_min_m - slack) & (ends[:, 1] <= region.y_max_m + slack)
-            )
-            outside = ends[~inside]
+            outside = ends[~region.contains(ends, WORKSPACE_SLACK_M)]
             if len(outside):
                 x, y = outside[0].tolist()
                 raise ValueError(

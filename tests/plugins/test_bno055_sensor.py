@@ -266,8 +266,6 @@ class _TruthSource:
         )
 
 
-@pytest.mark.skipif(not hasattr(kinds, "PhysicalTruthSource"),
-                    reason="needs hapticframe.kinds.PhysicalTruthSource (branch sandbox)")
 def test_robot_input_drives_the_emulated_imu():
     robot = _TruthSource()
     sensor = make(inputs={"robot": robot})

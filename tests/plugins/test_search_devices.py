@@ -124,3 +124,22 @@ def test_example_finds_the_object(tmp_path: Path) -> None:
     assert summary["object_found"]
     assert summary["centroid_error_m"] <= 0.02
     assert set(summary["devices"]) == {"wrist", "imu"}
+
+
+@pytest.mark.parametrize(
+    ("faults", "message"),
+    [
+        ([{"kind": "stall", "at_s": 1.0, "rate_hz": 2.0}], "exactly one of at_s and rate_hz"),
+        ([{"kind": "stall", "at_s": 1.0, "durtion_s": 0.1}], "unknown key"),
+        (["stall"], "a mapping"),
+        ("sometimes", "none"),
+    ],
+)
+def test_a_bad_fault_setting_is_refused_when_the_file_is_validated(faults, message):
+    import yaml
+
+    data = yaml.safe_load((ROOT / "examples" / "search-ellipse-ft300.yaml").read_text())
+    data["sensors"][0]["config"]["faults"] = faults
+    with pytest.raises(hapticframe.ExperimentError, match=message) as caught:
+        hapticframe.validate_mapping(data, source="<test>")
+    assert "sensors[0].config.faults" in str(caught.value)
