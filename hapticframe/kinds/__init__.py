@@ -21,7 +21,15 @@ from ._records import (
     SampleBatch,
     concatenate_batches,
 )
-from .capabilities import Device, GridQueryable, Persistent, PhysicalTruthSource, Trainable
+from .capabilities import (
+    Device,
+    EnvironmentCoupled,
+    GridQueryable,
+    Persistent,
+    PhysicalTruthSource,
+    RobotFollower,
+    Trainable,
+)
 from .classifier import Classifier
 from .feature_extractor import FeatureExtractor
 from .map import Map
@@ -37,6 +45,7 @@ __all__ = [
     "Classifier",
     "Component",
     "Device",
+    "EnvironmentCoupled",
     "ExploratoryMovement",
     "FeatureExtractor",
     "GridQueryable",
@@ -52,6 +61,7 @@ __all__ = [
     "Planner",
     "Region",
     "Robot",
+    "RobotFollower",
     "RobotState",
     "RunOutcome",
     "SampleBatch",

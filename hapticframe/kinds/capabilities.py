@@ -20,6 +20,11 @@ intent and lets a type checker hold the signatures to the protocol's.
 - :class:`Device`: a component that drives hardware (or an emulation of it) through the
   lifecycle configure → activate → deactivate → cleanup; the run loop drives it and
   reports its health counters.
+- :class:`EnvironmentCoupled`: an emulated robot whose actuators feel the simulated
+  environment's force on the tool (servo currents rise as the fingertip meets the sand).
+- :class:`RobotFollower`: a simulation that moves with another robot instead of on its own
+  (the sandbox computing the physics around an emulated arm); the run loop tells it each
+  movement and step of the robot it follows.
 """
 
 from __future__ import annotations
@@ -31,12 +36,20 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from ._records import PhysicalTruth
+from ._records import ExploratoryMovement, PhysicalTruth, RobotState
 
 if TYPE_CHECKING:
     from ..devices import DeviceHealth
 
-__all__ = ["Device", "GridQueryable", "Persistent", "PhysicalTruthSource", "Trainable"]
+__all__ = [
+    "Device",
+    "EnvironmentCoupled",
+    "GridQueryable",
+    "Persistent",
+    "PhysicalTruthSource",
+    "RobotFollower",
+    "Trainable",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -164,3 +177,51 @@ class Device(Protocol):
         """True when the device is real hardware, so the run is paced by the wall clock;
         False for an emulated device that the simulation paces."""
         ...
+
+
+# --- simulated worlds around emulated robots (issue 15) ------------------------------------
+
+
+@runtime_checkable
+class EnvironmentCoupled(Protocol):
+    """An emulated robot whose actuators can be loaded by a simulated environment.
+
+    A simulated world that follows the robot (a :class:`RobotFollower`) calls
+    :meth:`couple_environment` once, at build time. From then on the robot's emulator asks
+    ``environment.physical_truth(t)`` for the force and torque the environment exerts on the
+    tool at its model time ``t`` (world frame, N and N·m, see :class:`PhysicalTruthSource`)
+    and turns them into actuator loads (joint torques ``τ = Jᵀ f``, the current a servo
+    draws to hold its position against them).
+    """
+
+    def couple_environment(self, environment: PhysicalTruthSource) -> None:
+        """Let ``environment`` load the emulated actuators; raise ``ValueError`` when the
+        robot drives real hardware (a simulated force cannot load a real motor)."""
+
+
+@runtime_checkable
+class RobotFollower(Protocol):
+    """A simulation that moves with another robot instead of on its own.
+
+    The sandbox, configured to follow an emulated arm, computes the granular physics around
+    the arm's measured fingertip (the force that drives the emulated wrist sensor and loads
+    the arm's servos) rather than moving a plate of its own. The run loop gives movements
+    only to robots that follow nobody; for the robot a follower follows, it calls
+    :meth:`follow_begin` before the robot's ``begin`` and :meth:`follow_step` after each of
+    the robot's steps, before any sensor is read. A follower that can checkpoint is rewound
+    with the robot when the loop looks ahead.
+    """
+
+    @property
+    def followed_robot_id(self) -> str:
+        """The id of the robot this simulation follows."""
+        ...
+
+    def follow_begin(self, movement: ExploratoryMovement) -> ExploratoryMovement:
+        """The followed robot is about to begin ``movement`` (or a part of one); return the
+        movement to give it: ``movement`` itself, or a copy whose open depth
+        (``depth_m=None``) the simulation filled in (the sandbox's depth schedule)."""
+        ...
+
+    def follow_step(self, state: RobotState) -> None:
+        """The followed robot's new state (every step, in order)."""

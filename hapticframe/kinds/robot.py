@@ -16,6 +16,10 @@ Contract
   (``halt_reason="outside_workspace"``, no steps).
 - After :meth:`Robot.halt` the next :meth:`Robot.step` returns ``None``: no command is sent
   after a halt (the run's safety halts, an interrupt and a device failure rely on it).
+- :attr:`Robot.controlled_robots` (optional, default ``()``): robots this robot moves as
+  part of its own movements (a hand's carrier arm). The run loop gives movements only to
+  robots no other robot controls; the controlling robot calls their ``begin``, ``step``
+  and ``halt`` itself. Their device lifecycle is still the run's.
 - :meth:`Robot.execute` is the batch path: it runs one movement to its end and returns the
   states.
 """
@@ -67,6 +71,16 @@ class Robot(Component):
         movement whose start or end lies outside it (``check_robot_refuses_outside_workspace``).
         """
         return None
+
+    @property
+    def controlled_robots(self) -> tuple[Robot, ...]:
+        """Robots this robot moves as part of its own movements (default: none).
+
+        A BarrettHand on a WAM controls the WAM: the hand's movements are the fingertip's,
+        and the hand drives the arm to make them. The run loop never gives a controlled
+        robot a movement of its own.
+        """
+        return ()
 
     @property
     def halt_reason(self) -> str:
