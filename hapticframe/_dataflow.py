@@ -427,6 +427,8 @@ class Dataflow:
         self.latest: dict[str, ClassProbabilities] = {}
         self.pending: dict[str, list[Observations]] = {m: [] for m in self.maps}
         self.force_max_n = float("nan")
+        #: Classifier outputs before this time are not located (see :meth:`locate_from`).
+        self.movement_start_s = -math.inf
         # Safety (hapticframe._safety): the run's force limit, the first valid sample above
         # it since the movement began, and a count of valid force samples (the stall check
         # watches it grow).
@@ -592,6 +594,16 @@ class Dataflow:
     def _observe(self, clf_id: str, probs: ClassProbabilities) -> None:
         if not len(probs):
             return
+        if probs.timestamps_s[0] < self.movement_start_s:
+            # Samples from before the movement began (a robot's transit to its start, when
+            # the fingertip is out of the sand) are not located: no pose of the movement
+            # describes them.
+            keep = probs.timestamps_s >= self.movement_start_s
+            if not keep.any():
+                return
+            probs = ClassProbabilities(
+                probs.timestamps_s[keep], probs.probabilities[keep], probs.classes
+            )
         for sm_id in self.sensor_models:
             if self.sm_classifier[sm_id] != clf_id:
                 continue
@@ -705,6 +717,7 @@ class Dataflow:
 
     def start_stream(self) -> None:
         """A new movement starts a new stream: forget classifier and feature state."""
+        self.movement_start_s = -math.inf
         self.latest.clear()
         self.force_max_n = float("nan")
         self.force_violation = None
@@ -712,6 +725,11 @@ class Dataflow:
             self.components[cid].reset()
         for aligner in self.aligners.values():
             aligner.reset()
+
+    def locate_from(self, start_s: float) -> None:
+        """The current movement (part) began at ``start_s``: classifier outputs timestamped
+        before it (read during the robot's transit to the start) reach no sensor model."""
+        self.movement_start_s = float(start_s)
 
     def interaction_detected(self) -> str | None:
         """The class name if the primary classifier's latest sample is not background."""

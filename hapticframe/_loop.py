@@ -17,7 +17,15 @@ from ._errors import RunError
 from ._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
 from ._safety import OUTSIDE_WORKSPACE, SafetyMonitor
 from ._session import Session
-from .kinds import Component, Device, ExploratoryMovement, MovementResult, Planner, Robot
+from .kinds import (
+    Component,
+    Device,
+    ExploratoryMovement,
+    MovementResult,
+    Planner,
+    Robot,
+    RobotState,
+)
 
 __all__ = ["device_faults", "devices_of", "run_loop"]
 
@@ -95,6 +103,7 @@ def _closed_loop(
     settings = session.settings
     limit = min(settings.max_movements, planner.max_movements)
     team = RobotTeam(robots, flow)
+    robots = team.robots  # those that take movements
     rewindable = [session.components[i] for i in flow.rewindable]
     lookahead = settings.lookahead_steps
     devices = devices_of(session.components)
@@ -120,13 +129,15 @@ def _closed_loop(
         while robot is not None:
             part, cut = team.part_for(robot, part)
             used.append(robot)
-            robot.begin(part)
+            part = team.begin(robot, part)
+            flow.locate_from(robot.state.timestamp_s)
             safety.begin(robot, index)
-            chain: list[Component] = [robot, *rewindable]
+            chain: list[Component] = [robot, *team.followers.get(robot.id, ()), *rewindable]
             if lookahead > 1 and any(c.checkpoint() is None for c in chain):
                 lookahead = 1  # a component that cannot rewind: one step at a time
             taken, halted_by_loop = _movement(
-                session, flow, robot, index, chain, lookahead, pacers[robot.id], safety
+                session, flow, robot, index, chain, lookahead, pacers[robot.id], safety,
+                team.stepper(robot),
             )
             steps += taken
             team.after_part(robot, taken)
@@ -197,6 +208,7 @@ def _refuse_outside_workspace(
 def _movement(
     session: Session, flow: Dataflow, robot: Robot, index: int, chain: list[Component],
     lookahead: int, pacer: _Pacer | None = None, safety: SafetyMonitor | None = None,
+    step: Callable[[], RobotState | None] | None = None,
 ) -> tuple[int, str]:
     """Step the robot through the movement it has begun; returns the steps taken and the
     reason when the loop halted it (``"interaction"``, or a safety halt of ``safety``:
@@ -209,6 +221,8 @@ def _movement(
     with the same records, as without look-ahead; so is a batch that may hold a safety
     halt (a force sample over the limit, a stalled force stream). Batches end on multiples of
     ``run.map_update_every_steps`` so that maps are updated at the same steps too.
+    ``step`` replaces ``robot.step`` (the team's stepper, which also moves the simulations
+    that follow the robot).
     """
     # Settings read once: the step loop below runs some 20,000 times per search.
     settings = session.settings
@@ -216,6 +230,7 @@ def _movement(
     halt_on_interaction = settings.halt_on_interaction
     max_steps = settings.max_steps_per_movement
     robot_id = robot.id
+    step_robot = robot.step if step is None else step
     halted_by_loop = ""
     steps = 0
     replay_until = 0  # steps below this run one at a time (a rewound batch)
@@ -230,7 +245,7 @@ def _movement(
             aligned = flow.checkpoint()
             states = []
             for _ in range(batch):
-                state = robot.step()
+                state = step_robot()
                 if state is None:
                     break
                 states.append(state)
@@ -254,7 +269,7 @@ def _movement(
         else:
             if pacer is not None:
                 pacer.wait()
-            state = robot.step()
+            state = step_robot()
             if state is None:
                 break
             steps += 1

@@ -12,18 +12,25 @@ halted with ``workspace_limit``, as in the dissertation's real trial (section 3.
 
 With one robot and no workspace, every movement goes to that robot unchanged, so a
 one-robot run is exactly what it always was.
+
+Not every robot of a run takes movements. A robot that another robot controls (listed in
+its :attr:`~hapticframe.kinds.Robot.controlled_robots`: the arm that carries a hand) moves
+only as part of the controlling robot's movements, and a simulation that follows a robot (a
+:class:`~hapticframe.kinds.RobotFollower` with a ``followed_robot_id``: the sandbox around an
+emulated arm) moves with it: :meth:`RobotTeam.begin` and the stepper of
+:meth:`RobotTeam.stepper` tell it the followed robot's movements and steps.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ._dataflow import Dataflow, PoseHistory
 from ._errors import RunError
-from .kinds import ExploratoryMovement, Region, Robot
+from .kinds import ExploratoryMovement, Region, Robot, RobotFollower, RobotState
 
 __all__ = ["WORKSPACE_LIMIT", "RobotTeam", "exit_distance", "workspace_of"]
 
@@ -70,17 +77,68 @@ def exit_distance(
 
 
 class RobotTeam:
-    """The run's robots, in experiment order, and the workspace rules between them."""
+    """The run's robots, in experiment order, and the workspace rules between them.
+
+    ``robots`` are every robot of the run; :attr:`robots` keeps those that take movements
+    (neither controlled by another robot nor following one), :attr:`followers` maps a robot's
+    id to the simulations that follow it.
+    """
 
     def __init__(self, robots: Sequence[Robot], flow: Dataflow) -> None:
         if not robots:
             raise RunError("a closed-loop run needs at least one robot")
-        self.robots = list(robots)
+        by_id = {r.id: r for r in robots}
+        controlled = {
+            c.id: r.id for r in robots for c in r.controlled_robots if c.id in by_id
+        }
+        following = {r.id: f for r in robots if (f := _followed(r))}
+        self.robots = [r for r in robots if r.id not in controlled and r.id not in following]
+        self.followers: dict[str, list[Robot]] = {}
+        for rid, followed in following.items():
+            if followed in controlled:
+                raise RunError(
+                    f"robot {rid!r} follows {followed!r}, which robot {controlled[followed]!r} "
+                    f"controls: follow {controlled[followed]!r}, whose movements they are"
+                )
+            if followed not in by_id or followed in following:
+                raise RunError(
+                    f"robot {rid!r} follows {followed!r}, which is not a robot of this run "
+                    "that moves on its own"
+                )
+            self.followers.setdefault(followed, []).append(by_id[rid])
+        if not self.robots:
+            raise RunError(
+                "a closed-loop run needs a robot that takes movements: every robot is "
+                "controlled by another or follows one"
+            )
         self.workspaces = {r.id: workspace_of(r) for r in self.robots}
         self.several = len(self.robots) > 1
         self._latest_t = -math.inf
         if self.several:
             _share_poses(flow, [r.id for r in self.robots])
+
+    def begin(self, robot: Robot, part: ExploratoryMovement) -> ExploratoryMovement:
+        """Begin ``part`` on ``robot`` after telling the simulations that follow it, which
+        may fill in its open depth; returns the part as begun."""
+        for follower in self.followers.get(robot.id, ()):
+            part = follower.follow_begin(part)  # type: ignore[attr-defined]
+        robot.begin(part)
+        return part
+
+    def stepper(self, robot: Robot) -> Callable[[], RobotState | None]:
+        """``robot.step``, followed at each step by its followers' ``follow_step``."""
+        followers = self.followers.get(robot.id)
+        if not followers:
+            return robot.step
+
+        def step() -> RobotState | None:
+            state = robot.step()
+            if state is not None:
+                for follower in followers:
+                    follower.follow_step(state)  # type: ignore[attr-defined]
+            return state
+
+        return step
 
     def _makes_progress(self, robot: Robot, start: np.ndarray, end: np.ndarray) -> bool:
         region = self.workspaces[robot.id]
@@ -158,6 +216,13 @@ class RobotTeam:
         if not self.several:
             return ""
         return "  " + " → ".join(r.id for r in robots) if robots else "  (no robot)"
+
+
+def _followed(robot: Robot) -> str:
+    """The id of the robot ``robot`` follows, ``""`` for none."""
+    if isinstance(robot, RobotFollower):
+        return str(robot.followed_robot_id or "")
+    return ""
 
 
 def _line(

@@ -214,7 +214,8 @@ class RobotFollower(Protocol):
 
     @property
     def followed_robot_id(self) -> str:
-        """The id of the robot this simulation follows."""
+        """The id of the robot this simulation follows; ``""`` when it follows none and
+        moves on its own (a class may implement both roles, chosen by its config)."""
         ...
 
     def follow_begin(self, movement: ExploratoryMovement) -> ExploratoryMovement:

@@ -17,7 +17,8 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``search-devices``, ``perception``, ``bhm`` and ``latency``."""
+    """Yield the suites: ``search``, ``search-devices``, ``search-dynamixel``,
+    ``perception``, ``bhm`` and ``latency``."""
     yield BenchSpec(
         name="search",
         summary="Haptic search, Table 3.2: two-phase planner vs coverage baseline, circle "
@@ -31,6 +32,13 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "beside the pure simulation (issue 14): accuracy, per-step cost, calibration, health.",
         factory="hapticframe_bench._search_devices:run_search_devices",
         install_hint="pip install 'hapticframe[hardware]'  (pyserial for the emulated ports)",
+    )
+    yield BenchSpec(
+        name="search-dynamixel",
+        summary="Haptic search on a whole emulated rig: a Dynamixel gantry, FT 300, BNO055 "
+        "and the force observer, the sandbox following the gantry (issue 15).",
+        factory="hapticframe_bench._search_dynamixel:run_search_dynamixel",
+        install_hint="pip install 'hapticframe[hardware]'  (dynamixel-sdk, pyserial)",
     )
     yield BenchSpec(
         name="perception",

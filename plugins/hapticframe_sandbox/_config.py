@@ -121,6 +121,15 @@ class SandboxRobotConfig(PluginConfig):
         "where no workspace reaches (outside_workspace).",
     )
 
+    follows: str | None = Field(
+        None,
+        description="The id of an emulated robot (also named in inputs) whose fingertip the "
+        "sandbox follows instead of moving a plate of its own: the sandbox computes the sand's "
+        "force around that robot's measured fingertip, which drives emulated sensors (inputs "
+        "naming this sandbox) and loads the robot's emulated actuators. The robot's open "
+        "depths come from the sandbox's depth schedule. None: the sandbox moves on its own.",
+    )
+
     @model_validator(mode="after")
     def _depths_consistent(self) -> SandboxRobotConfig:
         if self.min_depth_m > self.depth_m:

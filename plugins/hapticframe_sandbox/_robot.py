@@ -12,6 +12,12 @@ tool's pose, velocity, acceleration and the environment's force and torque on it
 IMUs (``docs/simulated-devices.md``). With ``acceleration_m_per_s2`` set, each movement follows
 a trapezoidal speed profile, so that the tool's inertia shows in those sensors.
 
+With ``follows: <robot id>`` the sandbox moves no plate of its own: it is the world around an
+emulated robot (a :class:`~hapticframe.kinds.RobotFollower`). The run loop tells it each
+movement and step of that robot; it computes the same physics at the robot's *measured*
+fingertip, fills the movements' open depths from its depth schedule, and loads the robot's
+emulated actuators with the force (:class:`~hapticframe.kinds.EnvironmentCoupled`).
+
 At the end of a run the robot writes its per-step truth into ``ground_truth.npz`` in the run's
 directory (see :meth:`SandboxRobot.finalize`): time, true state (0 free, 1 jamming, 2
 contact), true force, position and movement of every step, the labels a classifier is
@@ -20,6 +26,7 @@ calibrated against (``hapticframe train`` with the ``trace-recording`` sensor).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from bisect import bisect_right
 from collections.abc import Mapping
@@ -32,12 +39,15 @@ from numpy.typing import NDArray
 
 from hapticframe.kinds import (
     BuildContext,
+    Device,
+    EnvironmentCoupled,
     ExploratoryMovement,
     MovementResult,
     PhysicalTruth,
     PhysicalTruthSource,
     Region,
     Robot,
+    RobotFollower,
     RobotState,
     RunOutcome,
 )
@@ -118,7 +128,7 @@ class MovementTruth:
         return self.max_state >= JAMMING
 
 
-class SandboxRobot(Robot, PhysicalTruthSource):
+class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
     """Simulated robot that rakes a rigid plate through a sandbox at constant depth and speed.
 
     With ``acceleration_m_per_s2`` set, the speed follows a trapezoid within each movement
@@ -162,10 +172,19 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             )
             for obj in self._scene.objects
         ]
+        # Following an emulated robot: that robot moves; this sandbox is the sand around it.
+        self._followed: Robot | None = None
+        #: Following: the log rows after which the tool rests (each movement's last step).
+        self._rest_after: set[int] = set()
+        if config.follows is not None:
+            self._followed = _followed_robot(context.id, config.follows, context.inputs)
+            self._dt = 1.0 / self._followed.control_rate_hz
         # One sandbox, shared with the sandbox robots named in inputs: its clock and the
         # depth schedule (section 3.5.1), which shrinks after each movement that reached
         # an object.
-        self._world = _Sandbox.join(self, context.inputs)
+        self._world = _Sandbox.join(
+            self, {} if self._followed is not None else context.inputs
+        )
         # Clock and current movement.
         self._time = 0.0
         self._index = -1
@@ -192,6 +211,8 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._truth_speed = 0.0
         # The pose held before the first step: (x, y, heading, depth), at rest.
         self._origin = (*home.tolist(), 0.0, config.depth_m)
+        if isinstance(self._followed, EnvironmentCoupled):
+            self._followed.couple_environment(self)
 
     # --- Robot interface -----------------------------------------------------------------
 
@@ -213,6 +234,11 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         return self._workspace
 
     def begin(self, movement: ExploratoryMovement) -> None:
+        if self._followed is not None:
+            raise ValueError(
+                f"robot {self.id!r} follows {self._followed.id!r}: it makes no movements of "
+                f"its own (give them to {self._followed.id!r})"
+            )
         region = self._workspace
         if region is not None:
             ends = np.vstack([movement.start_m, movement.end_m])
@@ -226,6 +252,10 @@ class SandboxRobot(Robot, PhysicalTruthSource):
                     f"{y:.4g}) m (x {region.x_min_m:g}...{region.x_max_m:g} m, y "
                     f"{region.y_min_m:g}...{region.y_max_m:g} m)"
                 )
+        self._start_movement(movement)
+
+    def _start_movement(self, movement: ExploratoryMovement) -> None:
+        """Set up the physics of a new movement (or part of one) from ``movement``."""
         self._close_movement()
         cfg = self.config
         self._index += 1
@@ -312,15 +342,74 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._time = (self._world.steps + 1) * self._dt
         (sx, sy), (dx, dy), travelled = self._start_xy, self._direction_xy, self._travelled
         position = (sx + travelled * dx, sy + travelled * dy)
-        force, true_state = self._interaction(position, advance)
-        magnitude = self._record(position, force, true_state)
-        self._log_motion.append((self._heading, speed, acceleration))
+        magnitude = self._simulate(position, advance, speed, acceleration)
         self._state = RobotState(self._time, np.array(position), self._heading, self._depth, speed)
         if magnitude > self.config.force_limit_n:
             self.halt("force_limit")
         elif self._travelled >= self._length:
             self._active = False
         return self._state
+
+    def _simulate(
+        self, position: tuple[float, float], advance: float, speed: float, acceleration: float
+    ) -> float:
+        """The sand's force with the plate at ``position`` after moving ``advance`` along the
+        heading, logged with the step's motion; returns the force's magnitude."""
+        force, true_state = self._interaction(position, advance)
+        magnitude = self._record(position, force, true_state)
+        self._log_motion.append((self._heading, speed, acceleration))
+        return magnitude
+
+    # --- following an emulated robot (RobotFollower) -------------------------------------
+
+    @property
+    def followed_robot_id(self) -> str:
+        """``config.follows``: the robot whose fingertip this sandbox follows (``""``: none)."""
+        return self._followed.id if self._followed is not None else ""
+
+    def follow_begin(self, movement: ExploratoryMovement) -> ExploratoryMovement:
+        """The followed robot begins ``movement``: a new movement of the sandbox's physics.
+        An open depth is filled from the depth schedule (returned in the movement)."""
+        if self._followed is None:
+            raise ValueError(f"robot {self.id!r} follows no robot (set 'follows')")
+        if movement.depth_m is None:
+            movement = dataclasses.replace(movement, depth_m=self._world.schedule_depth)
+        self._start_movement(movement)
+        self._profile = None  # the followed robot's own motion sets speed and acceleration
+        self._follow_xy = self._start_xy
+        self._follow_speed = 0.0
+        self._active = False  # never stepped by the run loop: follow_step moves it
+        return movement
+
+    def follow_step(self, state: RobotState) -> None:
+        """One step of the followed robot: the sand's physics at its measured fingertip.
+
+        The plate advances by the measured displacement along the movement's heading (never
+        backwards: a servo's lag or overshoot does not unload the sand), at the measured
+        speed; the step's acceleration is the speed change over the time since the last step.
+        """
+        if self._closed:
+            raise ValueError(
+                f"robot {self.id!r}: a step of {self.followed_robot_id!r} before follow_begin"
+            )
+        t = float(state.timestamp_s)
+        if not (math.isfinite(t) and t > self._time):
+            raise ValueError(
+                f"robot {self.id!r}: the followed robot's step at t = {t!r} s does not come "
+                f"after the last (t = {self._time:.6g} s)"
+            )
+        x, y = (float(v) for v in state.position_m)
+        (sx, sy), (dx, dy) = self._start_xy, self._direction_xy
+        along = max(self._travelled, (x - sx) * dx + (y - sy) * dy)
+        advance = along - self._travelled
+        self._travelled = along
+        speed = float(state.speed_m_per_s)
+        elapsed = t - self._time if self._log_t else self._dt
+        acceleration = (speed - self._follow_speed) / elapsed
+        self._follow_speed = speed
+        self._time = t
+        self._simulate((x, y), advance, speed, acceleration)
+        self._state = RobotState(t, np.array((x, y)), self._heading, self._depth, speed)
 
     def halt(self, reason: str) -> None:
         """Stop the current movement; the first reason given for a movement is kept."""
@@ -418,7 +507,9 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         ``timestamp_s`` is that step's time); a time at or after :attr:`truth_time_s` the
         latest step's; a time before the first step the pose the robot starts from, at rest
         with no force. Between movements the tool moves to the next start point at once: the
-        next movement's first step shows it there.
+        next movement's first step shows it there. A sandbox that follows a robot shows the
+        tool at rest, without force, after each movement's last step (the robot transits to
+        the next start lifted out of the sand).
 
         Conventions (world frame, z up; details in ``docs/simulated-devices.md``):
 
@@ -445,8 +536,12 @@ class SandboxRobot(Robot, PhysicalTruthSource):
             x, y, heading, depth = self._origin
             return self._truth_record(0.0, x, y, depth, heading, 0.0, 0.0, 0.0, 0.0)
         x, y = self._log_pos[i]
-        fx, fy = self._log_force[i]
         heading, speed, acceleration = self._log_motion[i]
+        if i in self._rest_after and timestamp_s > times[i]:
+            # Following a robot: between its movements it transits, lifted out of the sand.
+            return self._truth_record(times[i], x, y, self._log_depth[i], heading, 0.0, 0.0,
+                                      0.0, 0.0)
+        fx, fy = self._log_force[i]
         return self._truth_record(
             times[i], x, y, self._log_depth[i], heading, speed, acceleration, fx, fy
         )
@@ -661,6 +756,10 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         """Book the current movement once: its truth record and the depth schedule."""
         if self._closed:
             return
+        if self._followed is not None:
+            self._halt_reason = self._followed.halt_reason
+            if self._log_t:
+                self._rest_after.add(len(self._log_t) - 1)
         self._closed = True
         self._active = False
         truth = MovementTruth(
@@ -679,6 +778,33 @@ class SandboxRobot(Robot, PhysicalTruthSource):
         self._movements.append(truth)
         self._world.part_closed(truth.interacted)
 
+
+
+def _followed_robot(own_id: str, followed_id: str, inputs: Mapping[str, Any]) -> Robot:
+    """The robot a sandbox follows: in its inputs, not a sandbox, and emulated."""
+    robot = inputs.get(followed_id)
+    if robot is None:
+        raise ValueError(
+            f"robot {own_id!r} follows {followed_id!r}: name it in the sandbox's inputs"
+        )
+    others = sorted(set(inputs) - {followed_id})
+    if others:
+        raise ValueError(
+            f"robot {own_id!r} follows {followed_id!r} and takes no other inputs "
+            f"(found {', '.join(repr(o) for o in others)})"
+        )
+    if isinstance(robot, SandboxRobot) or not isinstance(robot, Robot):
+        raise ValueError(
+            f"robot {own_id!r} follows {followed_id!r}, which is not a robot the sandbox can "
+            "follow (an emulated robot: a sandbox robot shares the sandbox instead, without "
+            "'follows')"
+        )
+    if isinstance(robot, Device) and robot.live:
+        raise ValueError(
+            f"robot {own_id!r} follows {followed_id!r}, which drives real hardware: a simulated "
+            "sandbox can only surround an emulated robot (set its port to 'emulated')"
+        )
+    return robot
 
 
 #: Config fields every robot of one sandbox must share: its clock and depth schedule.
