@@ -26,7 +26,9 @@ a constant of the posture. Heading, speed and plane position are the carrier's.
 
 ``channel: emulated`` runs a :class:`~._emulator.PuckBus` on a ``virtual`` channel of its
 own, on a :class:`~hapticframe.devices.FakeClock` that follows the carrier's timestamps:
-homing and the posture move take simulation time, and a run is deterministic.
+homing and the posture move take simulation time, and a run is deterministic. Fault times
+(``at_s``) are on that clock: it starts at configure and then moves on as the carrier's
+timestamps do.
 """
 
 from __future__ import annotations
@@ -37,7 +39,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import can
-import numpy as np
 
 from hapticframe.devices import (
     Clock,
@@ -159,6 +160,7 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         self._active = False
         self._halt_reason = ""
         self._steps = 0
+        self._carrier_t = self.carrier.state.timestamp_s
 
     # --- Robot interface -----------------------------------------------------------------
 
@@ -177,7 +179,7 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
     @property
     def workspace(self) -> Region | None:
         """The carrier's workspace (the fingertip is where the carrier's tool point is, in
-        the map plane)."""
+        the map plane); the carrier refuses a movement that leaves it."""
         return self.carrier.workspace
 
     @property
@@ -198,17 +200,6 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
                     "depth must be positive: rake deeper, or set palm_below_tool_point_m to "
                     "where the carrier's kinematic model puts its tool point"
                 )
-        region = self.workspace
-        if region is not None:
-            ends = np.vstack([movement.start_m, movement.end_m])
-            outside = ends[~region.contains(ends)]
-            if len(outside):
-                x, y = outside[0].tolist()
-                raise ValueError(
-                    f"robot {self.id!r}: the movement leaves the workspace of its carrier "
-                    f"{self.carrier.id!r} at ({x:.4g}, {y:.4g}) m (x {region.x_min_m:g}..."
-                    f"{region.x_max_m:g} m, y {region.y_min_m:g}...{region.y_max_m:g} m)"
-                )
         self._require_active()
         self._halt_reason = ""
         self._guarded(self._check_hand)  # the posture holds before the carrier moves
@@ -224,6 +215,7 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
                 f"{self.offset_m:.4g} m deeper): {exc}"
             ) from exc
         self._steps = 0
+        self._follow(self.carrier.state.timestamp_s)  # a transit to the start took time
         self._active = True
 
     def step(self) -> RobotState | None:
@@ -288,9 +280,12 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
                           float(carried.depth_m) + self.offset_m, carried.speed_m_per_s)
 
     def _follow(self, t: float) -> None:
-        """The emulated pucks' time follows the carrier's (never backwards)."""
-        if isinstance(self.clock, FakeClock) and t > self.clock.now():
-            self.clock.advance(t - self.clock.now())
+        """The emulated pucks' time moves on as the carrier's does (its own waits, homing
+        and recoveries, put it ahead of the carrier's, by design)."""
+        dt = t - self._carrier_t
+        self._carrier_t = max(self._carrier_t, t)
+        if isinstance(self.clock, FakeClock) and dt > 0:
+            self.clock.advance(dt)
 
     # --- motion ----------------------------------------------------------------------------
 
