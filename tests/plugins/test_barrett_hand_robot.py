@@ -4,6 +4,7 @@ or the emulated ``dynamixel`` gantry: the posture, the fingertip, the carrier's 
 from __future__ import annotations
 
 import math
+import uuid
 from collections.abc import Iterator
 from typing import Any
 
@@ -11,10 +12,10 @@ import numpy as np
 import pytest
 
 from hapticframe import Kind, RobotSpec, get_registry
-from hapticframe.devices import DeviceError, LifecycleState
+from hapticframe.devices import DeviceError, LifecycleState, MonotonicClock
 from hapticframe.kinds import BuildContext, ExploratoryMovement, Robot, RobotState
 from hapticframe.testing import make_component, release_component, run_checks
-from hapticframe_barrett import Mode
+from hapticframe_barrett import Mode, PuckBus, hand_pucks
 from hapticframe_barrett._hand_config import BarrettHandRobotConfig, FingerGeometryConfig
 from hapticframe_barrett._hand_robot import BarrettHandRobot, fingertip_below_palm_m
 
@@ -381,3 +382,30 @@ def test_the_kit_robot_checks_pass_on_a_dynamixel_carrier() -> None:
     _kit(RobotSpec(name=SPEC.name, summary=SPEC.summary, config=SPEC.config,
                    factory=SPEC.factory, capabilities=SPEC.capabilities, inputs=SPEC.inputs,
                    check_inputs=("robot/dynamixel",)))
+
+
+def test_the_live_path_in_real_time_on_a_virtual_channel() -> None:
+    """``channel`` other than 'emulated': python-can opens the named channel and every wait
+    is real (MonotonicClock); here pucks emulated in real time answer on a virtual channel."""
+    channel = f"hapticframe-live-{uuid.uuid4().hex}"
+    pucks = PuckBus(channel, hand_pucks(speed=4_000_000.0), clock=MonotonicClock()).start()
+    hand = None
+    try:
+        hand = build(up=False, channel=channel, interface="virtual", poll_every_steps=20,
+                     reply_timeout_s=0.5)  # real time on a loaded machine
+        assert hand.live and isinstance(hand.clock, MonotonicClock)
+        hand.configure()
+        hand.activate()
+        assert hand.emulator is None
+        assert all(pucks.puck(n).counts() == t for n, t in hand.targets.items())
+        states = hand.execute(line(x1=0.12))
+        assert states and hand.halt_reason == "" and hand.stats["polls"] > 0
+        hand.deactivate()
+        pucks.sync()
+        assert all(pucks.puck(n).mode == int(Mode.IDLE) for n in hand.targets)
+    finally:
+        if hand is not None:
+            hand.close()
+            release_component(hand.carrier)
+        pucks.stop()
+    assert pucks.errors == []
