@@ -1,9 +1,10 @@
 """Barrett pucks on CAN: the protocol, an emulator on python-can's ``virtual`` interface, and
 the host-side helper the ``barrett-hand`` robot and the ``barrett-wam`` backend build on.
 
-A library, not a plugin: it registers nothing. python-can (``pip install
-'hapticframe[hardware]'``) is imported by the emulator and the host helper, not by the
-protocol module.
+The package registers the ``barrett-hand`` and ``barrett-wam`` robots (:mod:`.plugin`).
+python-can (``pip install 'hapticframe[hardware]'``) is imported by the emulator, the host
+helper and the robots, not by the protocol module or the configs: their names are imported
+from this package only when first used.
 
 - :mod:`._protocol` (pure): identifiers, GET/SET payloads, property replies, 22-bit position
   replies, property tables selected by firmware ``VERS``.
@@ -16,23 +17,9 @@ protocol module.
 
 from __future__ import annotations
 
-from ._emulator import (
-    FAULT_KINDS,
-    EmulatedPuck,
-    PuckBus,
-    hand_pucks,
-    wam_pucks,
-)
-from ._host import (
-    BarrettError,
-    BarrettHandHost,
-    MalformedReply,
-    MoveResult,
-    PositionPoll,
-    PuckHost,
-    ReplyTimeout,
-    WakeResult,
-)
+import importlib
+from typing import Any
+
 from ._protocol import (
     CAN_ERR_BUSOFF,
     CAN_ERR_PROT,
@@ -101,3 +88,21 @@ __all__ = [
     "property_table",
     "wam_pucks",
 ]
+
+_HOMES = {
+    **dict.fromkeys(("FAULT_KINDS", "EmulatedPuck", "PuckBus", "hand_pucks", "wam_pucks"),
+                    "._emulator"),
+    **dict.fromkeys(("BarrettError", "BarrettHandHost", "MalformedReply", "MoveResult",
+                     "PositionPoll", "PuckHost", "ReplyTimeout", "WakeResult"), "._host"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(home, __name__), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
