@@ -139,7 +139,8 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
             links,
             preset.tool_offset_m if config.tool_offset_m is None else config.tool_offset_m,
             preset.limits_rad if config.joint_limits_rad is None else config.joint_limits_rad,
-            config.base_position_m, config.base_yaw_rad, config.tool_axis)
+            config.base_position_m, config.base_yaw_rad,
+            preset.tool_axis if config.tool_axis is None else config.tool_axis)
         self._j2mp = np.array(preset.j2mp if config.j2mp is None else config.j2mp)
         Transmission(self._j2mp, 4096)  # checked at build: invertible
         self._seed = np.array(preset.ik_seed_rad if config.ik_seed_rad is None
@@ -587,7 +588,7 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         host = self._need_host()
         delay = self._backoff[min(self.recovery_streak, len(self._backoff) - 1)]
         self.clock.sleep(delay)
-        if isinstance(error, BarrettError) and "CAN " in str(error):
+        if isinstance(error.__cause__, can.CanError):  # the link failed (send or receive)
             with contextlib.suppress(Exception):
                 host.bus.shutdown()
             interface = "virtual" if self.config.emulated else self.config.interface
@@ -635,7 +636,8 @@ def _interp(s: FloatArray, q: FloatArray, at: float) -> FloatArray:
 
 
 def _where(point: FloatArray) -> str:
-    return f"({point[0]:.3f}, {point[1]:.3f}) m at depth {-point[2]:.3f} m"
+    level = f"depth {-point[2]:.3f} m" if point[2] <= 0 else f"{point[2]:.3f} m above the surface"
+    return f"({point[0]:.3f}, {point[1]:.3f}) m at {level}"
 
 
 def _mode_name(mode: int) -> str:

@@ -54,9 +54,10 @@ class BarrettWamConfig(PluginConfig):
         None, description="The fingertip in the last joint's frame (default: wam4 0.36 m "
         "toolplate + 0.15 m finger along the forearm; wam7 0.2 m past the wrist)."
     )
-    tool_axis: tuple[float, float, float] = Field(
-        (0.0, 0.0, 1.0), description="The tool direction (last joint's frame) the IK prefers "
-        "pointing down (a preference: 4 joints cannot hold it with the position)."
+    tool_axis: tuple[float, float, float] | None = Field(
+        None, description="The tool direction (last joint's frame) the IK prefers pointing "
+        "down (a preference: 4 joints cannot hold it with the position; default: the "
+        "toolplate's z)."
     )
     pointing_gain: float = Field(0.5, ge=0, description="Weight of that preference.")
     base_position_m: tuple[float, float, float] = Field(

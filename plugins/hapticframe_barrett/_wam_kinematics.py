@@ -52,6 +52,7 @@ class ArmPreset:
     limits_rad: tuple[tuple[float, float], ...]
     home_rad: tuple[float, ...]
     tool_offset_m: tuple[float, float, float]
+    tool_axis: tuple[float, float, float]
     ik_seed_rad: tuple[float, ...]
 
 
@@ -78,10 +79,12 @@ WAM4 = ArmPreset(
     limits_rad=((-2.6, 2.6), (-2.0, 2.0), (-2.8, 2.8), (-0.9, 3.1)),
     home_rad=(0.0, -1.96, 0.0, 3.15),
     tool_offset_m=(0.0, 0.0, 0.51),
+    tool_axis=(0.0, 0.0, 1.0),
     ik_seed_rad=(0.0, 0.8, 0.0, 1.8),
 )
 
-#: The 7-DOF WAM with its wrist (libbarrett ``wam7w.conf``); a hand and finger of 0.2 m.
+#: The 7-DOF WAM with its wrist (libbarrett ``wam7w.conf``); a hand and finger of 0.2 m along
+#: the toolplate's z, which is the last frame's −y (the toolplate row is ``Rx(π/2)``).
 WAM7 = ArmPreset(
     name="wam7",
     links=(
@@ -102,7 +105,8 @@ WAM7 = ArmPreset(
     limits_rad=((-2.6, 2.6), (-2.0, 2.0), (-2.8, 2.8), (-0.9, 3.1), (-4.55, 1.25),
                 (-1.57, 1.57), (-2.95, 2.95)),
     home_rad=(0.0, -1.9, 0.0, 3.14, 0.0, 0.0, 0.0),
-    tool_offset_m=(0.0, 0.0, 0.2),
+    tool_offset_m=(0.0, -0.2, 0.0),
+    tool_axis=(0.0, -1.0, 0.0),
     ik_seed_rad=(0.0, 0.6, 0.0, 1.6, 0.0, 0.9, 0.0),
 )
 
@@ -259,16 +263,19 @@ class SerialArm:
         self, points: ArrayLike, seed: ArrayLike, *, tolerance_m: float = 1e-5, **kwargs: float
     ) -> tuple[FloatArray, FloatArray]:
         """Joints for each point ``(m, 3)``, each solved from the previous one:
-        ``(q (m, n), errors (m,))``."""
+        ``(q (m, n), errors (m,))``. The first point that does not converge ends the march
+        (the rest: the seed's joints and an infinite error)."""
         pts = np.asarray(points, dtype=np.float64)
-        qs = np.empty((len(pts), self.n))
-        errors = np.empty(len(pts))
         q = np.asarray(seed, dtype=np.float64)
+        qs = np.tile(q, (len(pts), 1))
+        errors = np.full(len(pts), np.inf)
         for i, point in enumerate(pts):
             result = self.solve(point, q, tolerance_m=tolerance_m, **kwargs)  # type: ignore[arg-type]
             q = result.q
             qs[i] = q
             errors[i] = result.error_m
+            if not result.ok:
+                break
         return qs, errors
 
 
