@@ -290,12 +290,13 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
     def _plan(self, points: FloatArray, seed: FloatArray, what: str) -> FloatArray:
         """Joints for each point, checked: reachable, within limits, links above the surface."""
         config = self.config
-        kwargs = {"tolerance_m": config.ik_tolerance_m, "pointing_gain": config.pointing_gain}
-        q, errors = self.arm.solve_line(points, seed, **kwargs)
-        if errors.max() > config.ik_tolerance_m:
+        tol, gain = config.ik_tolerance_m, config.pointing_gain
+        q, errors = self.arm.solve_line(points, seed, tolerance_m=tol, pointing_gain=gain)
+        if errors.max() > tol:
             # The present posture may lead into a poor branch: start over from the seed.
-            first = self.arm.solve(points[0], self._seed, min_iterations=50, **kwargs)
-            q, errors = self.arm.solve_line(points, first.q, **kwargs)
+            first = self.arm.solve(points[0], self._seed, min_iterations=50, tolerance_m=tol,
+                                   pointing_gain=gain)
+            q, errors = self.arm.solve_line(points, first.q, tolerance_m=tol, pointing_gain=gain)
         bad = int(np.argmax(errors))
         if errors[bad] > config.ik_tolerance_m:
             raise ValueError(

@@ -126,6 +126,7 @@ def test_limits_and_links_are_reported() -> None:
     arm = SerialArm([DHLink(0.0, 0.0, 0.0), DHLink(0.5, 0.0, 0.0)], (0.5, 0.0, 0.0),
                     [(-1.0, 1.0), (-2.0, 2.0)])
     assert arm.within_limits([[0.0, 0.0], [1.5, 0.0]]).tolist() == [True, False]
-    np.testing.assert_allclose(arm.link_points([0.0, 0.0]), [[0, 0, 0], [0.5, 0, 0], [1, 0, 0]])
+    expected = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    np.testing.assert_allclose(arm.link_points([0.0, 0.0]), expected)
     with pytest.raises(ValueError, match="limits"):
         SerialArm(arm.links, (0, 0, 0), [(-1.0, 1.0)])
