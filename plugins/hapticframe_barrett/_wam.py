@@ -217,6 +217,10 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
                           refuse=False)
         line = _samples(start, end, config.ik_step_m)
         line_q = self._plan(line, transit_q[-1], "the movement")
+        if np.max(np.abs(line_q[0] - transit_q[-1])) > config.following_error_rad:
+            raise ValueError(  # the line's IK had to start over in another posture
+                f"robot {self.id!r}: the movement starts in a posture the transit does not end "
+                f"in (IK branch change at {_where(start)}): move the start or the base")
         self._check_speed(line_q, line, float(movement.speed_m_per_s), "the movement",
                           refuse=True)
         self._halt_reason = ""
