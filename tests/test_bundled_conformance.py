@@ -27,6 +27,8 @@ BUNDLED = {
     ("planner", "two-phase-coverage"),
     ("robot", "sandbox"),
     ("robot", "dynamixel"),
+    ("robot", "barrett-wam"),
+    ("robot", "barrett-hand"),
 }
 
 

@@ -12,7 +12,7 @@ from .._components import INTERFACES
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
-from ._harness import CheckFailure, make_component
+from ._harness import CheckFailure, make_component, release_component
 from ._import_probe import modules_loaded_by
 
 __all__ = ["CHECKS", "HEAVY_MODULES", "check"]
@@ -140,7 +140,7 @@ def check_builds(spec: PluginSpec, *, registry: Registry | None = None) -> None:
             )
         repr(component)
     finally:
-        component.close()
+        release_component(component)
 
 
 def outputs_equal(a: Any, b: Any) -> bool:

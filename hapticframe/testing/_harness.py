@@ -178,11 +178,18 @@ def make_component(
     context = BuildContext(
         id=f"kit-{spec.name}", rng=np.random.default_rng(seed), inputs=inputs, scene=scene
     )
-    built: object = factory(cfg, context)
+    own_inputs = [c for c in inputs.values() if c is not planner_map]
+    try:
+        built: object = factory(cfg, context)
+    except BaseException:
+        _release_all(own_inputs)
+        raise
+    if isinstance(built, Component):
+        _KIT_INPUTS[id(built)] = own_inputs  # released with it (release_component)
     wanted = interface or Component
     if not isinstance(built, wanted):
         if isinstance(built, Component):
-            built.close()
+            release_component(built)
         raise CheckFailure(
             f"{spec.factory!r} built {type(built).__name__}, not a "
             f"hapticframe.kinds.{wanted.__name__}"
@@ -200,9 +207,14 @@ def make_component(
     return built
 
 
+#: The inputs the kit built for a component (by ``id``), released with it.
+_KIT_INPUTS: dict[int, list[Component]] = {}
+
+
 def release_component(component: Component) -> None:
     """Close a component the kit built: a device is deactivated and cleaned up first (as a
-    run does after its loop), then ``close()`` runs whatever happened before."""
+    run does after its loop), then ``close()`` runs whatever happened before; then the
+    inputs the kit built for it (``check_inputs``: an emulated carrier arm) the same way."""
     try:
         if isinstance(component, Device):
             try:
@@ -210,7 +222,22 @@ def release_component(component: Component) -> None:
             finally:
                 component.cleanup()
     finally:
-        component.close()
+        try:
+            component.close()
+        finally:
+            _release_all(_KIT_INPUTS.pop(id(component), []))
+
+
+def _release_all(components: list[Component]) -> None:
+    """Release each of ``components``, every one even when another fails."""
+    errors: list[BaseException] = []
+    for component in components:
+        try:
+            release_component(component)
+        except Exception as exc:  # release the rest, then report the first failure
+            errors.append(exc)
+    if errors:
+        raise errors[0]
 
 
 def synthetic_batch(

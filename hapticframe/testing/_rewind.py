@@ -23,6 +23,7 @@ from ._harness import (
     CheckFailure,
     crossing_movement,
     make_component,
+    release_component,
     synthetic_batch,
 )
 from ._streams import _outputs
@@ -117,7 +118,7 @@ def check_rewind(spec: PluginSpec, *, registry: Registry | None = None) -> None:
             _rewound([component], snapshots, spec.kind.value)
             second = [_outputs(component, chunk) for chunk in chunks[4:]]
     finally:
-        component.close()
+        release_component(component)
     if not outputs_equal(first, second):
         raise CheckFailure(
             "after rewind() to a checkpoint the component gave other outputs than the first "

@@ -36,6 +36,7 @@ from ._harness import (
     crossing_movement,
     make_component,
     raised_by_record_validation,
+    release_component,
 )
 from ._streams import exercise_stream, sensor_outputs
 
@@ -121,7 +122,7 @@ def check_sensor_model_contract(spec: PluginSpec, *, registry: Registry | None =
     except Exception as exc:
         raise _invalid(spec, "a free → jamming → contact approach", exc) from exc
     finally:
-        model.close()
+        release_component(model)
 
 
 @check(Kind.SENSOR_MODEL)
@@ -137,8 +138,8 @@ def check_sensor_model_streaming(spec: PluginSpec, *, registry: Registry | None 
             for i in range(len(measurement))
         ]
     finally:
-        batch_model.close()
-        stream_model.close()
+        release_component(batch_model)
+        release_component(stream_model)
     streamed = Observations.concatenate(parts)
     if streamed.points_m.shape != whole.points_m.shape or not (
         np.allclose(streamed.points_m, whole.points_m, atol=1e-9)
@@ -179,7 +180,7 @@ def check_sensor_model_extremes(spec: PluginSpec, *, registry: Registry | None =
         except Exception as exc:
             raise _invalid(spec, what, exc) from exc
         finally:
-            model.close()
+            release_component(model)
 
 
 # --- maps ------------------------------------------------------------------------------------
@@ -208,7 +209,7 @@ def check_map_contract(spec: PluginSpec, *, registry: Registry | None = None) ->
     except Exception as exc:
         raise _invalid(spec, "queries", exc) from exc
     finally:
-        the_map.close()
+        release_component(the_map)
 
 
 @check(Kind.MAP)
@@ -226,8 +227,8 @@ def check_map_streaming_matches_batch(
         grid = _query_grid(batch)
         diff = float(np.max(np.abs(streamed.query(grid).mean - batch.query(grid).mean)))
     finally:
-        streamed.close()
-        batch.close()
+        release_component(streamed)
+        release_component(batch)
     tolerance = 1e-9 if "exact-update" in spec.capabilities else 0.1
     if diff > tolerance:
         raise CheckFailure(
@@ -264,7 +265,7 @@ def check_map_extremes(spec: PluginSpec, *, registry: Registry | None = None) ->
         except Exception as exc:
             raise _invalid(spec, what, exc) from exc
         finally:
-            the_map.close()
+            release_component(the_map)
 
 
 # --- planners --------------------------------------------------------------------------------
@@ -332,7 +333,7 @@ def check_planner_contract(spec: PluginSpec, *, registry: Registry | None = None
     try:
         movements = planner_episode(planner)
     finally:
-        planner.close()
+        release_component(planner)
     if not movements:
         raise CheckFailure("the planner proposed no movement at all")
     outside = _outside(movements, DEFAULT_SCENE.region.to_region(), 0.01)
@@ -399,7 +400,7 @@ def check_planner_extremes(spec: PluginSpec, *, registry: Registry | None = None
         except Exception as exc:
             raise _invalid(spec, what, exc) from exc
         finally:
-            planner.close()
+            release_component(planner)
         region = scene.region.to_region()
         outside = _outside(movements, region, min(0.01, 0.1 * float(min(region.size_m))))
         if outside:
@@ -445,7 +446,7 @@ def check_robot_contract(spec: PluginSpec, *, registry: Registry | None = None) 
         if again and again[0].timestamp_s <= t[-1]:
             raise CheckFailure("timestamps restart in the next movement; they must keep increasing")
     finally:
-        robot.close()
+        release_component(robot)
 
 
 @check(Kind.ROBOT)
@@ -460,7 +461,7 @@ def check_robot_halt(spec: PluginSpec, *, registry: Registry | None = None) -> N
         if robot.step() is not None:
             raise CheckFailure("step() returned a state after halt(); it must return None")
     finally:
-        robot.close()
+        release_component(robot)
 
 
 def _inside_movement(robot: Robot) -> ExploratoryMovement:
@@ -508,7 +509,7 @@ def check_robot_stops_at_once(spec: PluginSpec, *, registry: Registry | None = N
             if not moved <= 1e-9:
                 raise CheckFailure(f"the fingertip moved {moved:.3g} m after halt()")
     finally:
-        robot.close()
+        release_component(robot)
 
 
 @check(Kind.ROBOT)
@@ -565,7 +566,7 @@ def check_robot_refuses_outside_workspace(
         if not states:
             raise CheckFailure("a movement inside the workspace gave no states")
     finally:
-        robot.close()
+        release_component(robot)
 
 
 def _robot_cases() -> dict[str, tuple[ExploratoryMovement, int]]:
@@ -615,7 +616,7 @@ def check_robot_extremes(spec: PluginSpec, *, registry: Registry | None = None) 
             raise CheckFailure("after the extreme movements an ordinary movement gave no states")
         _check_states(states, robot, "an ordinary movement after the extreme ones", last_t)
     finally:
-        robot.close()
+        release_component(robot)
 
 
 def _check_states(states: list[RobotState], robot: Robot, what: str, last_t: float) -> float:
@@ -662,7 +663,7 @@ def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
             ]
         raise CheckFailure(f"{spec.kind} components are not exercised")  # pragma: no cover
     finally:
-        component.close()
+        release_component(component)
 
 
 @check()

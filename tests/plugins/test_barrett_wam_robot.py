@@ -410,11 +410,8 @@ def test_couple_environment_records_joint_loads_only_when_emulated(up, tmp_path)
 
 @pytest.mark.slow
 def test_the_kit_robot_checks_pass() -> None:
-    # hapticframe_barrett/__init__.py imports the emulator (python-can) eagerly, so importing
-    # the config module imports can. Remove this once the package imports it lazily.
-    lazy = {"check_lazy_import": "hapticframe_barrett/__init__.py imports python-can eagerly"}
-    results = run_checks(SPEC, expected_failed_checks=lazy)
-    failed = [r for r in results if r.status not in ("PASS", "SKIP", "XFAIL")]
+    results = run_checks(SPEC)
+    failed = [r for r in results if r.status not in ("PASS", "SKIP")]
     assert not failed, failed
     assert {"check_robot_contract", "check_robot_halt", "check_robot_stops_at_once",
             "check_robot_extremes", "check_robot_refuses_outside_workspace",
