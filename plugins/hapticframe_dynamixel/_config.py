@@ -98,7 +98,8 @@ class TwoLinkConfig(BaseModel):
     The shoulder's axis stands at ``base_m``; the upper arm (``l1_m``) turns with the
     shoulder servo from the map's x axis, the forearm (``l2_m``) with the elbow servo
     relative to the upper arm, both counter-clockwise seen from above. The default covers
-    the default workspace (0...0.75 m × 0...0.5 m) from a shoulder 0.1 m below its edge.
+    the default workspace (0...0.75 m × 0...0.5 m) from a shoulder 0.1 m below its edge,
+    each joint through a 2:1 reduction (a joint range of 180°, 0.77 mrad per pulse).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -112,8 +113,8 @@ class TwoLinkConfig(BaseModel):
         "right", description="The inverse kinematics' branch: the elbow to the right or the "
         "left of the line from the shoulder to the fingertip, seen from above (right: the "
         "elbow joint's angle is positive).")
-    shoulder: JointConfig = JointConfig(id=1, offset_rad=-2.6)
-    elbow: JointConfig = JointConfig(id=2, offset_rad=-1.2)
+    shoulder: JointConfig = JointConfig(id=1, gear_ratio=2.0, offset_rad=-1.06)
+    elbow: JointConfig = JointConfig(id=2, gear_ratio=2.0, offset_rad=0.35)
     z: AxisConfig = AxisConfig(id=3, metres_per_rad=0.01, offset_m=-0.06)
 
     @model_validator(mode="after")

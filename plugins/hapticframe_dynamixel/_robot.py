@@ -69,7 +69,7 @@ from ._bus import (
 from ._config import DynamixelRobotConfig, GantryConfig, TwoLinkConfig
 from ._control_table import XM430_W350_MODEL_NUMBER
 from ._emulator import DynamixelBus
-from ._kinematics import Axis, Gantry, Joint, TwoLink, line_problem
+from ._kinematics import Axis, Gantry, Joint, TwoLink, arm_inverse, line_problem
 
 __all__ = ["EMULATOR_LEAD_S", "RECOVERY_BACKOFF_S", "STANDARD_FAULTS", "DynamixelRobot",
            "make_kinematics"]
@@ -104,10 +104,11 @@ def workspace_problem(kinematics: Gantry | TwoLink, region: Region,
         nearest = np.clip(base, [xs[0], ys[0]], [xs[1], ys[1]])
         corners = np.array([[x, y] for x in xs for y in ys])
         farthest = corners[np.argmax(np.linalg.norm(corners - base, axis=1))]
-        for point in (farthest, nearest):
-            problem = kinematics.problem([*point, depth_m])
-            if problem is not None:
-                return problem
+        try:  # the reach first (exact): the farthest and the nearest point
+            arm_inverse([farthest, nearest], kinematics.l1_m, kinematics.l2_m,
+                        kinematics.base_m)
+        except ValueError as exc:
+            return str(exc)
         width, height = region.size_m
         spacing = max(math.sqrt(width * height / _WORKSPACE_SAMPLES), 1e-4)
         gx = np.linspace(xs[0], xs[1], max(2, math.ceil(width / spacing) + 1))
