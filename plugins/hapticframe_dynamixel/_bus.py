@@ -65,7 +65,11 @@ class HardwareAlert(RuntimeError):
 
 
 class _SteppedBus(DeviceModel):
-    """The bus in simulation time: status packets emitted up to ``lead_s`` after the request."""
+    """The bus in simulation time: status packets emitted up to ``lead_s`` after the request.
+
+    A replug of the emulated adapter (the harness's ``disconnect``) does not power-cycle the
+    servos: on a U2D2 and a power hub they have their own supply (the bus's ``power_loss``
+    fault is that case)."""
 
     def __init__(self, bus: DynamixelBus, lead_s: float) -> None:
         self.bus = bus
@@ -78,7 +82,7 @@ class _SteppedBus(DeviceModel):
         return self.bus.emit(now_s + self.lead_s)
 
     def power_cycle(self) -> None:
-        self.bus.power_cycle()
+        self.bus.reconnect()
 
 
 def _emulated_port(path: str, timeout_ms: float) -> Any:
@@ -217,23 +221,23 @@ class BusLink(DeviceLifecycle):
 
         self._transact("the goal positions' sync write", attempt, retries)
 
-    def _sync_read(
-        self, retries: int | None = None
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """One GroupSyncRead of Present Current..Present Position: (pulses, amperes)."""
-        reader = dynamixel_sdk.GroupSyncRead(self._port, self._ph, _READ_START, _READ_LENGTH)
+    def _group_read(self, start: int, length: int, what: str,
+                    retries: int | None = None) -> list[bytes]:
+        """One GroupSyncRead of ``length`` bytes from ``start`` on every servo (joint
+        order), each status's error byte checked."""
+        reader = dynamixel_sdk.GroupSyncRead(self._port, self._ph, start, length)
         for servo_id in self._ids:
             reader.addParam(servo_id)
 
-        def attempt() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        def attempt() -> list[bytes]:
             comm = self._call(reader.txPacket)
             if comm != dynamixel_sdk.COMM_SUCCESS:
                 self.health.timeouts += 1
                 raise BusError(f"sync read request: {comm}")
-            positions, currents = [], []
+            raws = []
             for servo_id in self._ids:
                 # The SDK's GroupSyncRead drops each status's error byte: read them here.
-                result = self._call(self._ph.readRx, self._port, servo_id, _READ_LENGTH)
+                result = self._call(self._ph.readRx, self._port, servo_id, length)
                 if result is None:
                     raise BusError(f"servo {servo_id}: a status without data")
                 data, comm, error = result
@@ -241,18 +245,34 @@ class BusLink(DeviceLifecycle):
                     self._count(comm)
                     raise BusError(f"servo {servo_id}: {self._ph.getTxRxResult(comm)}")
                 self._check_status(servo_id, error)
-                if len(data) != _READ_LENGTH:
+                if len(data) != length:
                     self.health.invalid_samples += 1
                     raise BusError(f"servo {servo_id}: {len(data)} data bytes")
-                raw = bytes(data)
-                currents.append(current_to_amps(int.from_bytes(raw[0:2], "little")))
-                positions.append(to_signed(int.from_bytes(raw[6:10], "little"), 4))
+                raws.append(bytes(data))
             self.health.frames += 1
-            return np.array(positions, dtype=np.float64), np.array(currents)
+            return raws
 
-        result: tuple[NDArray[np.float64], NDArray[np.float64]] = self._transact(
-            "the present positions' sync read", attempt, retries)
+        result: list[bytes] = self._transact(what, attempt, retries)
         return result
+
+    def _sync_read(
+        self, retries: int | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """One GroupSyncRead of Present Current..Present Position: (pulses, amperes)."""
+        raws = self._group_read(_READ_START, _READ_LENGTH, "the present positions' sync read",
+                                retries)
+        currents = [current_to_amps(int.from_bytes(raw[0:2], "little")) for raw in raws]
+        positions = [to_signed(int.from_bytes(raw[6:10], "little"), 4) for raw in raws]
+        return np.array(positions, dtype=np.float64), np.array(currents)
+
+    def _check_torque(self) -> None:
+        """One GroupSyncRead of Torque Enable: a servo whose torque went off behind the
+        robot's back (it lost its supply) fails the recovery, so DeviceError."""
+        raws = self._group_read(_ADDR["Torque Enable"], 1, "the torque check")
+        self.stats["torque_checks"] += 1
+        for servo_id, raw in zip(self._ids, raws, strict=True):
+            if raw[0] == 0:
+                self.recover(HardwareAlert(f"servo {servo_id} lost its torque"))
 
     def _torque_all(self, value: int) -> None:
         """Best effort on every servo, each once (a failed one does not stop the others)."""

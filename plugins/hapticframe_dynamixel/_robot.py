@@ -71,9 +71,19 @@ from ._control_table import XM430_W350_MODEL_NUMBER
 from ._emulator import DynamixelBus
 from ._kinematics import Axis, Gantry, Joint, TwoLink, arm_inverse, line_problem
 
-__all__ = ["EMULATOR_LEAD_S", "RECOVERY_BACKOFF_S", "STANDARD_FAULTS", "DynamixelRobot",
-           "make_kinematics"]
+__all__ = [
+    "EMULATOR_LEAD_S",
+    "RECOVERY_BACKOFF_S",
+    "STANDARD_FAULTS",
+    "TORQUE_CHECK_PERIOD_S",
+    "DynamixelRobot",
+    "make_kinematics",
+    "workspace_problem",
+]
 
+#: How often (robot clock) the torque of every servo is read back while moving: a servo
+#: that lost its supply answers with its torque off and nothing else tells.
+TORQUE_CHECK_PERIOD_S = 0.25
 #: Points of the workspace checked at build time, at most (a grid over the rectangle).
 _WORKSPACE_SAMPLES = 40_000
 
@@ -138,7 +148,8 @@ class DynamixelRobot(Robot, BusLink):
     stats : dict of str to int
         ``hardware_errors`` (alerts seen), ``status_errors`` (status packets with an error),
         ``sdk_index_errors`` (statuses without data that crashed the SDK's decoding),
-        ``retries`` (transactions repeated).
+        ``retries`` (transactions repeated), ``torque_checks`` (reads of every servo's
+        Torque Enable, one per :data:`TORQUE_CHECK_PERIOD_S` of movement).
     present_current_a : (3,) float64
         The servos' Present Current at the latest step, in joint order.
     environment : PhysicalTruthSource or None
@@ -171,7 +182,9 @@ class DynamixelRobot(Robot, BusLink):
         self._port: Any = None
         self._ph: Any = None
         self.stats = {"hardware_errors": 0, "status_errors": 0, "sdk_index_errors": 0,
-                      "retries": 0}
+                      "retries": 0, "torque_checks": 0}
+        self._check_every = max(1, round(TORQUE_CHECK_PERIOD_S * config.control_rate_hz))
+        self._commands = 0
         self.present_current_a = np.zeros(3)
         self.environment: PhysicalTruthSource | None = None
         self._joints: NDArray[np.float64] | None = None  # the latest measured pulses
@@ -352,6 +365,9 @@ class DynamixelRobot(Robot, BusLink):
         positions, current = self._sync_read()
         self._measured(positions)
         self.present_current_a = current
+        self._commands += 1
+        if self._commands % self._check_every == 0:
+            self._check_torque()
         return self._pose
 
     def _measured(self, positions: NDArray[np.float64]) -> None:
