@@ -22,11 +22,16 @@ from hapticframe_dynamixel._config import DynamixelRobotConfig
 from hapticframe_dynamixel._robot import DynamixelRobot
 
 IDS = (1, 2, 3)
+#: The SDK's reply timeout (real time) where faults withhold replies: short for speed, long
+#: enough that a loaded machine does not time out on a reply that comes (a spurious recovery
+#: would change the states).
+REPLY_MS = 60.0
 
 
 def started(faults: list[dict[str, Any]], **config: Any) -> DynamixelRobot:
     robot = DynamixelRobot(
-        DynamixelRobotConfig(faults=faults, reply_timeout_ms=30.0, **config),
+        DynamixelRobotConfig.model_validate(
+            {"faults": faults, "reply_timeout_ms": REPLY_MS, **config}),
         BuildContext(id="gantry", rng=np.random.default_rng(0)),
     )
     robot.configure()
@@ -129,7 +134,7 @@ class _Wall:
 
 
 def test_an_environment_load_beyond_the_servo_overloads_it() -> None:
-    robot = DynamixelRobot(DynamixelRobotConfig(reply_timeout_ms=30.0),
+    robot = DynamixelRobot(DynamixelRobotConfig(reply_timeout_ms=REPLY_MS),
                            BuildContext(id="gantry", rng=np.random.default_rng(0)))
     robot.couple_environment(_Wall())  # 0.125 m/rad × 50 N = 6.25 N·m ≈ 3.5 A
     robot.configure()

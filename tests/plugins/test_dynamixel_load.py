@@ -17,7 +17,7 @@ from hapticframe.kinds import (
     PhysicalTruthSource,
 )
 from hapticframe_dynamixel._control_table import CURRENT_UNIT_A
-from hapticframe_dynamixel._kinematics import arm_jacobian
+from hapticframe_dynamixel._kinematics import TwoLink, arm_jacobian
 
 pytest.importorskip("dynamixel_sdk")
 
@@ -46,7 +46,7 @@ class FakeSand:
 
 
 def build(port: str = "emulated", **config: Any) -> DynamixelRobot:
-    return DynamixelRobot(DynamixelRobotConfig(port=port, **config),
+    return DynamixelRobot(DynamixelRobotConfig.model_validate({"port": port, **config}),
                           BuildContext(id="loaded", rng=np.random.default_rng(1)))
 
 
@@ -94,11 +94,12 @@ def test_two_link_current_follows_the_arm_jacobian_and_a_changing_force() -> Non
     robot.activate()
     try:
         k = robot.kinematics
+        assert isinstance(k, TwoLink)
 
         def expected(force: np.ndarray) -> np.ndarray:
             assert robot.bus is not None
-            q = np.array([robot.bus.servo(i).get("Present Position") for i in IDS], float)
-            angles = np.array([k.shoulder.to_rad(q[0]), k.elbow.to_rad(q[1])], float)
+            q = np.array([robot.bus.servo(i).get("Present Position") for i in IDS], np.float64)
+            angles = np.array([k.shoulder.to_rad(q[0]), k.elbow.to_rad(q[1])], np.float64)
             arm = arm_jacobian(angles, k.l1_m, k.l2_m)  # d(x, y)/d(θ1, θ2)
             # A servo radian turns its joint by 1 / gear_ratio.
             tau = -np.array([arm[:, 0] @ force[:2] / k.shoulder.gear_ratio,

@@ -22,6 +22,10 @@ pytest.importorskip("dynamixel_sdk")
 
 SPEC = next(iter(dxl_plugin.hapticframe_robots()))
 IDS = (1, 2, 3)
+#: The SDK's reply timeout (real time) where faults withhold replies: short for speed, long
+#: enough that a loaded machine does not time out on a reply that comes (a spurious recovery
+#: would change the states).
+REPLY_MS = 60.0
 
 
 def build(seed: int = 0, **config: Any) -> DynamixelRobot:
@@ -81,7 +85,8 @@ def test_a_workspace_beyond_the_joint_limits_is_refused_at_build() -> None:
                        r"\(x, y, depth\) needs the x servo \(ID 1\) at pulse 9778"):
         build(kinematics=short)
     # A kinematics mapping without a type is the gantry, as before the two-link arm.
-    config = DynamixelRobotConfig(kinematics={"x": {"id": 4, "metres_per_rad": 0.125}})
+    config = DynamixelRobotConfig.model_validate(
+        {"kinematics": {"x": {"id": 4, "metres_per_rad": 0.125}}})
     assert isinstance(config.kinematics, GantryConfig) and config.kinematics.x.id == 4
 
 
@@ -180,7 +185,7 @@ def test_torque_follows_the_lifecycle() -> None:
 
 
 def test_a_missing_servo_fails_configure_naming_it() -> None:
-    robot = build(emulated_ids=(1, 3), reply_timeout_ms=20.0)
+    robot = build(emulated_ids=(1, 3), reply_timeout_ms=REPLY_MS)
     try:
         with pytest.raises(DeviceError, match="servo 2 does not answer"):
             robot.configure()
@@ -214,7 +219,7 @@ def _wrong_model(robot: DynamixelRobot) -> Any:
 def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() -> None:
     # The emulated servos start at 2048 pulses; the transit to x = 0.05 takes ~3.8 s.
     robot = build(faults=[{"kind": "hardware_error", "at_s": 4.5, "params": {"id": 1}}],
-                  reply_timeout_ms=20.0)
+                  reply_timeout_ms=REPLY_MS)
     robot.configure()
     robot.activate()
     try:
@@ -252,7 +257,7 @@ def test_status_faults_are_counted_and_survived() -> None:
         {"kind": "sync_missing", "at_s": 4.6, "params": {"id": 2}},
         {"kind": "junk", "at_s": 4.8, "params": {"id": 1, "count": 6}},
     ]
-    robot = build(faults=faults, reply_timeout_ms=20.0)
+    robot = build(faults=faults, reply_timeout_ms=REPLY_MS)
     robot.configure()
     robot.activate()
     try:
@@ -288,7 +293,7 @@ def test_same_seed_same_states_under_faults() -> None:
 
     def run() -> tuple[np.ndarray, list[tuple[float, int, str]], dict[str, int]]:
         robot = make_component(SPEC, seed=3, config={"faults": FREQUENT,
-                                                     "reply_timeout_ms": 20.0},
+                                                     "reply_timeout_ms": REPLY_MS},
                                interface=Robot)
         try:
             states = robot.execute(line(0.05, 0.45, speed=0.1))

@@ -26,7 +26,8 @@ IDS = (1, 2, 3)
 
 def build(kinematics: dict[str, Any] | None = None, **config: Any) -> DynamixelRobot:
     return DynamixelRobot(
-        DynamixelRobotConfig(kinematics={"type": "two-link", **(kinematics or {})}, **config),
+        DynamixelRobotConfig.model_validate(
+            {"kinematics": {"type": "two-link", **(kinematics or {})}, **config}),
         BuildContext(id="arm", rng=np.random.default_rng(0)),
     )
 
