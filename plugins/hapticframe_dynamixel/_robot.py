@@ -130,7 +130,12 @@ def workspace_problem(kinematics: Gantry | TwoLink, region: Region,
 
 
 class DynamixelRobot(Robot, BusLink):
-    """A Cartesian gantry of Dynamixel servos raking the fingertip along straight lines.
+    """Dynamixel servos raking the fingertip along straight lines: a Cartesian gantry or a
+    planar two-link arm, each with a vertical depth axis (``config.kinematics``).
+
+    The pose it records is forward kinematics of the positions read back; the heading is
+    the movement's direction. Emulated, it is :class:`~hapticframe.kinds.EnvironmentCoupled`
+    (:meth:`couple_environment`).
 
     Parameters
     ----------
