@@ -1,10 +1,14 @@
 """Dynamixel Protocol 2.0: packets, the XM430-W350 control table, an emulated bus, and the
 ``dynamixel`` robot.
 
-:mod:`.plugin` registers the robot (:class:`DynamixelRobot`, a Cartesian gantry driven by
-``dynamixel_sdk``, imported only when the robot is asked for; :mod:`._kinematics` is pure
-numpy). :mod:`._protocol` is pure (CRC-16/BUYPASS, byte stuffing, instruction and status
-packets, an incremental parser that resynchronises as ``dynamixel_sdk`` does);
+:mod:`.plugin` registers the robot (:class:`DynamixelRobot`, a Cartesian gantry or a planar
+two-link arm on a vertical axis, driven by ``dynamixel_sdk``, imported only when the robot is
+asked for; its transaction layer is :mod:`._bus`). :mod:`._kinematics` is pure numpy: the
+:class:`Gantry` and :class:`TwoLink` mechanisms over the arm's analytic kinematics
+(:func:`arm_forward`, :func:`arm_inverse`, :func:`arm_jacobian`) and :func:`line_problem`,
+which checks a whole straight line against the reach and the joint limits.
+:mod:`._protocol` is pure (CRC-16/BUYPASS, byte stuffing, instruction and status packets,
+an incremental parser that resynchronises as ``dynamixel_sdk`` does);
 :mod:`._control_table` holds the XM430-W350 table (model number 1020) and unit conversions;
 :class:`DynamixelBus` is a :class:`hapticframe.devices.DeviceModel` of several XM430 servos
 with first-order dynamics, external loads, overload and the fault matrix of the hardware
@@ -18,7 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from ._config import AxisConfig, DynamixelRobotConfig, GantryConfig
+from ._config import AxisConfig, DynamixelRobotConfig, GantryConfig, JointConfig, TwoLinkConfig
 from ._control_table import (
     CURRENT_UNIT_A,
     EEPROM_END,
@@ -47,7 +51,17 @@ from ._emulator import (
     EmulatedServo,
     SentStatus,
 )
-from ._kinematics import Axis, Gantry
+from ._kinematics import (
+    Axis,
+    Gantry,
+    Joint,
+    TwoLink,
+    arm_forward,
+    arm_inverse,
+    arm_jacobian,
+    line_problem,
+    segment_distances,
+)
 from ._protocol import (
     BROADCAST_ID,
     ERR_ACCESS,
@@ -94,6 +108,15 @@ __all__ = [
     "DynamixelRobotConfig",
     "Gantry",
     "GantryConfig",
+    "Joint",
+    "JointConfig",
+    "TwoLink",
+    "TwoLinkConfig",
+    "arm_forward",
+    "arm_inverse",
+    "arm_jacobian",
+    "line_problem",
+    "segment_distances",
     "BROADCAST_ID",
     "CURRENT_UNIT_A",
     "EEPROM_END",

@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
 from hapticframe.devices import FaultSetting
 
-__all__ = ["AxisConfig", "DynamixelRobotConfig", "GantryConfig"]
+__all__ = [
+    "AxisConfig",
+    "DynamixelRobotConfig",
+    "GantryConfig",
+    "JointConfig",
+    "KinematicsConfig",
+    "TwoLinkConfig",
+]
 
 
 class AxisConfig(BaseModel):
@@ -54,8 +62,77 @@ class GantryConfig(BaseModel):
         return self
 
 
+class JointConfig(BaseModel):
+    """A revolute joint of the two-link arm: a servo, directly or through a reduction.
+
+    The joint angle is ``offset_rad + angle / gear_ratio``, the angle being the servo's
+    position in radians (4096 pulses per turn, pulse 0 = 0 rad). The servos run in position
+    mode (one turn): the joint's range is at most 360° / |gear_ratio|.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    id: int = Field(ge=0, le=252, description="The servo's Dynamixel ID.")
+    gear_ratio: float = Field(
+        1.0, description="Servo turns per joint turn (a reduction, |ratio| ≥ 1); negative: "
+        "the joint turns against the servo.")
+    offset_rad: float = Field(0.0, description="The joint angle at pulse 0.")
+    min_pulse: int = Field(0, ge=0, le=4095, description="Min Position Limit (pulses).")
+    max_pulse: int = Field(4095, ge=0, le=4095, description="Max Position Limit (pulses).")
+
+    @model_validator(mode="after")
+    def _sane(self) -> JointConfig:
+        if self.max_pulse <= self.min_pulse:
+            raise ValueError("max_pulse must exceed min_pulse")
+        if not (math.isfinite(self.gear_ratio) and abs(self.gear_ratio) >= 1.0):
+            raise ValueError(f"gear_ratio must be a reduction with |gear_ratio| ≥ 1 (negative "
+                             f"to reverse the joint), got {self.gear_ratio}")
+        if not math.isfinite(self.offset_rad):
+            raise ValueError("offset_rad must be finite")
+        return self
+
+
+class TwoLinkConfig(BaseModel):
+    """A planar shoulder-elbow arm in the map plane on a vertical z axis (depth = −z).
+
+    The shoulder's axis stands at ``base_m``; the upper arm (``l1_m``) turns with the
+    shoulder servo from the map's x axis, the forearm (``l2_m``) with the elbow servo
+    relative to the upper arm, both counter-clockwise seen from above. The default covers
+    the default workspace (0...0.75 m × 0...0.5 m) from a shoulder 0.1 m below its edge,
+    each joint through a 2:1 reduction (a joint range of 180°, 0.77 mrad per pulse).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    type: Literal["two-link"]
+    l1_m: float = Field(0.4, gt=0, description="Shoulder-to-elbow length.")
+    l2_m: float = Field(0.4, gt=0, description="Elbow-to-fingertip length.")
+    base_m: tuple[float, float] = Field(
+        (0.375, -0.1), description="The shoulder axis's position (x, y) in the map frame.")
+    elbow_side: Literal["left", "right"] = Field(
+        "right", description="The inverse kinematics' branch: the elbow to the right or the "
+        "left of the line from the shoulder to the fingertip, seen from above (right: the "
+        "elbow joint's angle is positive).")
+    shoulder: JointConfig = JointConfig(id=1, gear_ratio=2.0, offset_rad=-1.06)
+    elbow: JointConfig = JointConfig(id=2, gear_ratio=2.0, offset_rad=0.35)
+    z: AxisConfig = AxisConfig(id=3, metres_per_rad=0.01, offset_m=-0.06)
+
+    @model_validator(mode="after")
+    def _sane(self) -> TwoLinkConfig:
+        ids = [self.shoulder.id, self.elbow.id, self.z.id]
+        if len(set(ids)) != 3:
+            raise ValueError(f"the arm's servo IDs must be distinct, got {ids}")
+        if not all(math.isfinite(v) for v in (self.l1_m, self.l2_m, *self.base_m)):
+            raise ValueError("l1_m, l2_m and base_m must be finite")
+        return self
+
+
+KinematicsConfig = Annotated[GantryConfig | TwoLinkConfig, Field(discriminator="type")]
+
+
 class DynamixelRobotConfig(PluginConfig):
-    """A chain of Dynamixel XM430-W350 servos (Protocol 2.0) moving the fingertip.
+    """A chain of Dynamixel XM430-W350 servos (Protocol 2.0) moving the fingertip: a
+    Cartesian gantry or a planar two-link arm, each on a vertical depth axis.
 
     ``port: emulated`` runs the servos on an emulated bus behind a pseudo-terminal that the
     unmodified ``dynamixel_sdk`` opens, in simulation time (deterministic).
@@ -66,13 +143,15 @@ class DynamixelRobotConfig(PluginConfig):
     )
     baudrate: int = Field(1_000_000, gt=0, description="Bus baud rate.")
     control_rate_hz: float = Field(50.0, gt=0, le=1000, description="Control steps per second.")
-    kinematics: GantryConfig = Field(
-        default_factory=GantryConfig, description="The mechanism (a Cartesian gantry)."
+    kinematics: KinematicsConfig = Field(
+        default_factory=GantryConfig, description="The mechanism: type 'gantry' (default, a "
+        "Cartesian gantry) or 'two-link' (a planar arm on a vertical axis)."
     )
     workspace: RegionConfig = Field(
         default_factory=RegionConfig,
-        description="The reachable rectangle (x_min_m, x_max_m, y_min_m, y_max_m); the robot "
-        "refuses a movement that leaves it.",
+        description="The rectangle (x_min_m, x_max_m, y_min_m, y_max_m) the fingertip may "
+        "rake; the mechanism must reach all of it at depth_m, and the robot refuses a "
+        "movement that leaves it.",
     )
     depth_m: float = Field(
         0.044, gt=0, description="Raking depth for movements that do not give one."
@@ -110,6 +189,16 @@ class DynamixelRobotConfig(PluginConfig):
         description="Emulator only: 'none', 'standard' (rare status faults), or a list of "
         "fault events ({kind, at_s | rate_hz, duration_s, params}) of DynamixelBus.",
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gantry_by_default(cls, data: Any) -> Any:
+        # A kinematics mapping without a type is the gantry (as before the two-link arm).
+        if isinstance(data, dict):
+            kinematics = data.get("kinematics")
+            if isinstance(kinematics, dict) and "type" not in kinematics:
+                data = {**data, "kinematics": {**kinematics, "type": "gantry"}}
+        return data
 
     @model_validator(mode="after")
     def _consistent(self) -> DynamixelRobotConfig:

@@ -94,6 +94,8 @@ FAULT_KINDS: Mapping[str, str] = {
     "servo (params.id, default every servo); torque off if Shutdown has the bit",
     "current_spike": "Present Current raised by params.amps (default 2.0) for duration_s "
     "(a stall in sand); may trip the overload",
+    "power_loss": "a servo (params.id, default every servo) loses its supply for an instant: "
+    "RAM back to its defaults (torque off), EEPROM and shaft kept",
 }
 
 _STATUS_KINDS = ("no_reply", "bad_crc", "error_code", "late_reply", "late_duplicate", "junk")
@@ -252,7 +254,7 @@ class DynamixelBus(DeviceModel):
         self.sent: deque[SentStatus] = deque(maxlen=log_statuses)
         self.stats: dict[str, int] = {
             "instructions": 0, "crc_errors": 0, "ignored": 0, "status_packets": 0,
-            "overloads": 0, "reboots": 0, "power_cycles": 0,
+            "overloads": 0, "reboots": 0, "power_cycles": 0, "reconnects": 0,
         }
         self._bus = _Bus()
 
@@ -270,6 +272,13 @@ class DynamixelBus(DeviceModel):
         self.servo(servo_id).load = load
 
     # -- DeviceModel -------------------------------------------------------------------------
+
+    def reconnect(self) -> None:
+        """The host's adapter was unplugged and plugged in again while the servos kept
+        their own supply: the bytes in flight are lost, the servos' state is kept."""
+        self.parser.clear()
+        self._bus = _Bus()
+        self.stats["reconnects"] += 1
 
     def power_cycle(self) -> None:
         """Power off and on: RAM and hardware errors reset, EEPROM kept, shafts stay."""
@@ -409,6 +418,12 @@ class DynamixelBus(DeviceModel):
             for servo in self.servos:
                 if target is None or servo.id == int(target):
                     self._latch(servo, bit)
+        while (event := self.faults.fires("power_loss", now_s)) is not None:
+            target = event.params.get("id")
+            for servo in self.servos:
+                if target is None or servo.id == int(target):
+                    self._reset_ram(servo)
+            self.stats["power_cycles"] += 1
         while (event := self.faults.fires("stuffing", now_s)) is not None:
             target = event.params.get("id")
             value = int(event.params.get("position", -131073))

@@ -1,8 +1,12 @@
-"""The ``dynamixel`` robot: a Cartesian gantry of XM430-W350 servos driven by ``dynamixel_sdk``.
+"""The ``dynamixel`` robot: XM430-W350 servos driven by ``dynamixel_sdk`` moving the fingertip,
+as a Cartesian gantry or a planar two-link arm, each on a vertical depth axis.
 
-Each control step streams the goal positions of every axis in one ``GroupSyncWrite`` and
-reads Present Current and Present Position back in one ``GroupSyncRead``; forward
-kinematics turns them into the :class:`~hapticframe.kinds.RobotState`.
+Each control step turns the next point of the straight movement (constant speed and depth)
+into joint targets by inverse kinematics, streams them in one ``GroupSyncWrite``, and reads
+Present Current and Present Position back in one ``GroupSyncRead``; forward kinematics of
+the read positions gives the :class:`~hapticframe.kinds.RobotState`. ``begin`` checks the
+whole line (not only its ends) against the mechanism's reach and joint limits; the move to
+a movement's start is interpolated in joint space (within the limits wherever it goes).
 
 ``port: emulated`` runs a :class:`DynamixelBus` behind a :class:`PtyEmulator` that the
 unmodified SDK opens by name. The SDK blocks waiting for replies, so the emulator serves the
@@ -12,118 +16,126 @@ goal) before it writes the next goals. Servo dynamics therefore run in simulatio
 run is deterministic. Status packets are emitted up to :data:`EMULATOR_LEAD_S` of model time
 after their request (the return delay and the wire take microseconds a frozen clock would
 never reach): the servos' state is read that much later than the step's timestamp.
+:meth:`DynamixelRobot.couple_environment` loads the emulated servos with a simulated
+environment's force on the fingertip (``τ = −Jᵀ f``): Present Current follows it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import shutil
 import tempfile
-import termios
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import dynamixel_sdk  # type: ignore[import-untyped]
 import numpy as np
-import serial
 from numpy.typing import NDArray
 
 from hapticframe.devices import (
     Clock,
     DeviceError,
-    DeviceLifecycle,
-    DeviceModel,
     FakeClock,
-    FaultSchedule,
     MonotonicClock,
     PtyEmulator,
 )
 from hapticframe.kinds import (
     BuildContext,
     ExploratoryMovement,
+    PhysicalTruthSource,
     Region,
     Robot,
     RobotState,
     RunOutcome,
 )
 
-from ._config import DynamixelRobotConfig
-from ._control_table import XM430_W350, XM430_W350_MODEL_NUMBER, current_to_amps, to_signed
-from ._emulator import DynamixelBus
-from ._kinematics import Axis, Gantry
-from ._protocol import ERR_ALERT
-
-__all__ = ["EMULATOR_LEAD_S", "RECOVERY_BACKOFF_S", "STANDARD_FAULTS", "DynamixelRobot"]
-
-#: Model time by which the emulated bus's status packets may follow their request.
-EMULATOR_LEAD_S = 0.005
-#: The first recovery waits this long (on the robot's clock), each next one twice as long.
-RECOVERY_BACKOFF_S = 0.05
-#: ``faults: standard``: rare status-packet faults, each survived by a retry.
-STANDARD_FAULTS: tuple[dict[str, Any], ...] = (
-    {"kind": "no_reply", "rate_hz": 0.05},
-    {"kind": "bad_crc", "rate_hz": 0.05},
-    {"kind": "junk", "rate_hz": 0.05},
-    {"kind": "sync_missing", "rate_hz": 0.05},
+from ._bus import (
+    _ADDR,
+    _LINK_ERRORS,
+    _POSITION_MODE,
+    EMULATOR_LEAD_S,
+    RECOVERY_BACKOFF_S,
+    STANDARD_FAULTS,
+    BusError,
+    BusLink,
+    HardwareAlert,
+    _emulated_port,
+    _schedule,
+    _SteppedBus,
 )
+from ._config import DynamixelRobotConfig, GantryConfig, TwoLinkConfig
+from ._control_table import XM430_W350_MODEL_NUMBER
+from ._emulator import DynamixelBus
+from ._kinematics import Axis, Gantry, Joint, TwoLink, arm_inverse, line_problem
 
-_ADDR = {name: XM430_W350[name].address for name in (
-    "Operating Mode", "Max Position Limit", "Min Position Limit", "Torque Enable",
-    "Hardware Error Status", "Goal Position", "Present Current", "Present Position")}
-#: One sync read covers Present Current (126, 2 bytes) to Present Position (132, 4 bytes).
-_READ_START = _ADDR["Present Current"]
-_READ_LENGTH = _ADDR["Present Position"] + 4 - _READ_START
-_POSITION_MODE = 3
-_LINK_ERRORS = (OSError, termios.error, serial.SerialException)
+__all__ = [
+    "EMULATOR_LEAD_S",
+    "RECOVERY_BACKOFF_S",
+    "STANDARD_FAULTS",
+    "TORQUE_CHECK_PERIOD_S",
+    "DynamixelRobot",
+    "make_kinematics",
+    "workspace_problem",
+]
 
-
-class BusError(RuntimeError):
-    """A bus transaction failed (after its retries)."""
-
-
-class HardwareAlert(RuntimeError):
-    """A servo reports a latched hardware error (overload, overheating...)."""
-
-
-class _SteppedBus(DeviceModel):
-    """The bus in simulation time: status packets emitted up to ``lead_s`` after the request."""
-
-    def __init__(self, bus: DynamixelBus, lead_s: float) -> None:
-        self.bus = bus
-        self.lead_s = lead_s
-
-    def receive(self, data: bytes, now_s: float) -> None:
-        self.bus.receive(data, now_s)
-
-    def emit(self, now_s: float) -> bytes:
-        return self.bus.emit(now_s + self.lead_s)
-
-    def power_cycle(self) -> None:
-        self.bus.power_cycle()
+#: How often (robot clock) the torque of every servo is read back while moving: a servo
+#: that lost its supply answers with its torque off and nothing else tells.
+TORQUE_CHECK_PERIOD_S = 0.25
+#: Points of the workspace checked at build time, at most (a grid over the rectangle).
+_WORKSPACE_SAMPLES = 40_000
 
 
-def _emulated_port(path: str, timeout_ms: float) -> Any:
-    """A ``PortHandler`` whose reply timeout suits a pty on a loaded machine."""
+def make_kinematics(config: GantryConfig | TwoLinkConfig) -> Gantry | TwoLink:
+    """The mechanism a ``kinematics`` config describes."""
+    if isinstance(config, TwoLinkConfig):
+        def joint(j: Any) -> Joint:
+            return Joint(j.id, j.gear_ratio, j.offset_rad, j.min_pulse, j.max_pulse)
 
-    class EmulatedPort(dynamixel_sdk.PortHandler):
-        def setPacketTimeout(self, packet_length: int) -> None:
-            self.packet_start_time = self.getCurrentTime()
-            self.packet_timeout = self.tx_time_per_byte * packet_length + timeout_ms
-
-    return EmulatedPort(path)
-
-
-def _schedule(faults: Any, rng: np.random.Generator) -> FaultSchedule | None:
-    if faults == "none":
-        return None
-    entries = STANDARD_FAULTS if faults == "standard" else faults
-    return FaultSchedule.from_config([dict(e) for e in entries], rng)
+        z = config.z
+        return TwoLink(joint(config.shoulder), joint(config.elbow),
+                       Axis(z.id, z.metres_per_rad, z.offset_m, z.min_pulse, z.max_pulse),
+                       config.l1_m, config.l2_m, config.base_m, config.elbow_side)
+    return Gantry(*(Axis(a.id, a.metres_per_rad, a.offset_m, a.min_pulse, a.max_pulse)
+                    for a in (config.x, config.y, config.z)))
 
 
-class DynamixelRobot(Robot, DeviceLifecycle):
-    """A Cartesian gantry of Dynamixel servos raking the fingertip along straight lines.
+def workspace_problem(kinematics: Gantry | TwoLink, region: Region,
+                      depth_m: float) -> str | None:
+    """Why the mechanism cannot reach all of ``region`` at ``depth_m``, or None. The
+    gantry is checked at the corners (exact: its axes are independent); the arm's annulus
+    exactly, its joint limits on a grid over the rectangle."""
+    xs = (region.x_min_m, region.x_max_m)
+    ys = (region.y_min_m, region.y_max_m)
+    if isinstance(kinematics, TwoLink):
+        base = np.asarray(kinematics.base_m)
+        nearest = np.clip(base, [xs[0], ys[0]], [xs[1], ys[1]])
+        corners = np.array([[x, y] for x in xs for y in ys])
+        farthest = corners[np.argmax(np.linalg.norm(corners - base, axis=1))]
+        try:  # the reach first (exact): the farthest and the nearest point
+            arm_inverse([farthest, nearest], kinematics.l1_m, kinematics.l2_m,
+                        kinematics.base_m)
+        except ValueError as exc:
+            return str(exc)
+        width, height = region.size_m
+        spacing = max(math.sqrt(width * height / _WORKSPACE_SAMPLES), 1e-4)
+        gx = np.linspace(xs[0], xs[1], max(2, math.ceil(width / spacing) + 1))
+        gy = np.linspace(ys[0], ys[1], max(2, math.ceil(height / spacing) + 1))
+        mx, my = np.meshgrid(gx, gy)
+        points = np.column_stack([mx.ravel(), my.ravel(), np.full(mx.size, depth_m)])
+        return kinematics.problem(points)
+    return kinematics.problem([[x, y, depth_m] for x in xs for y in ys])
+
+
+class DynamixelRobot(Robot, BusLink):
+    """Dynamixel servos raking the fingertip along straight lines: a Cartesian gantry or a
+    planar two-link arm, each with a vertical depth axis (``config.kinematics``).
+
+    The pose it records is forward kinematics of the positions read back; the heading is
+    the movement's direction. Emulated, it is :class:`~hapticframe.kinds.EnvironmentCoupled`
+    (:meth:`couple_environment`).
 
     Parameters
     ----------
@@ -133,7 +145,7 @@ class DynamixelRobot(Robot, DeviceLifecycle):
 
     Attributes
     ----------
-    kinematics : Gantry
+    kinematics : Gantry or TwoLink
     clock : Clock
         A :class:`FakeClock` (simulation time) when emulated, else the monotonic clock.
     bus : DynamixelBus or None
@@ -141,31 +153,29 @@ class DynamixelRobot(Robot, DeviceLifecycle):
     stats : dict of str to int
         ``hardware_errors`` (alerts seen), ``status_errors`` (status packets with an error),
         ``sdk_index_errors`` (statuses without data that crashed the SDK's decoding),
-        ``retries`` (transactions repeated).
+        ``retries`` (transactions repeated), ``torque_checks`` (reads of every servo's
+        Torque Enable, one per :data:`TORQUE_CHECK_PERIOD_S` of movement).
     present_current_a : (3,) float64
-        The servos' Present Current at the latest step.
+        The servos' Present Current at the latest step, in joint order.
+    environment : PhysicalTruthSource or None
+        What loads the emulated servos (:meth:`couple_environment`).
     """
 
     def __init__(self, config: DynamixelRobotConfig, context: BuildContext) -> None:
         super().__init__(config, context)
         self.config: DynamixelRobotConfig = config
         self.max_recoveries = config.max_recoveries
-        k = config.kinematics
-        self.kinematics = Gantry(*(
-            Axis(a.id, a.metres_per_rad, a.offset_m, a.min_pulse, a.max_pulse)
-            for a in (k.x, k.y, k.z)
-        ))
+        self.kinematics = make_kinematics(config.kinematics)
         self._ids = self.kinematics.ids
         self._workspace = config.workspace.to_region()
         region = self._workspace
-        corners = np.array([[x, y, config.depth_m]
-                            for x in (region.x_min_m, region.x_max_m)
-                            for y in (region.y_min_m, region.y_max_m)])
-        if not np.all(self.kinematics.within_limits(self.kinematics.inverse(corners))):
+        problem = workspace_problem(self.kinematics, region, config.depth_m)
+        if problem is not None:
             raise ValueError(
                 f"robot {context.id!r}: the workspace (x {region.x_min_m:g}...{region.x_max_m:g}"
                 f" m, y {region.y_min_m:g}...{region.y_max_m:g} m at depth {config.depth_m:g} m)"
-                f" is beyond the servos' position limits (reach: {self.kinematics.reach()})"
+                f" is beyond the mechanism's reach or the servos' position limits: {problem}; "
+                "shrink the workspace or change the kinematics"
             )
         self._dt = 1.0 / config.control_rate_hz
         self.live = not config.emulated
@@ -177,8 +187,13 @@ class DynamixelRobot(Robot, DeviceLifecycle):
         self._port: Any = None
         self._ph: Any = None
         self.stats = {"hardware_errors": 0, "status_errors": 0, "sdk_index_errors": 0,
-                      "retries": 0}
+                      "retries": 0, "torque_checks": 0}
+        self._check_every = max(1, round(TORQUE_CHECK_PERIOD_S * config.control_rate_hz))
+        self._commands = 0
         self.present_current_a = np.zeros(3)
+        self.environment: PhysicalTruthSource | None = None
+        self._joints: NDArray[np.float64] | None = None  # the latest measured pulses
+        self._load_cache: tuple[float, NDArray[np.float64]] | None = None
         self._state = RobotState(0.0, region.center_m, 0.0, config.depth_m, 0.0)
         self._active = False
         self._halt_reason = ""
@@ -218,13 +233,11 @@ class DynamixelRobot(Robot, DeviceLifecycle):
                 f"y {region.y_min_m:g}...{region.y_max_m:g} m)"
             )
         poses = np.column_stack([ends, [depth, depth]])
-        joints = self.kinematics.inverse(poses)
-        if not np.all(self.kinematics.within_limits(joints)):
+        problem = line_problem(self.kinematics, poses[0], poses[1])
+        if problem is not None:
             raise ValueError(
-                f"robot {self.id!r}: the movement at depth {depth:g} m needs joint positions "
-                f"{np.rint(joints).astype(int).tolist()} beyond the servos' limits "
-                f"{[(a.min_pulse, a.max_pulse) for a in self.kinematics.axes]}"
-            )
+                f"robot {self.id!r}: the movement at depth {depth:g} m cannot be followed "
+                f"within the servos' limits: {problem}")
         self._require_active()
         self._halt_reason = ""
         self._guarded(lambda: self._transit(poses[0]))
@@ -263,6 +276,62 @@ class DynamixelRobot(Robot, DeviceLifecycle):
         self.deactivate()
         self.cleanup()
 
+    # --- the environment's load (EnvironmentCoupled) -------------------------------------------
+
+    def couple_environment(self, environment: PhysicalTruthSource) -> None:
+        """Load the emulated servos with ``environment``'s force on the fingertip.
+
+        At model time ``t`` servo ``i`` carries ``τ_i = −(Jᵀ f)_i`` (N·m, the torque it
+        exerts holding against the force), ``f = environment.physical_truth(t).force_n``
+        (world frame: map x, y, z up) and ``J`` the Jacobian of the fingertip's position
+        w.r.t. each servo's angle in radians at the latest measured joint positions (so the
+        load is a function of model time and of what the robot read: deterministic). The
+        bus turns it into Present Current with its torque constant.
+
+        Raises
+        ------
+        ValueError
+            When the robot drives real servos.
+        """
+        if not self.config.emulated:
+            raise ValueError(
+                f"robot {self.id!r} drives real servos on {self.config.port}: a simulated "
+                "environment cannot load them (use port 'emulated' to couple it)")
+        self.environment = environment
+        self._load_cache = None
+        if self.bus is not None:
+            self._install_loads()
+
+    def joint_torques_nm(self, force_n: Any, pulses: Any) -> NDArray[np.float64]:
+        """``−Jᵀ f``: the torque each servo exerts (N·m, joint order) holding the fingertip
+        against the world-frame force ``force_n`` (3,) at joint positions ``pulses``."""
+        jac = self.kinematics.jacobian(np.asarray(pulses, dtype=np.float64))
+        return np.asarray(-(jac.T @ np.asarray(force_n, dtype=np.float64)), dtype=np.float64)
+
+    def _install_loads(self) -> None:
+        assert self.bus is not None
+        present = {servo.id for servo in self.bus.servos}
+        for index, servo_id in enumerate(self._ids):
+            if servo_id in present:
+                self.bus.set_load(servo_id, functools.partial(self._servo_load_nm, index))
+
+    def _servo_load_nm(self, index: int, t: float) -> float:
+        return float(self._load_nm(t)[index])
+
+    def _load_nm(self, t: float) -> NDArray[np.float64]:
+        """The servos' loads at model time ``t`` (one physical_truth call per instant)."""
+        cache = self._load_cache
+        if cache is not None and cache[0] == t:
+            return cache[1]
+        assert self.environment is not None and self.bus is not None
+        joints = self._joints
+        if joints is None:  # before the first read: where the emulated shafts are
+            positions = {servo.id: servo.position for servo in self.bus.servos}
+            joints = np.array([positions.get(i, 2048.0) for i in self._ids])
+        torques = self.joint_torques_nm(self.environment.physical_truth(t).force_n, joints)
+        self._load_cache = (t, torques)
+        return torques
+
     # --- motion ----------------------------------------------------------------------------
 
     def _require_active(self) -> None:
@@ -291,28 +360,45 @@ class DynamixelRobot(Robot, DeviceLifecycle):
         elif paced:
             self.clock.sleep(self._dt)
 
-    def _move_to(self, pose: NDArray[np.float64], paced: bool) -> NDArray[np.float64]:
-        """Command ``pose`` and read back the measured pose (one control period)."""
+    def _command(self, pulses: NDArray[np.float64], paced: bool) -> NDArray[np.float64]:
+        """Command joint positions and read back the measured pose (one control period)."""
         self._tick(paced)
-        goal = np.rint(self.kinematics.inverse(pose)).astype(int)
-        self._sync_write(goal)
+        # The line was checked in begin(); the clip only guards rounding between its samples.
+        lo = np.array([s.min_pulse for s in self.kinematics.servos])
+        hi = np.array([s.max_pulse for s in self.kinematics.servos])
+        self._sync_write(np.clip(np.rint(pulses), lo, hi).astype(int))
         positions, current = self._sync_read()
+        self._measured(positions)
         self.present_current_a = current
-        measured = self.kinematics.forward(positions)
-        self._pose = measured
-        return measured
+        self._commands += 1
+        if self._commands % self._check_every == 0:
+            self._check_torque()
+        return self._pose
+
+    def _measured(self, positions: NDArray[np.float64]) -> None:
+        self._joints = positions
+        self._pose = self.kinematics.forward(positions)
+
+    def _move_to(self, pose: NDArray[np.float64], paced: bool) -> NDArray[np.float64]:
+        """Command ``pose`` (inverse kinematics) and read back the measured pose."""
+        return self._command(self.kinematics.inverse(pose), paced)
 
     def _transit(self, target: NDArray[np.float64]) -> None:
-        """Move to ``target`` at the transit speed and settle (no states recorded)."""
-        origin = self._pose.copy()
-        distance = float(np.linalg.norm(target - origin))
+        """Move to ``target`` at about the transit speed in joint space (within the joint
+        limits all the way) and settle (no states recorded)."""
+        assert self._joints is not None
+        origin = self._joints.copy()
+        goal = self.kinematics.inverse(target)
+        fractions = np.linspace(0.0, 1.0, 65)[:, None]
+        path = self.kinematics.forward(origin + fractions * (goal - origin))
+        distance = float(np.sum(np.linalg.norm(np.diff(path, axis=0), axis=1)))
         steps = math.ceil(distance / (self.config.transit_speed_m_per_s * self._dt))
         for i in range(1, steps + 1):
-            self._move_to(origin + (target - origin) * (i / steps), paced=True)
+            self._command(origin + (goal - origin) * (i / steps), paced=True)
         for _ in range(self.config.settle_steps):
             if np.linalg.norm(self._pose - target) <= self.config.tolerance_m:
                 break
-            self._move_to(target, paced=True)
+            self._command(goal, paced=True)
         self._publish(speed=0.0, heading=self._state.heading_rad)
 
     def _step(self) -> RobotState:
@@ -365,18 +451,18 @@ class DynamixelRobot(Robot, DeviceLifecycle):
                 raise DeviceError(
                     f"robot {self.id!r}: servo {servo_id} on {config.port} is model {model}, "
                     f"not an XM430-W350 ({XM430_W350_MODEL_NUMBER})", device_id=self.id)
-        for axis in self.kinematics.axes:
+        for axis in self.kinematics.servos:
             self._write(axis.servo_id, "Torque Enable", 0, 1)
             self._write(axis.servo_id, "Operating Mode", _POSITION_MODE, 1)
             self._write(axis.servo_id, "Min Position Limit", axis.min_pulse, 4)
             self._write(axis.servo_id, "Max Position Limit", axis.max_pulse, 4)
         positions, _ = self._sync_read()
-        self._pose = self.kinematics.forward(positions)
+        self._measured(positions)
         self._publish(0.0, 0.0)
 
     def on_activate(self) -> None:
         positions, _ = self._sync_read()
-        self._pose = self.kinematics.forward(positions)
+        self._measured(positions)
         self._sync_write(np.rint(positions).astype(int))  # no jump when the torque comes on
         for servo_id in self._ids:
             self._write(servo_id, "Torque Enable", 1, 1)
@@ -450,167 +536,13 @@ class DynamixelRobot(Robot, DeviceLifecycle):
         ids = list(config.emulated_ids) if config.emulated_ids is not None else list(self._ids)
         self.bus = DynamixelBus(ids, faults=schedule, rng=bus_rng,
                                 time_constant_s=config.time_constant_s)
+        if self.environment is not None:
+            self._install_loads()
         self._link_dir = Path(tempfile.mkdtemp(prefix="hapticframe-dxl-"))
         self.emulator = PtyEmulator(
             _SteppedBus(self.bus, EMULATOR_LEAD_S), clock=self.clock, faults=schedule,
             link_path=self._link_dir / "ttyDXL", thread=True,
         ).start()
-
-    def _call(self, fn: Callable[..., Any], *args: Any) -> Any:
-        """One SDK call: a status without data crashes the SDK's decoding (IndexError) and
-        leaves the port busy; the link's own errors become OSError."""
-        try:
-            return fn(*args)
-        except IndexError:
-            self._port.is_using = False
-            self.stats["sdk_index_errors"] += 1
-            return None
-        except _LINK_ERRORS as exc:
-            self._port.is_using = False
-            raise OSError(f"the link to {self.config.port} failed: {exc}") from exc
-
-    def _count(self, comm: int) -> None:
-        if comm == dynamixel_sdk.COMM_RX_CORRUPT:
-            self.health.crc_errors += 1
-        else:
-            self.health.timeouts += 1
-
-    def _transact(self, what: str, attempt: Callable[[], Any], retries: int | None = None) -> Any:
-        """``attempt()`` returns a result or raises BusError; retried, then recovered once."""
-        tries = self.config.max_retries if retries is None else retries
-        error: Exception = BusError(what)
-        for i in range(tries + 1):
-            if i:
-                self.stats["retries"] += 1
-            try:
-                return attempt()
-            except (BusError, OSError) as exc:
-                error = exc
-        try:
-            self.recover(error)
-        except DeviceError as exc:
-            raise DeviceError(f"robot {self.id!r}: {what} failed: {exc}",
-                              device_id=self.id) from exc
-        try:
-            return attempt()
-        except (BusError, OSError) as exc:
-            raise DeviceError(f"robot {self.id!r}: {what} failed after a recovery: {exc}",
-                              device_id=self.id) from exc
-
-    def _check_status(self, servo_id: int, error: int) -> None:
-        if not error:
-            return
-        self.stats["status_errors"] += 1
-        if error & ERR_ALERT:
-            self.stats["hardware_errors"] += 1
-            value = self._call(self._ph.read1ByteTxRx, self._port, servo_id,
-                               _ADDR["Hardware Error Status"])
-            bits = value[0] if value is not None else -1
-            alert = HardwareAlert(f"servo {servo_id} raised the alert bit (hardware error "
-                                  f"status {bits:#04x})")
-            self.recover(alert)  # raises DeviceError unless the error has cleared
-            return
-        self.health.invalid_samples += 1
-        raise BusError(f"servo {servo_id} answered with error {error:#04x}")
-
-    def _ping(self, servo_id: int) -> int:
-        def attempt() -> int:
-            result = self._call(self._ph.ping, self._port, servo_id)
-            if result is None:
-                raise BusError("no ping data")
-            model, comm, _ = result
-            if comm != dynamixel_sdk.COMM_SUCCESS:
-                self._count(comm)
-                raise BusError(self._ph.getTxRxResult(comm))
-            return int(model)
-
-        for i in range(self.config.max_retries + 1):
-            if i:
-                self.stats["retries"] += 1
-            try:
-                return attempt()
-            except BusError:
-                continue
-        raise DeviceError(
-            f"robot {self.id!r}: servo {servo_id} does not answer on {self.config.port} "
-            "(missing, wrong ID or baud rate, or unpowered)", device_id=self.id)
-
-    def _write(self, servo_id: int, name: str, value: int, size: int) -> None:
-        fn = {1: self._ph.write1ByteTxRx, 2: self._ph.write2ByteTxRx,
-              4: self._ph.write4ByteTxRx}[size]
-
-        def attempt() -> None:
-            result = self._call(fn, self._port, servo_id, _ADDR[name], int(value))
-            if result is None:
-                raise BusError("no status")
-            comm, error = result
-            if comm != dynamixel_sdk.COMM_SUCCESS:
-                self._count(comm)
-                raise BusError(self._ph.getTxRxResult(comm))
-            self._check_status(servo_id, error)
-
-        self._transact(f"writing {name} = {value} to servo {servo_id}", attempt)
-
-    def _sync_write(self, goals: NDArray[np.int_], retries: int | None = None) -> None:
-        writer = dynamixel_sdk.GroupSyncWrite(self._port, self._ph, _ADDR["Goal Position"], 4)
-        for servo_id, goal in zip(self._ids, goals.tolist(), strict=True):
-            writer.addParam(servo_id, list(int(goal).to_bytes(4, "little", signed=True)))
-
-        def attempt() -> None:
-            comm = self._call(writer.txPacket)
-            if comm != dynamixel_sdk.COMM_SUCCESS:
-                self.health.timeouts += 1
-                raise BusError(f"sync write: {comm}")
-
-        self._transact("the goal positions' sync write", attempt, retries)
-
-    def _sync_read(
-        self, retries: int | None = None
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """One GroupSyncRead of Present Current..Present Position: (pulses, amperes)."""
-        reader = dynamixel_sdk.GroupSyncRead(self._port, self._ph, _READ_START, _READ_LENGTH)
-        for servo_id in self._ids:
-            reader.addParam(servo_id)
-
-        def attempt() -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-            comm = self._call(reader.txPacket)
-            if comm != dynamixel_sdk.COMM_SUCCESS:
-                self.health.timeouts += 1
-                raise BusError(f"sync read request: {comm}")
-            positions, currents = [], []
-            for servo_id in self._ids:
-                # The SDK's GroupSyncRead drops each status's error byte: read them here.
-                result = self._call(self._ph.readRx, self._port, servo_id, _READ_LENGTH)
-                if result is None:
-                    raise BusError(f"servo {servo_id}: a status without data")
-                data, comm, error = result
-                if comm != dynamixel_sdk.COMM_SUCCESS:
-                    self._count(comm)
-                    raise BusError(f"servo {servo_id}: {self._ph.getTxRxResult(comm)}")
-                self._check_status(servo_id, error)
-                if len(data) != _READ_LENGTH:
-                    self.health.invalid_samples += 1
-                    raise BusError(f"servo {servo_id}: {len(data)} data bytes")
-                raw = bytes(data)
-                currents.append(current_to_amps(int.from_bytes(raw[0:2], "little")))
-                positions.append(to_signed(int.from_bytes(raw[6:10], "little"), 4))
-            self.health.frames += 1
-            return np.array(positions, dtype=np.float64), np.array(currents)
-
-        result: tuple[NDArray[np.float64], NDArray[np.float64]] = self._transact(
-            "the present positions' sync read", attempt, retries)
-        return result
-
-    def _torque_all(self, value: int) -> None:
-        """Best effort on every servo, each once (a failed one does not stop the others)."""
-        if self._port is None or self._ph is None:
-            return
-        for servo_id in self._ids:
-            try:
-                self._call(self._ph.write1ByteTxRx, self._port, servo_id,
-                           _ADDR["Torque Enable"], value)
-            except Exception:
-                continue
 
 
 def _unit(movement: ExploratoryMovement) -> NDArray[np.float64]:

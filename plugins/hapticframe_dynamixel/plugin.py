@@ -13,8 +13,9 @@ from ._config import DynamixelRobotConfig
 def hapticframe_robots() -> Iterator[RobotSpec]:
     yield RobotSpec(
         name="dynamixel",
-        summary="A Cartesian gantry of Dynamixel XM430 servos (Protocol 2.0, dynamixel-sdk); "
-        "port 'emulated' runs them on a pseudo-terminal in simulation time.",
+        summary="Dynamixel XM430 servos (Protocol 2.0, dynamixel-sdk) as a Cartesian gantry or "
+        "a planar two-link arm on a vertical axis; port 'emulated' runs them on a "
+        "pseudo-terminal in simulation time.",
         config=DynamixelRobotConfig,
         factory="hapticframe_dynamixel._robot:DynamixelRobot",
         capabilities=frozenset({"hardware"}),

@@ -22,6 +22,10 @@ pytest.importorskip("dynamixel_sdk")
 
 SPEC = next(iter(dxl_plugin.hapticframe_robots()))
 IDS = (1, 2, 3)
+#: The SDK's reply timeout (real time) where faults withhold replies: short for speed, long
+#: enough that a loaded machine does not time out on a reply that comes (a spurious recovery
+#: would change the states).
+REPLY_MS = 60.0
 
 
 def build(seed: int = 0, **config: Any) -> DynamixelRobot:
@@ -77,8 +81,13 @@ def test_gantry_round_trips_and_limits() -> None:
 
 def test_a_workspace_beyond_the_joint_limits_is_refused_at_build() -> None:
     short = GantryConfig(x=AxisConfig(id=1, metres_per_rad=0.05))  # reaches 0.31 m
-    with pytest.raises(ValueError, match="position limits"):
+    with pytest.raises(ValueError, match=r"position limits: the pose \(0\.75, 0, 0\.044\) "
+                       r"\(x, y, depth\) needs the x servo \(ID 1\) at pulse 9778"):
         build(kinematics=short)
+    # A kinematics mapping without a type is the gantry, as before the two-link arm.
+    config = DynamixelRobotConfig.model_validate(
+        {"kinematics": {"x": {"id": 4, "metres_per_rad": 0.125}}})
+    assert isinstance(config.kinematics, GantryConfig) and config.kinematics.x.id == 4
 
 
 # --- the kit ------------------------------------------------------------------------------------
@@ -176,7 +185,7 @@ def test_torque_follows_the_lifecycle() -> None:
 
 
 def test_a_missing_servo_fails_configure_naming_it() -> None:
-    robot = build(emulated_ids=(1, 3), reply_timeout_ms=20.0)
+    robot = build(emulated_ids=(1, 3), reply_timeout_ms=REPLY_MS)
     try:
         with pytest.raises(DeviceError, match="servo 2 does not answer"):
             robot.configure()
@@ -210,7 +219,7 @@ def _wrong_model(robot: DynamixelRobot) -> Any:
 def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() -> None:
     # The emulated servos start at 2048 pulses; the transit to x = 0.05 takes ~3.8 s.
     robot = build(faults=[{"kind": "hardware_error", "at_s": 4.5, "params": {"id": 1}}],
-                  reply_timeout_ms=20.0)
+                  reply_timeout_ms=REPLY_MS)
     robot.configure()
     robot.activate()
     try:
@@ -235,29 +244,6 @@ def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() 
         robot.close()
 
 
-def test_an_unplugged_adapter_is_reopened_and_a_power_cycle_is_a_device_error() -> None:
-    """The link fails (OSError from the SDK's serial port): the robot waits a backoff in
-    simulation time, reopens the port once the emulated adapter is back, and finds the
-    power-cycled servos with their torque off: that is not resumed silently."""
-    robot = build(faults=[{"kind": "disconnect", "at_s": 4.5, "duration_s": 0.1}],
-                  reply_timeout_ms=20.0)
-    robot.configure()
-    robot.activate()
-    try:
-        robot.begin(line(0.05, 0.6))
-        while robot.clock.now() < 4.4:
-            assert robot.step() is not None
-        with pytest.raises(DeviceError, match="lost its torque"):
-            run_until_error(robot)
-        assert robot.health.reconnects >= 1
-        assert robot.emulator is not None and robot.emulator.stats["disconnects"] == 1
-        assert robot.bus is not None and robot.bus.stats["power_cycles"] == 1
-        assert torques(robot) == [0, 0, 0]
-        assert robot.step() is None
-    finally:
-        robot.close()
-
-
 def run_until_error(robot: DynamixelRobot) -> None:
     for _ in range(50):
         assert robot.step() is not None
@@ -271,7 +257,7 @@ def test_status_faults_are_counted_and_survived() -> None:
         {"kind": "sync_missing", "at_s": 4.6, "params": {"id": 2}},
         {"kind": "junk", "at_s": 4.8, "params": {"id": 1, "count": 6}},
     ]
-    robot = build(faults=faults, reply_timeout_ms=20.0)
+    robot = build(faults=faults, reply_timeout_ms=REPLY_MS)
     robot.configure()
     robot.activate()
     try:
@@ -307,7 +293,7 @@ def test_same_seed_same_states_under_faults() -> None:
 
     def run() -> tuple[np.ndarray, list[tuple[float, int, str]], dict[str, int]]:
         robot = make_component(SPEC, seed=3, config={"faults": FREQUENT,
-                                                     "reply_timeout_ms": 20.0},
+                                                     "reply_timeout_ms": REPLY_MS},
                                interface=Robot)
         try:
             states = robot.execute(line(0.05, 0.45, speed=0.1))
@@ -334,29 +320,3 @@ def test_standard_faults_need_the_emulator() -> None:
     with pytest.raises(ValueError, match="emulated"):
         DynamixelRobotConfig(port="/dev/ttyUSB0", faults="standard")
     assert DynamixelRobotConfig(faults="standard").faults == "standard"
-
-
-@pytest.mark.hardware
-def test_a_real_gantry_moves_and_holds() -> None:
-    """A real XM430 gantry (IDs 1-3 on HAPTICFRAME_DYNAMIXEL_PORT, at 1 Mbit/s): a 2 cm line
-    in the middle of the default workspace, then torque off. Keep clear of the gantry."""
-    import os
-    import time
-
-    port = os.environ.get("HAPTICFRAME_DYNAMIXEL_PORT")
-    if not port:
-        pytest.skip("set HAPTICFRAME_DYNAMIXEL_PORT to the U2D2's port")
-    robot = build(port=port)
-    robot.configure()
-    robot.activate()
-    try:
-        assert robot.live is True
-        movement = line(0.36, 0.38, speed=0.02)
-        robot.begin(movement)
-        states = []
-        while (state := robot.step()) is not None:
-            states.append(state)
-            time.sleep(1 / robot.control_rate_hz)  # the run paces a live robot
-        assert np.linalg.norm(states[-1].position_m - movement.end_m) < 0.002
-    finally:
-        robot.close()
