@@ -37,8 +37,9 @@ ADDR_GOAL = 116
 ADDR_OPERATING_MODE = 11
 ADDR_CURRENT = 126
 ADDR_POSITION = 132
-#: The SDK's timeout becomes 2 x 60 + 2 = 122 ms plus the bytes' time.
-LATENCY_MS = 60
+#: The SDK's timeout becomes 2 x 250 + 2 = 502 ms plus the bytes' time: a reply never times
+#: out on a loaded machine (the tests that expect a timeout wait that long).
+LATENCY_MS = 250
 
 COMM_SUCCESS = dynamixel_sdk.COMM_SUCCESS
 COMM_RX_TIMEOUT = dynamixel_sdk.COMM_RX_TIMEOUT
@@ -224,14 +225,15 @@ def test_status_faults_reach_the_sdk_as_on_a_real_bus() -> None:
 
 def test_late_reply_and_late_duplicate() -> None:
     events = (
-        FaultEvent("late_reply", at_s=0.0, params={"id": 1, "delay_s": 0.3}),
+        FaultEvent("late_reply", at_s=0.0, params={"id": 1, "delay_s": 0.8}),
         FaultEvent("late_duplicate", at_s=0.0, params={"id": 2}),
         FaultEvent("late_duplicate", at_s=0.0, params={"id": 3}),
     )
     for link in _faulty(*events):
         ph, port = link.ph, link.port
         assert ph.ping(port, 1)[1] == COMM_RX_TIMEOUT
-        time.sleep(0.35)  # the late reply arrives now; the next request flushes it
+        time.sleep(0.4)  # the late reply (0.8 s, after the 0.5 s timeout) arrives; the next
+        # request flushes it
         assert ph.ping(port, 1) == (1020, COMM_SUCCESS, 0)
         # A READ answered and answered again at the next request to the same servo: the
         # SDK takes the stale status as the answer (it checks the ID, not the request).
