@@ -174,7 +174,10 @@ class DynamixelRobotConfig(PluginConfig):
         3, ge=1, description="Failed recoveries in a row before DeviceError."
     )
     reply_timeout_ms: float = Field(
-        100.0, gt=0, description="Emulator only: the SDK's reply timeout (real time)."
+        500.0, gt=0, description="Emulator only: the SDK's reply timeout (real time). The "
+        "emulated servos answer at once in simulation time, so only an injected missing reply "
+        "waits this long; a short one lets a loaded machine's delay pass for a lost reply, and "
+        "the retries it causes change the run."
     )
     # -- emulator (port: emulated) -----------------------------------------------------------
     time_constant_s: float = Field(
