@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from ._dataflow import Dataflow
 from ._errors import RunError
 from ._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
-from ._safety import OUTSIDE_WORKSPACE, SafetyMonitor
+from ._safety import FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE, SafetyMonitor
 from ._session import Session
 from .kinds import (
     Component,
@@ -125,6 +125,7 @@ def _closed_loop(
         part = movement
         used: list[Robot] = []
         steps = 0
+        resumes = 0
         reason = ""
         while robot is not None:
             part, cut = team.part_for(robot, part)
@@ -142,6 +143,18 @@ def _closed_loop(
             steps += taken
             team.after_part(robot, taken)
             reason = halted_by_loop or robot.halt_reason
+            if reason == FORCE_STREAM_STALLED and resumes < settings.stall_resumes:
+                # A stalled sensor (replugged, resyncing) halted the line: the same robot
+                # continues it from where it stopped, once per stall, the parts one movement.
+                rest = team.resumption(movement, robot)
+                if rest is not None:
+                    resumes += 1
+                    flow.flush_maps()
+                    force_max_n = flow.force_max_n
+                    flow.start_stream()
+                    flow.force_max_n = force_max_n
+                    part, reason = rest, ""
+                    continue
             if not (reason == WORKSPACE_LIMIT or (cut and not reason)):
                 break
             # The robot stopped at its workspace limit: another continues the line.
@@ -164,7 +177,10 @@ def _closed_loop(
             final_state=used[-1].state if used else None,
             final_class=flow.latest_class(),
             max_force_n=flow.force_max_n,
-            extra={"robots": tuple(r.id for r in used)} if team.several else {},
+            extra={
+                **({"robots": tuple(r.id for r in used)} if team.several else {}),
+                **({"stall_resumes": resumes} if resumes else {}),
+            },
         )
         session.movements.append(result)
         _note_force(session, flow.force_max_n)

@@ -195,6 +195,21 @@ class RobotTeam:
         depth = float(state.depth_m) if math.isfinite(state.depth_m) else movement.depth_m
         return nxt, _line(movement, stop, movement.end_m, depth)
 
+    def resumption(
+        self, movement: ExploratoryMovement, robot: Robot
+    ) -> ExploratoryMovement | None:
+        """The rest of ``movement`` from where ``robot`` stopped, at the depth it raked, for
+        the same robot to continue (after a stalled force stream); None when nothing is left
+        of the line or the robot's position is unknown."""
+        state = robot.state
+        stop = np.asarray(state.position_m, dtype=np.float64)
+        if not np.all(np.isfinite(stop)):
+            return None
+        if float(np.hypot(*(movement.end_m - stop))) <= TOLERANCE_M:
+            return None
+        depth = float(state.depth_m) if math.isfinite(state.depth_m) else movement.depth_m
+        return _line(movement, stop, movement.end_m, depth)
+
     def after_part(self, robot: Robot, steps: int) -> None:
         """Robots that share a run must share a clock: the steps of a part come after every
         step of the parts before (the pose history and the trace need one time line).

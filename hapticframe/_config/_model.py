@@ -94,6 +94,13 @@ class RunSettings(BaseModel):
         "(by the robot's state timestamps) halts the robot, reason 'force_stream_stalled'. "
         "Only in runs that stream a force sensor; null disables it.",
     )
+    stall_resumes: int = Field(
+        2, ge=0, le=100,
+        description="A movement halted for a stalled force stream ('force_stream_stalled', "
+        "e.g. a sensor being replugged) resumes this many times at most: the same robot "
+        "continues the line from where it stopped once the stall check passes again, the "
+        "parts one movement; then it ends halted. 0: never resume.",
+    )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,
         description="With a live device (real hardware), the shortest wall-clock time between "

@@ -21,7 +21,10 @@ A sample whose force is NaN or infinite, or that the batch marks invalid, is rep
 last valid force (sample-and-hold), so the filter and the rate carry on smoothly. Samples
 before the first valid one get uniform probabilities (arg-max: "free") and leave the filter
 uninitialised. The filter starts at rest on the first valid force, so a classifier switched
-on mid-movement does not see a spurious step.
+on mid-movement does not see a spurious step. After a gap of more than
+``restart_after_gap_s`` without a valid force (a sensor replugged or resynchronising), the
+filter starts again at rest on the next valid force: the force changed during the gap, and
+the held value's jump to it would read as a force rate no sand produced.
 """
 
 from __future__ import annotations
@@ -82,6 +85,7 @@ class TrackerState:
     last_y: float | None
     last_t: float | None
     last_seen_t: float
+    last_valid_t: float
 
 
 class ForceRateTracker:
@@ -91,10 +95,16 @@ class ForceRateTracker:
     ----------
     sos : (k, 6) array
         Second-order sections of the low-pass filter.
+    restart_after_gap_s : float
+        A valid sample more than this long after the previous valid one restarts the filter
+        at rest on it (its rate is 0); ``inf``: never.
     """
 
-    def __init__(self, sos: NDArray[np.float64]) -> None:
+    def __init__(self, sos: NDArray[np.float64], restart_after_gap_s: float = math.inf) -> None:
+        if not restart_after_gap_s > 0:
+            raise ValueError(f"restart_after_gap_s must be positive, got {restart_after_gap_s}")
         self._sos = sos
+        self._max_gap_s = float(restart_after_gap_s)
         # Plain-float copies for the one-sample path: (b0, b1, b2, a1, a2) per section (a0 = 1).
         self._sections = [
             (float(r[0]), float(r[1]), float(r[2]), float(r[4]), float(r[5])) for r in sos
@@ -110,6 +120,7 @@ class ForceRateTracker:
         self._last_y: float | None = None
         self._last_t: float | None = None  # time of the last filtered sample
         self._last_seen_t = -np.inf  # time of the last sample of any kind
+        self._last_valid_t = -np.inf  # time of the last valid sample
 
     def snapshot(self) -> TrackerState:
         """The whole streaming state (copies), for :meth:`restore`."""
@@ -120,6 +131,7 @@ class ForceRateTracker:
             self._last_y,
             self._last_t,
             self._last_seen_t,
+            self._last_valid_t,
         )
 
     def restore(self, snapshot: TrackerState) -> None:
@@ -131,6 +143,7 @@ class ForceRateTracker:
         self._last_y = snapshot.last_y
         self._last_t = snapshot.last_t
         self._last_seen_t = snapshot.last_seen_t
+        self._last_valid_t = snapshot.last_valid_t
 
     def process(
         self,
@@ -157,6 +170,30 @@ class ForceRateTracker:
             self._zi = np.array(self._registers, dtype=np.float64)
             self._registers = None
         ok = valid & np.isfinite(magnitude)
+        # Valid rows that follow a gap longer than the limit start a new segment.
+        valid_t = t[ok]
+        previous = np.concatenate([[self._last_valid_t], valid_t[:-1]])
+        restarts = np.flatnonzero(ok)[(valid_t - previous > self._max_gap_s)
+                                      & np.isfinite(previous)]
+        if valid_t.size:
+            self._last_valid_t = float(valid_t[-1])
+        if not restarts.size:
+            return self._segment(t, magnitude, ok)
+        parts = []
+        for a, b in zip(np.concatenate([[0], restarts]), np.concatenate([restarts, [n]]),
+                        strict=True):
+            if a in restarts:
+                self._zi, self._last_y, self._last_t = None, None, None
+            if b > a:
+                parts.append(self._segment(t[a:b], magnitude[a:b], ok[a:b]))
+        force, rate, initialised = (np.concatenate(p) for p in zip(*parts, strict=True))
+        return force, rate, initialised
+
+    def _segment(
+        self, t: NDArray[np.float64], magnitude: NDArray[np.float64], ok: NDArray[np.bool_]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """:meth:`process` of rows without a restart (``ok``: valid and finite)."""
+        n = t.size
         # Forward-fill: each row takes the latest valid value at or before it.
         source = np.maximum.accumulate(np.where(ok, np.arange(n), -1))
         before = np.nan if self._held is None else self._held
@@ -192,12 +229,15 @@ class ForceRateTracker:
         """
         if self._last_y is None or self._last_t is None or t <= self._last_seen_t:
             return None
+        if t - self._last_valid_t > self._max_gap_s:
+            return None  # a restart after a gap: process() handles it
         registers = self._registers
         if registers is None:
             if self._zi is None:
                 return None
             registers = self._registers = self._zi.tolist()
         self._last_seen_t = t
+        self._last_valid_t = t
         sample = magnitude
         for (b0, b1, b2, a1, a2), section in zip(self._sections, registers, strict=True):
             y = b0 * sample + section[0]
@@ -248,7 +288,7 @@ class ForceRateJammingClassifier(Classifier):
             sos = F.butterworth_sos(cfg.cutoff_hz, self._sample_rate_hz, cfg.filter_order)
         except ValueError as exc:
             raise ValueError(f"classifier {self.id!r}: {exc}") from exc
-        self._tracker = ForceRateTracker(sos)
+        self._tracker = ForceRateTracker(sos, cfg.restart_after_gap_s)
         # The thresholds with their softness scales, as plain floats for the one-sample path.
         self._rule = (*(float(v) for v in self.thresholds), float(cfg.force_scale_n),
                       float(cfg.rate_scale_n_per_s))

@@ -29,6 +29,11 @@ class ForceRateJammingConfig(PluginConfig):
     )
     cutoff_hz: float = Field(3.0, gt=0, description="Butterworth low-pass cutoff frequency.")
     filter_order: int = Field(2, ge=1, le=4, description="Butterworth filter order.")
+    restart_after_gap_s: float = Field(
+        0.05, gt=0, description="A valid force more than this long after the previous valid "
+        "one (a sensor replugged or resynchronising) restarts the filter at rest on it, so "
+        "that the force's change during the gap does not read as a force rate.",
+    )
     jamming_force_n: float = Field(
         6.0, allow_inf_nan=False, description="Filtered force above which jamming is possible."
     )

@@ -377,6 +377,51 @@ def test_one_sample_filter_steps_equal_the_array_filter(order):
     np.testing.assert_array_equal(rate, whole[1])
 
 
+def _ramp_with_gap(gap: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A force rising at 10 N/s (free raking as the drag builds), invalid over ``gap``."""
+    t = np.arange(200) / RATE_HZ
+    magnitude = 5.0 + 10.0 * t
+    valid = np.ones(t.size, dtype=bool)
+    valid[gap] = False
+    return t, magnitude, valid
+
+
+def test_a_gap_restarts_the_filter_instead_of_reading_a_jump_as_a_rate():
+    from hapticframe_jamming._classifier import ForceRateTracker
+
+    sos = F.butterworth_sos(3.0, RATE_HZ, 2)
+    t, magnitude, valid = _ramp_with_gap(slice(80, 110))  # 0.3 s without a valid force
+    held_over = ForceRateTracker(sos).process(t, magnitude, valid)[1]
+    restarted = ForceRateTracker(sos, restart_after_gap_s=0.05).process(t, magnitude, valid)[1]
+    # Held across the gap, the 3 N jump to the next valid force reads as a rate far above
+    # the ramp's 10 N/s; restarted at rest on it, the rate starts again from 0.
+    assert np.nanmax(held_over[110:140]) > 30.0
+    assert restarted[110] == 0.0
+    assert np.nanmax(restarted[110:]) < 11.0  # the filter's small overshoot of the ramp
+    np.testing.assert_array_equal(restarted[:110], held_over[:110])  # the same until then
+
+
+def test_a_short_gap_is_held_over_and_a_restart_is_chunking_invariant():
+    from hapticframe_jamming._classifier import ForceRateTracker
+
+    sos = F.butterworth_sos(3.0, RATE_HZ, 2)
+    t, magnitude, valid = _ramp_with_gap(slice(80, 83))  # 0.03 s: shorter than the limit
+    short = ForceRateTracker(sos, restart_after_gap_s=0.05).process(t, magnitude, valid)
+    never = ForceRateTracker(sos).process(t, magnitude, valid)
+    np.testing.assert_array_equal(short[1], never[1])
+    t, magnitude, valid = _ramp_with_gap(slice(50, 90))
+    whole = ForceRateTracker(sos, restart_after_gap_s=0.05).process(t, magnitude, valid)
+    stepped = ForceRateTracker(sos, restart_after_gap_s=0.05)
+    rates = []
+    for k in range(t.size):  # one sample at a time, through process_one where it can
+        one = stepped.process_one(float(t[k]), float(magnitude[k])) if valid[k] else None
+        if one is None:
+            one = tuple(a[0] for a in stepped.process(t[k:k + 1], magnitude[k:k + 1],
+                                                      valid[k:k + 1])[:2])
+        rates.append(one[1])
+    np.testing.assert_allclose(rates, whole[1], rtol=1e-12, atol=1e-12)
+
+
 def _assert_exits_cleanly(code: str) -> None:
     """Run ``code`` in a fresh interpreter (nothing imported yet) and expect exit status 0."""
     root = Path(__file__).resolve().parents[2]
