@@ -137,6 +137,14 @@ class PluginSpec:
     check_inputs : tuple of str
         Plugins the kit builds as this component's inputs, as ``"kind/name"``
         (``("robot/sandbox",)`` for a simulated sensor mounted on the sandbox robot).
+    validator : str
+        ``"module:function"`` of an import-light function that ``validate`` calls with the
+        component's validated config and a :class:`hapticframe.ValidationContext` (its
+        inputs' and every component's type and config, the scene, the run settings), for
+        checks a config model alone cannot make (across fields, across components, against
+        the scene). It yields :class:`hapticframe.Finding` records: errors refuse the file
+        (exit 2, located at the finding's field), warnings are reported and the file is
+        valid. ``""``: none.
     """
 
     kind: ClassVar[Kind]
@@ -154,6 +162,7 @@ class PluginSpec:
     sample_rate_hz: float = 100.0
     check_config: dict[str, Any] | None = field(default=None, hash=False)
     check_inputs: tuple[str, ...] = ()
+    validator: str = ""
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not _NAME.match(self.name):
@@ -175,6 +184,13 @@ class PluginSpec:
                 f"plugin {self.name!r}: factory must be a 'module:attribute' string, "
                 f"got {self.factory!r}"
             )
+        if self.validator and (
+            not isinstance(self.validator, str) or not _REFERENCE.match(self.validator)
+        ):
+            raise ValueError(
+                f"plugin {self.name!r}: validator must be a 'module:attribute' string, "
+                f"got {self.validator!r}"
+            )
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "requires", tuple(self.requires))
         for ref in self.check_inputs:
@@ -193,6 +209,16 @@ class PluginSpec:
     @property
     def key(self) -> tuple[Kind, str]:
         return (self.kind, self.name)
+
+    def load_validator(self) -> Any:
+        """Import and return the ``validator`` function (None without one); its module must
+        be import-light, like the config's: it runs when a file is validated."""
+        if not self.validator:
+            return None
+        return resolve_reference(
+            self.validator, what=f"the validator of {self.kind} plugin {self.name!r}",
+            install_hint=self.install_hint,
+        )
 
     def load_factory(self) -> Any:
         """Import and return the implementation (heavy imports happen here)."""

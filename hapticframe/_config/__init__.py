@@ -1,5 +1,6 @@
 """Experiment files: loading, the registry-built model, and validation."""
 
+from ._checks import ComponentView, Finding, ValidationContext
 from ._load import LoadedFile, load_file, load_text
 from ._model import SCHEMA_VERSION, ExperimentRoot, RunSettings, build_experiment_model
 from ._validate import ComponentEntry, Experiment, validate_data, validate_file, validate_mapping
@@ -7,10 +8,13 @@ from ._validate import ComponentEntry, Experiment, validate_data, validate_file,
 __all__ = [
     "SCHEMA_VERSION",
     "ComponentEntry",
+    "ComponentView",
     "Experiment",
     "ExperimentRoot",
+    "Finding",
     "LoadedFile",
     "RunSettings",
+    "ValidationContext",
     "build_experiment_model",
     "load_file",
     "load_text",

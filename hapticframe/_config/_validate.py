@@ -19,6 +19,7 @@ from .._errors import ExperimentError, Issue
 from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
+from ._checks import run_validators
 from ._load import LoadedFile, join_path, load_file
 from ._model import ExperimentRoot, build_experiment_model
 
@@ -50,6 +51,8 @@ class Experiment:
     components: tuple[ComponentEntry, ...]
     registry: Registry
     plugin_manager: PluginManager
+    #: Legal but suspicious: what plugin validators warned about (located).
+    warnings: tuple[Issue, ...] = ()
 
     @property
     def seed(self) -> int:
@@ -153,7 +156,11 @@ def validate_data(
         issues.extend(_check_graph(entries, loaded))
         issues.extend(_check_train_from(model.run.train_from, entries, loaded))
         if not issues:
-            return Experiment(file, model, tuple(_build_order(entries)), registry, pm)
+            errors, warnings = run_validators(entries, model, loaded)
+            issues.extend(errors)
+        if not issues:
+            return Experiment(file, model, tuple(_build_order(entries)), registry, pm,
+                              tuple(warnings))
     issues.sort(key=lambda i: (i.line or 0, i.path))
     raise ExperimentError(file, _dedupe(issues))
 
