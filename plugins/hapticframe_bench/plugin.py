@@ -17,7 +17,7 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``search-devices``, ``search-dynamixel``,
+    """Yield the suites: ``search``, ``search-devices``, ``search-dynamixel``, ``fuzz``,
     ``perception``, ``bhm`` and ``latency``."""
     yield BenchSpec(
         name="search",
@@ -39,6 +39,12 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "and the force observer, the sandbox following the gantry (issue 15).",
         factory="hapticframe_bench._search_dynamixel:run_search_dynamixel",
         install_hint="pip install 'hapticframe[hardware]'  (dynamixel-sdk, pyserial)",
+    )
+    yield BenchSpec(
+        name="fuzz",
+        summary="Mutants of the examples (issue 16): each refused at validate with located "
+        "issues, or run to a clean end; --trials mutants (default 320).",
+        factory="hapticframe_bench._fuzz:run_fuzz",
     )
     yield BenchSpec(
         name="perception",

@@ -1,0 +1,332 @@
+"""``hapticframe bench fuzz``: mutants of the examples, each refused cleanly or run cleanly.
+
+Issue 16: what ``validate`` accepts, ``run`` must survive. Mutants are drawn, from a seeded
+generator, out of the bundled examples in these categories:
+
+* ``number``: a numeric field set to an extreme (0, -1, ±1e308, NaN, ±inf, 1e-308, 1e12) or a
+  boolean;
+* ``type``: a field of the wrong type (a string, a list, a mapping, null);
+* ``structure``: a key removed, an unknown key added, a component duplicated, inputs emptied
+  or naming nothing, a component removed;
+* ``text``: a name or type 100,000 characters long, or holding a NUL.
+
+Each mutant is validated in this process; one that is refused must be refused with exit 2
+and every issue located (a dotted path or a line). One that is accepted is run in a child
+process (``hapticframe run``, movements capped, a time limit and an address-space limit):
+it must end with exit 0 and real metrics, or with a clear error (exit 1 or 2, no "internal
+error"); a run that exits 2 was refused only when building, which counts as a failure (the
+refusal belongs to ``validate``), and so does a time-out.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from hapticframe import BenchOptions, ExperimentError, HapticframeError, validate_mapping
+
+__all__ = [
+    "CATEGORIES",
+    "Mutant",
+    "Outcome",
+    "check_mutant",
+    "generate_mutants",
+    "run_fuzz",
+]
+
+CATEGORIES = ("number", "type", "structure", "text")
+#: Examples whose mutants are also run (the others need recordings or trained models).
+RUNNABLE = ("search-ellipse.yaml", "search-circle-baseline.yaml", "search-two-arms.yaml")
+#: Numeric extremes a field is set to.
+EXTREMES: tuple[Any, ...] = (0, -1, 1e308, -1e308, math.nan, math.inf, -math.inf, 1e-308,
+                             10**12, True)
+WRONG_TYPES: tuple[Any, ...] = ("x", [], {}, None)
+#: A child run's limits: wall time, address space, movements.
+RUN_TIMEOUT_S = 180.0
+RUN_MEMORY_BYTES = 6 * 1024**3
+MAX_MOVEMENTS = 3
+DEFAULT_MUTANTS = 320
+QUICK_MUTANTS = 60
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """One mutated experiment: its source example, category, what changed, and the data."""
+
+    example: str
+    category: str
+    change: str
+    data: Any
+    runnable: bool
+
+
+@dataclass
+class Outcome:
+    """What became of a mutant: ``refused`` (at validate), ``ran`` (exit 0), ``failed_clean``
+    (a clear run error), or a failure (``ok`` False) with the reason."""
+
+    mutant: Mutant
+    status: str
+    ok: bool
+    detail: str = ""
+    seconds: float = 0.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _examples(root: Path) -> list[tuple[str, Any]]:
+    out = []
+    for path in sorted(root.glob("*.yaml")):
+        out.append((path.name, yaml.safe_load(path.read_text(encoding="utf-8"))))
+    return out
+
+
+def _leaves(data: Any, path: tuple[Any, ...] = ()) -> Iterator[tuple[tuple[Any, ...], Any]]:
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from _leaves(value, (*path, key))
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            yield from _leaves(value, (*path, i))
+    else:
+        yield path, data
+
+
+def _containers(data: Any, path: tuple[Any, ...] = ()) -> Iterator[tuple[tuple[Any, ...], Any]]:
+    if isinstance(data, dict):
+        yield path, data
+        for key, value in data.items():
+            yield from _containers(value, (*path, key))
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            yield from _containers(value, (*path, i))
+
+
+def _set(data: Any, path: tuple[Any, ...], value: Any) -> None:
+    for key in path[:-1]:
+        data = data[key]
+    data[path[-1]] = value
+
+
+def _get(data: Any, path: tuple[Any, ...]) -> Any:
+    for key in path:
+        data = data[key]
+    return data
+
+
+def _dotted(path: tuple[Any, ...]) -> str:
+    return "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path).lstrip(".")
+
+
+def _mutate(base: Any, category: str, rng: np.random.Generator) -> tuple[str, Any] | None:
+    data = copy.deepcopy(base)
+    if category == "number":
+        numbers = [(p, v) for p, v in _leaves(data)
+                   if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if not numbers:
+            return None
+        path, _ = numbers[int(rng.integers(len(numbers)))]
+        value = EXTREMES[int(rng.integers(len(EXTREMES)))]
+        _set(data, path, value)
+        return f"{_dotted(path)} = {value!r}", data
+    if category == "type":
+        leaves = [(p, v) for p, v in _leaves(data) if p]
+        path, _ = leaves[int(rng.integers(len(leaves)))]
+        value = WRONG_TYPES[int(rng.integers(len(WRONG_TYPES)))]
+        _set(data, path, value)
+        return f"{_dotted(path)} = {value!r}", data
+    if category == "text":
+        targets = [("name",)] + [
+            (section, i, key) for section in ("robots", "sensors", "classifiers", "maps")
+            for i in range(len(data.get(section) or [])) for key in ("type", "id")
+        ]
+        path = targets[int(rng.integers(len(targets)))]
+        value = "z" * 100_000 if rng.random() < 0.5 else "bad\x00name"
+        _set(data, path, value)
+        return f"{_dotted(path)} = <{len(value)} characters>", data
+    # structure
+    sections = [s for s in ("robots", "sensors", "feature_extractors", "classifiers",
+                            "sensor_models", "maps", "planners") if data.get(s)]
+    kind = int(rng.integers(6))
+    if kind == 0:  # remove a key
+        mappings = [(p, m) for p, m in _containers(data) if isinstance(m, dict) and m]
+        path, mapping = mappings[int(rng.integers(len(mappings)))]
+        key = list(mapping)[int(rng.integers(len(mapping)))]
+        del mapping[key]
+        return f"removed {_dotted((*path, key))}", data
+    if kind == 1:  # an unknown key
+        mappings = [(p, m) for p, m in _containers(data) if isinstance(m, dict)]
+        path, mapping = mappings[int(rng.integers(len(mappings)))]
+        mapping["zz_unknown"] = 1
+        return f"added {_dotted((*path, 'zz_unknown'))}", data
+    if not sections:
+        return None
+    section = sections[int(rng.integers(len(sections)))]
+    items = data[section]
+    i = int(rng.integers(len(items)))
+    if kind == 2:
+        items.append(copy.deepcopy(items[i]))
+        return f"duplicated {section}[{i}]", data
+    if kind == 3:
+        items[i]["inputs"] = []
+        return f"{section}[{i}].inputs = []", data
+    if kind == 4:
+        items[i]["inputs"] = ["nosuchcomponent"]
+        return f"{section}[{i}].inputs = ['nosuchcomponent']", data
+    del items[i]
+    return f"removed {section}[{i}]", data
+
+
+def generate_mutants(examples_dir: Path, count: int, seed: int = 0) -> list[Mutant]:
+    """``count`` mutants of the examples in ``examples_dir``, categories in turn (seeded)."""
+    rng = np.random.default_rng(seed)
+    bases = _examples(examples_dir)
+    mutants: list[Mutant] = []
+    attempts = 0
+    while len(mutants) < count and attempts < 20 * count:
+        attempts += 1
+        category = CATEGORIES[len(mutants) % len(CATEGORIES)]
+        name, base = bases[int(rng.integers(len(bases)))]
+        made = _mutate(base, category, rng)
+        if made is None:
+            continue
+        change, data = made
+        mutants.append(Mutant(name, category, change, data, name in RUNNABLE))
+    return mutants
+
+
+def _limit_memory() -> None:  # runs in the child before exec
+    resource.setrlimit(resource.RLIMIT_AS, (RUN_MEMORY_BYTES, RUN_MEMORY_BYTES))
+
+
+def check_mutant(mutant: Mutant, workdir: Path, *, run: bool = True) -> Outcome:
+    """Validate ``mutant`` here; run it in a child process when accepted (and ``run``)."""
+    started = time.perf_counter()
+    try:
+        validate_mapping(copy.deepcopy(mutant.data), source=f"<{mutant.example}>")
+    except ExperimentError as exc:
+        unlocated = [i for i in exc.issues if not i.path and i.line is None]
+        long = [i for i in exc.issues if len(i.message) > 2000]
+        ok = not unlocated and not long and exc.exit_code == 2
+        detail = "" if ok else (f"{len(unlocated)} unlocated issue(s)" if unlocated
+                                else "a message over 2000 characters")
+        return Outcome(mutant, "refused", ok, detail, time.perf_counter() - started)
+    except HapticframeError as exc:
+        ok = exc.exit_code == 2
+        return Outcome(mutant, "refused", ok, "" if ok else f"exit {exc.exit_code}: {exc}"[:300],
+                       time.perf_counter() - started)
+    except Exception as exc:  # an internal error at validate
+        return Outcome(mutant, "internal_error", False,
+                       f"validate raised {type(exc).__name__}: {exc}"[:300],
+                       time.perf_counter() - started)
+    if not (run and mutant.runnable):
+        return Outcome(mutant, "accepted", True, "", time.perf_counter() - started)
+    return _run_child(mutant, workdir, started)
+
+
+def _run_child(mutant: Mutant, workdir: Path, started: float) -> Outcome:
+    data = copy.deepcopy(mutant.data)
+    data.setdefault("run", {})
+    if isinstance(data["run"], dict):
+        data["run"].update({"max_movements": MAX_MOVEMENTS, "figures": False})
+    workdir.mkdir(parents=True, exist_ok=True)
+    experiment = workdir / "experiment.yaml"
+    experiment.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
+    out = workdir / "run"
+    command = [sys.executable, "-m", "hapticframe", "run", str(experiment), "--out", str(out),
+               "--quiet"]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=RUN_TIMEOUT_S,
+                              preexec_fn=_limit_memory if os.name == "posix" else None,
+                              check=False)
+    except subprocess.TimeoutExpired:
+        return Outcome(mutant, "timeout", False, f"no end within {RUN_TIMEOUT_S:g} s",
+                       time.perf_counter() - started)
+    seconds = time.perf_counter() - started
+    stderr = done.stderr.strip()
+    last = stderr.splitlines()[-1] if stderr else ""
+    if "internal error" in stderr or "Traceback" in stderr:
+        return Outcome(mutant, "internal_error", False, last[:300], seconds)
+    if done.returncode == 0:
+        metrics_path = out / "metrics.json"
+        if not metrics_path.exists():
+            return Outcome(mutant, "no_metrics", False, "exit 0 without metrics.json", seconds)
+        metrics = json.loads(metrics_path.read_text(encoding="utf-8"))
+        if not isinstance(metrics.get("object_found"), bool):
+            return Outcome(mutant, "null_metrics", False, "exit 0, object_found not a bool",
+                           seconds)
+        return Outcome(mutant, "ran", True, "", seconds)
+    if done.returncode == 2:
+        return Outcome(mutant, "refused_at_run", False, last[:300], seconds)
+    if done.returncode == 1 and last.startswith("error:"):
+        return Outcome(mutant, "failed_clean", True, last[:300], seconds)
+    return Outcome(mutant, f"exit_{done.returncode}", False, last[:300], seconds)
+
+
+def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
+             check: Callable[..., Outcome] = check_mutant) -> dict[str, Any]:
+    """``hapticframe bench fuzz`` (see the module docstring): ``--trials`` mutants (default
+    320, 60 with ``--quick``), ``--seed``; writes ``fuzz.json`` and ``fuzz.md`` into
+    ``--out`` and returns the summary."""
+    root = Path(examples_dir) if examples_dir is not None else _bundled_examples()
+    count = options.trials or (QUICK_MUTANTS if options.quick else DEFAULT_MUTANTS)
+    mutants = generate_mutants(root, count, options.seed)
+    out_dir = Path(options.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    outcomes: list[Outcome] = []
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="hapticframe-fuzz-") as tmp:
+        for k, mutant in enumerate(mutants):
+            outcome = check(mutant, Path(tmp) / f"m{k:04d}")
+            outcomes.append(outcome)
+            mark = "ok  " if outcome.ok else "FAIL"
+            options.echo(f"[{k + 1:>4}/{len(mutants)}] {mark} {outcome.status:<15} "
+                         f"{mutant.category:<9} {mutant.example}: {mutant.change[:70]}"
+                         + (f" -> {outcome.detail[:120]}" if outcome.detail else ""))
+    failures = [o for o in outcomes if not o.ok]
+    counts: dict[str, int] = {}
+    for o in outcomes:
+        counts[o.status] = counts.get(o.status, 0) + 1
+    failure_records = [{"example": o.mutant.example, "category": o.mutant.category,
+                        "change": o.mutant.change, "status": o.status, "detail": o.detail}
+                       for o in failures]
+    summary: dict[str, Any] = {
+        "mutants": len(outcomes),
+        "seed": options.seed,
+        "by_status": counts,
+        "failures": failure_records,
+        "wall_time_s": time.perf_counter() - started,
+    }
+    (out_dir / "fuzz.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    lines = ["# Fuzzing the examples (issue 16)", "",
+             f"{len(outcomes)} mutants, seed {options.seed}: "
+             + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
+             + f"; {len(failures)} failures; {summary['wall_time_s']:.0f} s.", ""]
+    lines += [f"- {f['status']}: {f['example']} {f['change'][:80]} — {f['detail'][:160]}"
+              for f in failure_records]
+    (out_dir / "fuzz.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    options.echo(f"fuzz: {len(outcomes)} mutants, {len(failures)} failures "
+                 f"({out_dir / 'fuzz.md'})")
+    return summary
+
+
+def _bundled_examples() -> Path:
+    here = Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "examples"
+        if (candidate / "search-ellipse.yaml").exists():
+            return candidate
+    raise HapticframeError("the examples directory was not found: pass it from a checkout")
