@@ -9,21 +9,44 @@ baseline, each through the core's public :func:`hapticframe.run_experiment`.
 Outputs in ``options.out_dir``:
 
 * ``trials/<shape>-<i>-<planner>/``: every run's own files (figures only for trial 0 of
-  each shape: later trials run with ``run.figures: false``),
+  each shape: later trials run with ``run.figures: false``) and, once the run has finished,
+  ``bench-trial.json`` (see below),
 * ``search.json``: the summary (see :func:`run_suite`),
 * ``search.md``: a table in the form of Table 3.2 beside the thesis's figures,
 * ``search.png``: per-trial centroid error and Hausdorff distance.
+
+Interruptions and resuming: each completed trial's record is kept in its run directory as
+``bench-trial.json`` (written to a temporary name and renamed, so it is whole or absent),
+stamped with a fingerprint of the trial's experiment, the library versions and the source
+of hapticframe and its plugins (:func:`trial_fingerprint`). A trial directory counts as
+finished only when that file exists with a matching fingerprint. Run the same command into
+the same ``out_dir`` after an interruption and it reuses every finished trial (its progress
+line says ``kept``) and runs the rest from scratch, clearing what an interrupted run left in
+their directories first; the summary is the one an uninterrupted run writes (bar wall
+times). A failed trial is not kept: the next run tries it again.
+
+Worker processes die with the suite's process, even when it is killed with ``SIGKILL``:
+each asks Linux to kill it when its parent dies (``PR_SET_PDEATHSIG``) and, on every
+platform, watches its parent from a thread and exits once it has gone.
 """
 
 from __future__ import annotations
 
+import ctypes
 import functools
+import hashlib
 import importlib.metadata
+import importlib.util
 import json
 import math
+import multiprocessing
 import os
 import platform
+import shutil
+import signal
 import subprocess
+import sys
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -45,9 +68,11 @@ __all__ = [
     "DEFAULT_TRIALS",
     "QUICK_TRIALS",
     "SEARCH_PLANNER",
+    "TRIAL_FILE",
     "run_search",
     "run_suite",
     "search_targets",
+    "trial_fingerprint",
     "trial_seed",
     "trials_for",
 ]
@@ -63,6 +88,10 @@ BASELINE_PLANNER = "coverage"
 WALL_TIME_TARGET_S = 60.0
 
 ExperimentFactory = Callable[[Sequence[Mapping[str, Any]], str, int, str], dict[str, Any]]
+
+#: A finished trial's record, in its run directory; the directory holds a finished trial
+#: only when this file exists.
+TRIAL_FILE = "bench-trial.json"
 
 
 def trial_seed(seed: int, shape: str, index: int) -> int:
@@ -149,9 +178,11 @@ def _command(options: BenchOptions, trials: int) -> str:
     return " ".join(parts)
 
 
-def _progress(record: Mapping[str, Any], done: int, total: int) -> str:
+def _progress(record: Mapping[str, Any], done: int, total: int, *, kept: bool = False) -> str:
     head = (f"[{done:>3}/{total}] {record['shape']:<7} trial {record['index']:<3} "
             f"{record['planner']:<19}")
+    if kept:
+        head += " kept from an earlier run:"
     if record["status"] != "ok":
         return f"{head} FAILED after {record['wall_time_s']:.1f} s: {record['error']}"
     f = record["figures"]
@@ -170,19 +201,108 @@ def _progress(record: Mapping[str, Any], done: int, total: int) -> str:
     )
 
 
+# --- kept trials ---------------------------------------------------------------------------
+
+#: Packages whose code decides a trial's result besides the registered plugins' own.
+_FINGERPRINT_PACKAGES = ("hapticframe", __name__.split(".")[0])
+
+
+@functools.lru_cache(maxsize=1)
+def _code_digest() -> str:
+    """sha256 over the source of hapticframe, this suite and every registered plugin package.
+
+    Looked up once per process; an edit to any of them retires kept trials.
+    """
+    packages = set(_FINGERPRINT_PACKAGES)
+    packages.update(entry.source.module.split(".")[0] for entry in hapticframe.get_registry())
+    digest = hashlib.sha256()
+    for package in sorted(packages):
+        spec = importlib.util.find_spec(package)
+        roots = list(spec.submodule_search_locations or ()) if spec is not None else []
+        if spec is not None and not roots and spec.origin:
+            roots = [spec.origin]  # a single-module plugin
+        digest.update(f"package {package}\n".encode())
+        for root in map(Path, roots):
+            sources = sorted(root.rglob("*.py")) if root.is_dir() else [root]
+            for source in sources:
+                digest.update(source.relative_to(root.parent).as_posix().encode())
+                digest.update(source.read_bytes())
+    return digest.hexdigest()
+
+
+def trial_fingerprint(experiment: Mapping[str, Any], role: str) -> str:
+    """A digest of what one trial's record depends on.
+
+    The trial's experiment mapping (scene, planner, seed, figures, name), its role, the
+    library versions and the source of hapticframe, this suite and the registered plugins.
+    """
+    environment = dict(_environment_versions())
+    environment.pop("git_commit", None)  # the source digest is finer (it sees local edits)
+    digest = hashlib.sha256(json.dumps(
+        {"experiment": experiment, "role": role, "environment": environment},
+        sort_keys=True, default=repr).encode())
+    digest.update(_code_digest().encode())
+    return digest.hexdigest()
+
+
+TrialResult = tuple[dict[str, Any], dict[str, Any], float | None, float]
+
+
+def _kept_trial(run_dir: Path, fingerprint: str, placement: Placement,
+                role: str) -> TrialResult | None:
+    """A trial finished by an earlier run with the same fingerprint, else None."""
+    try:
+        kept = json.loads((run_dir / TRIAL_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None  # absent, unreadable or not JSON: not finished
+    if not isinstance(kept, dict) or kept.get("fingerprint") != fingerprint:
+        return None
+    record, versions = kept.get("record"), kept.get("versions")
+    if not (isinstance(record, dict) and isinstance(versions, dict)
+            and isinstance(versions.get("plugins"), dict) and record.get("status") == "ok"
+            and isinstance(record.get("figures"), dict)
+            and (record.get("shape"), record.get("index"), record.get("role"))
+            == (placement.shape, placement.index, role)):
+        return None
+    limit, level = kept.get("force_limit_n"), kept.get("outline_level")
+    if not isinstance(level, (int, float)) or not isinstance(limit, (int, float, type(None))):
+        return None
+    return record, versions, None if limit is None else float(limit), float(level)
+
+
+def _keep_trial(run_dir: Path, fingerprint: str, result: TrialResult) -> None:
+    """Mark a run directory finished: its record, written whole or not at all."""
+    record, versions, limit, level = result
+    text = json.dumps(_json_ready({"fingerprint": fingerprint, "record": record,
+                                   "versions": versions, "force_limit_n": limit,
+                                   "outline_level": level}), allow_nan=False)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    partial = run_dir / (TRIAL_FILE + ".part")
+    partial.write_text(text + "\n", encoding="utf-8")
+    os.replace(partial, run_dir / TRIAL_FILE)  # atomic: a kill leaves the old state or this
+
+
+def _clear(run_dir: Path) -> None:
+    """Remove what an interrupted or stale trial left, so the trial runs from scratch."""
+    if run_dir.is_symlink() or run_dir.is_file():
+        run_dir.unlink()
+    elif run_dir.exists():
+        shutil.rmtree(run_dir)
+
+
+# --- running trials ------------------------------------------------------------------------
+
+
 def _run_trial(
     placement: Placement,
     role: str,
     planner: str,
     seed: int,
     trials_dir: Path,
-    factory: ExperimentFactory,
-    keep_figures: bool,
-) -> tuple[dict[str, Any], dict[str, Any], float | None, float]:
+    data: dict[str, Any],
+    fingerprint: str,
+) -> TrialResult:
     name = f"{placement.shape}-{placement.index}-{planner}"
-    data = factory([placement.scene_object()], planner, seed, name)
-    # Figures only for the first trial of each shape: drawing costs more than a fast search.
-    data.setdefault("run", {})["figures"] = keep_figures
     experiment = validate_mapping(data, source=f"<bench search {name}>")
     run_dir = trials_dir / name
     record: dict[str, Any] = {
@@ -197,6 +317,7 @@ def _run_trial(
         "error": None,
         "figures": None,
     }
+    _clear(run_dir)  # nothing of an interrupted attempt mixes with this one
     started = time.perf_counter()
     try:
         metrics = run_experiment(experiment, run_dir, overwrite=True, echo=lambda _line: None)
@@ -206,25 +327,88 @@ def _run_trial(
         record["error"] = str(exc)
     finally:
         record["wall_time_s"] = time.perf_counter() - started
-    return record, _versions(experiment), _force_limit_n(experiment), (
-        experiment.resolved_config()["run"]["outline_level"])
+    result = (record, _versions(experiment), _force_limit_n(experiment),
+              experiment.resolved_config()["run"]["outline_level"])
+    if record["status"] == "ok":
+        _keep_trial(run_dir, fingerprint, result)
+    return result
 
 
-def _run_job(job: tuple[Any, ...]) -> tuple[dict[str, Any], dict[str, Any], float | None, float]:
+def _run_job(job: tuple[Any, ...]) -> TrialResult:
     return _run_trial(*job)
+
+
+#: Seconds between a worker's looks at its parent (the fallback where prctl is missing).
+_PARENT_POLL_S = 0.5
+#: Linux's prctl option that sends a signal to this process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> bool:
+    """Ask Linux to SIGKILL this process when its parent dies; False where unavailable."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        # prctl is variadic: pass unsigned longs, as the kernel reads them.
+        return int(libc.prctl(_PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL),
+                              ctypes.c_ulong(0), ctypes.c_ulong(0), ctypes.c_ulong(0))) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _watch_parent(
+    parent: int,
+    interval_s: float = _PARENT_POLL_S,
+    *,
+    getppid: Callable[[], int] = os.getppid,
+    sleep: Callable[[float], None] = time.sleep,
+    exit_now: Callable[[int], Any] = os._exit,
+) -> None:
+    """Return only by ending the process, once its parent is no longer ``parent``.
+
+    An orphan is adopted by init or a subreaper, so its parent id changes.
+    """
+    while getppid() == parent:
+        sleep(interval_s)
+    exit_now(1)
+
+
+def _init_worker(expected_parent: int | None) -> None:
+    """A pool worker's initializer: the worker dies with the process that started it."""
+    _die_with_parent()
+    parent = os.getppid()
+    if expected_parent is not None and parent != expected_parent:
+        os._exit(1)  # the parent died before the request above could take effect
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                     name="hapticframe-bench-parent-watch").start()
+
+
+def _pool_context() -> Any:
+    """fork on Linux, as the perception bench (workers start without importing again);
+    the platform's default elsewhere."""
+    if sys.platform.startswith("linux"):
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context()
 
 
 def _map_jobs(jobs: list[tuple[Any, ...]], workers: int) -> Any:
     """Run the trials, in worker processes when there is more than one worker.
 
     Trials are independent and seeded, so results do not depend on the number of workers.
+    The workers die with this process (:func:`_init_worker`).
     """
     if workers <= 1:
         yield from map(_run_job, jobs)
         return
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    context = _pool_context()
+    # A forkserver's children are the server's, not ours: they watch whichever parent
+    # they have (the server dies with this process).
+    expected = None if context.get_start_method() == "forkserver" else os.getpid()
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                             initializer=_init_worker, initargs=(expected,)) as pool:
         futures = [pool.submit(_run_job, job) for job in jobs]
         for future in as_completed(futures):
             yield future.result()
@@ -261,7 +445,7 @@ def search_targets(summary: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     Per shape, the two-phase planner against Table 3.2: total movements (phase 1 + 2, mean)
     at most the thesis's, centroid RMSE and mean Hausdorff distance at most the thesis's
     means. At the thesis's 25 trials per shape, also the whole command's wall time
-    (at most 60 s, on 2 free cores).
+    (at most 60 s, on 2 free cores; not measured when the run resumed kept runs).
     """
     values: dict[str, Any] = {}
     targets: list[Target] = []
@@ -291,7 +475,9 @@ def search_targets(summary: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
                    100 * thesis["hausdorff_m"][0], "cm", digits=2),
         ]
     if summary.get("trials") == DEFAULT_TRIALS:
-        values["wall_time_s"] = summary.get("wall_time_s")
+        # A resumed run's wall time leaves out the kept runs: not a measurement of the whole.
+        values["wall_time_s"] = (None if summary.get("kept_runs")
+                                 else summary.get("wall_time_s"))
         targets.append(Target("wall_time_s", "whole command, wall time", WALL_TIME_TARGET_S,
                               "s"))
     return {c.target.name: c.as_dict() for c in check_targets(targets, values)}
@@ -329,7 +515,9 @@ def run_suite(
         The summary written to ``search.json``: one aggregate (see
         :func:`~hapticframe_bench._aggregate.aggregate_trials`) per shape for the two-phase
         planner at the top level, the same under ``"baseline"`` for the coverage planner,
-        ``wall_time_s``, ``trials``, ``seed``, ``versions``, ``machine``, ``command``,
+        ``wall_time_s`` (of this invocation), ``kept_runs`` (runs reused from an earlier,
+        interrupted run into the same ``out_dir``; see the module docstring), ``trials``,
+        ``seed``, ``versions``, ``machine``, ``command``,
         ``planners``, ``thesis`` (Table 3.2), ``targets`` (:func:`search_targets`) and
         ``runs`` (every run's record).
     """
@@ -353,25 +541,49 @@ def run_suite(
     started = time.perf_counter()
     options.echo(f"search benchmark: {trials} trials x {len(shapes)} shapes x "
                  f"{len(planners)} planners = {total} runs into {trials_dir}")
-    jobs = [
-        (placements[shape][index], role, planner, trial_seed(options.seed, shape, index),
-         trials_dir, experiment_factory, index == 0)
-        for index in range(trials) for shape in shapes for role, planner in planners.items()
-    ]
-    workers = min(options.workers or os.cpu_count() or 1, len(jobs))
-    for record, run_versions, limit, level in _map_jobs(jobs, workers):
+    jobs = []
+    for index in range(trials):
+        for shape in shapes:
+            for role, planner in planners.items():
+                placement = placements[shape][index]
+                seed = trial_seed(options.seed, shape, index)
+                data = experiment_factory([placement.scene_object()], planner, seed,
+                                          f"{shape}-{index}-{planner}")
+                # Figures only for the first trial of each shape: drawing costs more than a
+                # fast search.
+                data.setdefault("run", {})["figures"] = index == 0
+                jobs.append((placement, role, planner, seed, trials_dir, data,
+                             trial_fingerprint(data, role)))
+    kept = [_kept_trial(trials_dir / f"{j[0].shape}-{j[0].index}-{j[2]}", j[6], j[0], j[1])
+            for j in jobs]
+    todo = [job for job, result in zip(jobs, kept, strict=True) if result is None]
+    if len(todo) < len(jobs):
+        options.echo(f"resuming: {len(jobs) - len(todo)} of {total} runs kept from "
+                     f"{trials_dir}")
+
+    def collect(result: TrialResult, *, was_kept: bool) -> None:
+        nonlocal versions, force_limit_n, outline_level
+        record, run_versions, limit, level = result
         if not versions:
             versions, force_limit_n, outline_level = run_versions, limit, level
         else:  # the baseline's planner joins the plugin list
             versions["plugins"].update(run_versions["plugins"])
         records.append(record)
-        options.echo(_progress(record, len(records), total))
+        options.echo(_progress(record, len(records), total, kept=was_kept))
+
+    for result in kept:
+        if result is not None:
+            collect(result, was_kept=True)
+    workers = min(options.workers or os.cpu_count() or 1, len(todo))
+    for result in _map_jobs(todo, workers):
+        collect(result, was_kept=False)
     order = {(j[0].shape, j[0].index, j[1]): k for k, j in enumerate(jobs)}
     records.sort(key=lambda r: order[(r["shape"], r["index"], r["role"])])
     wall_time_s = time.perf_counter() - started
     summary: dict[str, Any] = _summarise(records, shapes, force_limit_n)
     summary.update({
         "wall_time_s": wall_time_s,
+        "kept_runs": len(jobs) - len(todo),
         "trials": trials,
         "seed": options.seed,
         "quick": options.quick,
