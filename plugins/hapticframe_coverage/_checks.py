@@ -99,8 +99,8 @@ def _speed(config: Any, context: ValidationContext, diagonal: float) -> Iterator
     max_steps = getattr(context.run, "max_steps_per_movement", None)
     for robot_id, robot, rate in _robots(context):
         step = speed / rate
-        where = (f"{speed:g} m/s at robot {robot_id!r}'s {rate:g} Hz moves {step * 1e3:.3g} mm "
-                 "per control step")
+        where = (f"{speed:g} m/s with robot {robot_id!r} at {rate:g} Hz moves "
+                 f"{step * 1e3:.3g} mm per control step")
         if max_steps is not None and diagonal / step > max_steps:
             yield Finding(
                 f"{where}: a line across the {diagonal:.3g} m region takes up to "
