@@ -76,13 +76,16 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
         return
     if hasattr(config, "inputs") or config.model_dir is not None:
         return  # a loaded network's saved architecture replaces the configured one
+    missing: dict[str, list[str]] = {}
     for channel, field in reads.items():
         if channel not in available:
-            yield Finding(
-                f"channel {channel!r} is delivered by none of the inputs; the network would "
-                "read zeros there (sparse-coding emits amplitudes with amplitude: channel)",
-                field=field,
-            )
+            missing.setdefault(field, []).append(channel)
+    for field, channels in missing.items():
+        yield Finding(
+            f"{', '.join(channels)} delivered by none of the inputs: the network would read "
+            "zeros there (sparse-coding emits amplitudes with amplitude: channel)",
+            field=field,
+        )
     for view in context.inputs.values():
         if view.type != "sparse-coding":
             continue
