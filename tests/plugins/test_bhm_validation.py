@@ -33,7 +33,7 @@ def test_a_hinge_spacing_with_billions_of_weights_is_refused_with_the_estimate()
 
 def test_the_limit_follows_the_region() -> None:
     # 8 mm hinges: 97 x 66 over the scene's region, but 28 x 28 over a 20 cm one.
-    with pytest.raises(ExperimentError, match="6.4e\\+03 weights"):
+    with pytest.raises(ExperimentError, match=r"6.4e\+03 weights"):
         validate_mapping(_with_bhm({"hinge_spacing_m": 0.008}))
     small = {"x_min_m": 0.3, "x_max_m": 0.5, "y_min_m": 0.1, "y_max_m": 0.3}
     assert validate_mapping(_with_bhm({"hinge_spacing_m": 0.008, "region": small}))

@@ -54,7 +54,7 @@ def test_a_depth_whose_free_drag_trips_the_force_limit_is_refused() -> None:
     message = _issues(data)["robots[0].config.depth_m"]
     assert "310 N" in message and "force_limit_n" in message
     data["robots"][0]["config"] = {"depth_m": 0.06}  # 28 N: legal
-    assert validate_mapping(data).model.robots[0].id == "arm"
+    assert validate_mapping(data).components[0].id == "arm"
 
 
 def test_following_a_robot_that_is_not_an_input_is_refused() -> None:
