@@ -41,26 +41,26 @@ VERTICAL_TIP_RAD = math.radians(30.0)
 class FingerGeometryConfig(BaseModel):
     """A finger's two links and the coupling of its outer joint to its inner joint."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     proximal_m: float = Field(
-        0.070, gt=0, description="Inner (proximal) link: inner joint to outer joint."
+        0.070, gt=0, le=1.0, description="Inner (proximal) link: inner joint to outer joint."
     )
     distal_m: float = Field(
-        0.050, gt=0, description="Outer (distal) link: outer joint to the fingertip."
+        0.050, gt=0, le=1.0, description="Outer (distal) link: outer joint to the fingertip."
     )
     coupling: float = Field(
-        1.0 / 3.0, ge=0, description="Outer-joint angle per radian of the inner joint "
+        1.0 / 3.0, ge=0, le=10.0, description="Outer-joint angle per radian of the inner joint "
         "(J2_RATIO / J3_RATIO)."
     )
     distal_offset_rad: float = Field(
-        0.8727, description="Outer-joint angle at inner angle 0 (50°)."
+        0.8727, ge=-7.0, le=7.0, description="Outer-joint angle at inner angle 0 (50°)."
     )
     inner_ratio: float = Field(
-        125.0, gt=0, description="Motor turns per turn of the inner joint (J2_RATIO)."
+        125.0, gt=0, le=10_000, description="Motor turns per turn of the inner joint (J2_RATIO)."
     )
     spread_ratio: float = Field(
-        17.5, gt=0, description="Motor turns per turn of the spread (SPREAD_RATIO)."
+        17.5, gt=0, le=10_000, description="Motor turns per turn of the spread (SPREAD_RATIO)."
     )
 
 
@@ -82,7 +82,10 @@ class BarrettHandRobotConfig(PluginConfig):
         "socketcan", description="python-can interface of a real channel (e.g. socketcan, "
         "pcan, kvaser)."
     )
-    bitrate: int = Field(1_000_000, gt=0, description="CAN bit rate (the pucks use 1 Mbit/s).")
+    bitrate: int = Field(
+        1_000_000, gt=0, le=10_000_000,
+        description="CAN bit rate (the pucks use 1 Mbit/s).",
+    )
     raking_finger: Literal[1, 2, 3] = Field(
         3, description="The finger left extended for raking (3: the finger the spread does "
         "not move); the other two are flexed."
@@ -109,7 +112,7 @@ class BarrettHandRobotConfig(PluginConfig):
         "carrier's kinematic model puts its tool point below the palm).",
     )
     depth_m: float | None = Field(
-        None, gt=0, description="Fingertip depth of a movement that gives none (None: the "
+        None, gt=0, le=1.0, description="Fingertip depth of a movement that gives none (None: the "
         "carrier keeps its own depth and the fingertip is that much deeper).",
     )
     initialize: bool = Field(
@@ -120,35 +123,41 @@ class BarrettHandRobotConfig(PluginConfig):
         "MODE forced to IDLE, is then seen)."
     )
     posture_tolerance_rad: float = Field(
-        0.02, gt=0, description="Each joint within this of its target after the posture move."
+        0.02, gt=0, le=3.2,
+        description="Each joint within this of its target after the posture move."
     )
     displacement_tolerance_rad: float = Field(
-        0.08, gt=0, description="A joint pushed further than this from its target while "
+        0.08, gt=0, le=3.2, description="A joint pushed further than this from its target while "
         "raking stops the carrier (DeviceError)."
     )
     poll_every_steps: int = Field(
-        5, ge=1, description="Poll the hand's positions and MODE every this many steps."
+        5, ge=1, le=10_000, description="Poll the hand's positions and MODE every this many steps."
     )
     max_missing_polls: int = Field(
-        3, ge=1, description="Polls in a row without a puck's position before DeviceError."
+        3, ge=1, le=10_000,
+        description="Polls in a row without a puck's position before DeviceError."
     )
     move_timeout_s: float = Field(
-        10.0, gt=0, description="Bound on homing and on the posture move."
+        10.0, gt=0, le=600.0, description="Bound on homing and on the posture move."
     )
     reply_timeout_s: float = Field(
-        0.1, gt=0, description="Bound on each property reply (libbarrett waits 1 s)."
+        0.1, gt=0, le=10.0, description="Bound on each property reply (libbarrett waits 1 s)."
     )
-    attempts: int = Field(2, ge=1, description="Requests per property read.")
+    attempts: int = Field(2, ge=1, le=100, description="Requests per property read.")
     max_recoveries: int = Field(
-        3, ge=1, description="Failed recoveries in a row before DeviceError."
+        3, ge=1, le=100, description="Failed recoveries in a row before DeviceError."
     )
     recovery_backoff_s: float = Field(
-        0.1, gt=0, description="The first recovery waits this long, each next twice as long."
+        0.1, gt=0, le=60.0,
+        description="The first recovery waits this long, each next twice as long."
     )
     # -- emulator (channel: emulated) --------------------------------------------------------
-    emulated_vers: int = Field(160, ge=65, description="Emulator: the pucks' firmware VERS.")
+    emulated_vers: int = Field(
+        160, ge=65, le=65_535,
+        description="Emulator: the pucks' firmware VERS.",
+    )
     emulated_speed: float = Field(
-        50_000.0, gt=0, description="Emulator: joint speed in encoder counts per second."
+        50_000.0, gt=0, le=1e7, description="Emulator: joint speed in encoder counts per second."
     )
     emulated_nodes: tuple[int, ...] | None = Field(
         None, description="Emulator: the pucks on the bus (default 11-14; leave one out "

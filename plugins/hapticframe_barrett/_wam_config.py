@@ -16,12 +16,12 @@ __all__ = ["BarrettWamConfig", "DHRow"]
 class DHRow(BaseModel):
     """One standard Denavit-Hartenberg row (libbarrett's ``moving`` entries)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    a_m: float = Field(description="Link length a.")
-    alpha_rad: float = Field(description="Link twist α.")
-    d_m: float = Field(description="Link offset d.")
-    theta_offset_rad: float = Field(0.0, description="Added to the joint angle θ.")
+    a_m: float = Field(ge=-10.0, le=10.0, description="Link length a.")
+    alpha_rad: float = Field(ge=-7.0, le=7.0, description="Link twist α.")
+    d_m: float = Field(ge=-10.0, le=10.0, description="Link offset d.")
+    theta_offset_rad: float = Field(0.0, ge=-7.0, le=7.0, description="Added to the joint angle θ.")
 
 
 class BarrettWamConfig(PluginConfig):
@@ -59,13 +59,14 @@ class BarrettWamConfig(PluginConfig):
         "down (a preference: 4 joints cannot hold it with the position; default: the "
         "toolplate's z)."
     )
-    pointing_gain: float = Field(0.5, ge=0, description="Weight of that preference.")
+    pointing_gain: float = Field(0.5, ge=0, le=100.0, description="Weight of that preference.")
     base_position_m: tuple[float, float, float] = Field(
         (0.375, -0.25, 0.30), description="The arm's base frame (shoulder) in the map frame; "
         "z is the height above the free surface."
     )
     base_yaw_rad: float = Field(
-        0.5 * math.pi, description="The base frame's rotation about the map's z axis."
+        0.5 * math.pi, ge=-7.0, le=7.0,
+        description="The base frame's rotation about the map's z axis."
     )
     ik_seed_rad: tuple[float, ...] | None = Field(
         None, description="The posture IK starts from when the present one fails (default: "
@@ -75,61 +76,82 @@ class BarrettWamConfig(PluginConfig):
         default_factory=RegionConfig,
         description="The reachable rectangle; the robot refuses a movement that leaves it.",
     )
-    depth_m: float = Field(0.044, gt=0, description="Raking depth for movements without one.")
+    depth_m: float = Field(
+        0.044, gt=0, le=1.0,
+        description="Raking depth for movements without one.",
+    )
     transit_speed_m_per_s: float = Field(
-        0.1, gt=0, description="Speed of the move to a movement's start (no states recorded)."
+        0.1, gt=0, le=2.0,
+        description="Speed of the move to a movement's start (no states recorded)."
     )
     transit_height_m: float = Field(
-        0.05, ge=0, description="Transits lift the fingertip this far above the free surface."
+        0.05, ge=0, le=1.0,
+        description="Transits lift the fingertip this far above the free surface."
     )
     min_link_height_m: float = Field(
-        0.05, description="Every joint origin (elbow, wrist) stays this far above the surface."
+        0.05, ge=-1.0, le=2.0,
+        description="Every joint origin (elbow, wrist) stays this far above the surface."
     )
     max_joint_speed_rad_per_s: float = Field(
-        1.0, gt=0, description="A movement needing a faster joint is refused (singularities)."
+        1.0, gt=0, le=10.0,
+        description="A movement needing a faster joint is refused (singularities)."
     )
     ik_step_m: float = Field(
         0.004, gt=0, le=0.05, description="Spacing of the IK solutions along a line (joint "
         "targets in between are interpolated)."
     )
-    ik_tolerance_m: float = Field(1e-5, gt=0, description="IK position tolerance.")
+    ik_tolerance_m: float = Field(1e-5, gt=0, le=0.01, description="IK position tolerance.")
     tolerance_m: float = Field(
-        0.001, gt=0, description="A movement ends once the measured fingertip is this close "
+        0.001, gt=0, le=0.1,
+        description="A movement ends once the measured fingertip is this close "
         "to its end (and the commanded point is there)."
     )
     settle_steps: int = Field(
-        50, ge=1, description="At most this many steps past the commanded end to settle "
+        50, ge=1, le=100_000,
+        description="At most this many steps past the commanded end to settle "
         "(then halt_reason 'not_settled')."
     )
     following_error_rad: float = Field(
-        0.05, gt=0, description="A joint this far from its target for following_steps steps "
+        0.05, gt=0, le=3.2,
+        description="A joint this far from its target for following_steps steps "
         "in a row means the arm is not following (an E-stop, a collision): DeviceError."
     )
-    following_steps: int = Field(5, ge=1, description="See following_error_rad.")
+    following_steps: int = Field(5, ge=1, le=10_000, description="See following_error_rad.")
     mode_check_every: int = Field(
-        1, ge=0, description="Read one puck's MODE every this many steps, in turn (0: never; "
+        1, ge=0, le=10_000,
+        description="Read one puck's MODE every this many steps, in turn (0: never; "
         "an E-stop is then found by the following error)."
     )
-    reply_timeout_s: float = Field(0.05, gt=0, description="Bound on a property reply.")
+    reply_timeout_s: float = Field(0.05, gt=0, le=10.0, description="Bound on a property reply.")
     position_timeout_s: float = Field(
-        0.004, gt=0, description="Bound on a group position poll's replies."
+        0.004, gt=0, le=1.0, description="Bound on a group position poll's replies."
     )
-    attempts: int = Field(2, ge=1, description="Requests per property read.")
+    attempts: int = Field(2, ge=1, le=100, description="Requests per property read.")
     max_retries: int = Field(
-        3, ge=0, description="Position polls repeated in a step before a recovery."
+        3, ge=0, le=100, description="Position polls repeated in a step before a recovery."
     )
-    max_recoveries: int = Field(3, ge=1, description="Failed recoveries in a row: DeviceError.")
+    max_recoveries: int = Field(
+        3, ge=1, le=100,
+        description="Failed recoveries in a row: DeviceError.",
+    )
     recovery_backoff_s: float = Field(
-        0.05, ge=0, description="The first recovery's wait; each next one doubles (max 1 s)."
+        0.05, ge=0, le=60.0,
+        description="The first recovery's wait; each next one doubles (max 1 s)."
     )
-    wake_time_s: float = Field(1.0, gt=0, description="Wait after STAT=READY (libbarrett: 1 s).")
+    wake_time_s: float = Field(
+        1.0, gt=0, le=60.0,
+        description="Wait after STAT=READY (libbarrett: 1 s).",
+    )
     torque_control: bool = Field(
         False, description="EXPERIMENTAL, not implemented: packed-torque control. Must be false."
     )
     # -- emulator (channel: emulated) -----------------------------------------------------------
-    emulated_vers: int = Field(160, ge=65, description="Emulator: the pucks' firmware VERS.")
+    emulated_vers: int = Field(
+        160, ge=65, le=65_535,
+        description="Emulator: the pucks' firmware VERS.",
+    )
     emulated_speed_counts_per_s: float = Field(
-        40_000.0, gt=0, description="Emulator: how fast a puck follows its target."
+        40_000.0, gt=0, le=1e7, description="Emulator: how fast a puck follows its target."
     )
     emulated_start_rad: tuple[float, ...] | None = Field(
         None, description="Emulator: the posture at power-on (default: the fingertip over the "

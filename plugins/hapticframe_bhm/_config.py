@@ -65,7 +65,7 @@ class BayesianHilbertMapConfig(PluginConfig):
     interaction_radius_m: float = Field(
         0.05,
         ge=0,
-        description="A hinge within this distance of an observation with target > 0.5 "
+        le=10.0, description="A hinge within this distance of an observation with target > 0.5 "
         "switches to the interaction length scale (region_dependent_smoothing only).",
     )
     bias: bool = Field(True, description="Append a constant bias feature to the hinge features.")
@@ -100,7 +100,7 @@ class BayesianHilbertMapConfig(PluginConfig):
     tolerance: float = Field(
         0.05,
         gt=0,
-        description="Stop iterating when the relative change of the local variational "
+        le=1.0, description="Stop iterating when the relative change of the local variational "
         "parameters xi, ||xi_new - xi|| / ||xi||, is at most this.",
     )
     std_method: Literal["surrogate", "monte_carlo"] = Field(
@@ -119,6 +119,7 @@ class BayesianHilbertMapConfig(PluginConfig):
     blas_threads: int | None = Field(
         1,
         ge=1,
+        le=1024,
         description="BLAS threads used inside map updates and queries (via threadpoolctl when "
         "installed). The matrices are small (D ~ 235), where one thread is fastest and "
         "avoids oversubscription stalls; null leaves the BLAS setting alone.",

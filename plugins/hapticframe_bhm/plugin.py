@@ -19,6 +19,7 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         summary="Continuous occupancy map with uncertainty: full-covariance variational BHM.",
         config=BayesianHilbertMapConfig,
         factory="hapticframe_bhm._map:BayesianHilbertMap",
+        validator="hapticframe_bhm._checks:check",
         capabilities=frozenset({"continuous", "uncertainty"}),
         requires=("scipy",),
         install_hint="pip install hapticframe  (numpy and scipy); figures need matplotlib",

@@ -77,6 +77,7 @@ class BioTacSensorConfig(PluginConfig):
     trial_gap_s: float = Field(
         0.5,
         gt=0,
+        le=3600,
         description="Synthetic: time between the last frame of a trial and the first of the next.",
     )
 
@@ -107,6 +108,7 @@ class BioTacSensorConfig(PluginConfig):
     emulator_frames: int | None = Field(
         None,
         ge=0,
+        le=1_000_000_000,
         description="SPI emulator: end after this many frames (None: endless resting signal).",
     )
     parity_error_rate: float = Field(

@@ -50,7 +50,8 @@ class Bno055SensorConfig(PluginConfig):
         "timeout (EE 0A), a timeout or a malformed reply.",
     )
     watchdog_s: float = Field(
-        0.25, gt=0, description="No valid reply for this long → recover (reconnect, reconfigure)."
+        0.25, gt=0, le=60.0,
+        description="No valid reply for this long → recover (reconnect, reconfigure)."
     )
     max_recoveries: int = Field(
         3, ge=0, le=20, description="Recoveries in a row before the device gives up (DeviceError)."
@@ -69,7 +70,7 @@ class Bno055SensorConfig(PluginConfig):
     )
     gravity_tolerance_m_per_s2: float = Field(
         0.5, gt=0,
-        description="Fused samples are invalid when |gravity| differs from 9.80665 m/s² by "
+        le=9.8, description="Fused samples are invalid when |gravity| differs from 9.80665 m/s² by "
         "more than this, or the gravity vector disagrees with the quaternion by more.",
     )
     check_gravity_against_quaternion: bool = Field(
@@ -86,7 +87,7 @@ class Bno055SensorConfig(PluginConfig):
         description="Emulated only: the IMU's misalignment R_ti on the tool (roll, pitch, yaw).",
     )
     accel_noise_std_m_per_s2: float = Field(
-        0.015, ge=0, description="Emulated only: accelerometer noise per axis."
+        0.015, ge=0, le=10.0, description="Emulated only: accelerometer noise per axis."
     )
     faults: FaultSetting = Field(
         "none",

@@ -20,6 +20,7 @@ class CoverageConfig(PluginConfig):
     )
     line_spacing_m: float = Field(
         0.035, gt=0,
+        le=10.0,
         description="Distance between neighbouring parallel lines (3.5 cm: an 8 cm object is "
         "crossed by at least two lines).",
     )
@@ -28,9 +29,12 @@ class CoverageConfig(PluginConfig):
         description="Direction of the lines, degrees from +x; None runs them along the longer "
         "side of the region (fewest lines).",
     )
-    speed_m_per_s: float = Field(0.05, gt=0, description="Commanded fingertip speed (5 cm/s).")
+    speed_m_per_s: float = Field(
+        0.05, ge=1e-4, le=2.0,
+        description="Commanded fingertip speed (5 cm/s).",
+    )
     depth_m: float | None = Field(
-        None, ge=0, description="Commanded raking depth; None lets the robot keep its own."
+        None, ge=0, le=0.3, description="Commanded raking depth; None lets the robot keep its own."
     )
     free_class_names: tuple[str, ...] = Field(
         ("free",),
@@ -38,7 +42,7 @@ class CoverageConfig(PluginConfig):
         "another one counts as an interaction even when the robot halted for its own reason.",
     )
     max_movements: int = Field(
-        200, ge=1, description="Hard cap on the movements of one run."
+        200, ge=1, le=10_000, description="Hard cap on the movements of one run."
     )
 
 
@@ -47,13 +51,14 @@ class TwoPhaseCoverageConfig(CoverageConfig):
 
     line_spacing_m: float = Field(
         0.10, gt=0,
+        le=10.0,
         description="Distance between neighbouring phase-1 lines. 10 cm: at the full raking "
         "depth the classifier detects an object whose outline passes within about 2.5 cm of "
         "the fingertip's path (more for a head-on approach), so a 9 x 5 cm ellipse (5 cm "
         "across) or an 8 cm circle within 5 cm of a line is always found.",
     )
     max_movements: int = Field(
-        40, ge=1, description="Hard cap on all movements of one run (both phases)."
+        40, ge=1, le=10_000, description="Hard cap on all movements of one run (both phases)."
     )
     phase1_order: Literal["outer-last", "binary"] = Field(
         "outer-last",
@@ -63,17 +68,18 @@ class TwoPhaseCoverageConfig(CoverageConfig):
         "centred there).",
     )
     max_phase2_movements: int = Field(
-        12, ge=0, description="Hard cap on phase-2 movements."
+        12, ge=0, le=10_000, description="Hard cap on phase-2 movements."
     )
     min_phase2_movements: int = Field(
-        1, ge=0, description="Phase-2 movements made before the stopping rule is consulted."
+        1, ge=0, le=10_000,
+        description="Phase-2 movements made before the stopping rule is consulted."
     )
     phase2_line_spacing_m: float = Field(
-        0.02, gt=0, description="Spacing of the phase-2 candidate lines."
+        0.02, gt=0, le=10.0, description="Spacing of the phase-2 candidate lines."
     )
     phase2_region_size_m: float | None = Field(
         0.32, gt=0,
-        description="Side of the first phase-2 region, a square centred on the centroid "
+        le=100.0, description="Side of the first phase-2 region, a square centred on the centroid "
         "estimate and kept inside the search region; None starts from the whole search "
         "region (the dissertation). A line then starts at most half this side from the "
         "object, far enough to be outside the failure zone.",
@@ -85,7 +91,7 @@ class TwoPhaseCoverageConfig(CoverageConfig):
     )
     min_region_size_m: float = Field(
         0.26, gt=0,
-        description="The shrinking region's sides never fall below this (26 cm: a line "
+        le=100.0, description="The shrinking region's sides never fall below this (26 cm: a line "
         "through the centroid estimate starts at least 13 cm from it, outside the failure "
         "zone, about 7 cm deep, of an object reaching up to 4.5 cm from its centre).",
     )
@@ -115,14 +121,22 @@ class TwoPhaseCoverageConfig(CoverageConfig):
     )
     min_start_distance_m: float = Field(
         0.12, ge=0,
+        le=10.0,
         description="'widest-gap' rule: skip approach directions whose line would start nearer "
         "than this to the centroid estimate (inside the failure zone of the object, e.g. when "
         "it lies near the region's edge); ignored when no direction qualifies.",
     )
-    occupancy_weight: float = Field(1.0, description="w1 of Eq. 3.9 (occupancy probability).")
-    uncertainty_weight: float = Field(0.5, description="w2 of Eq. 3.9 (occupancy std).")
+    occupancy_weight: float = Field(
+        1.0, ge=-1e3, le=1e3,
+        description="w1 of Eq. 3.9 (occupancy probability).",
+    )
+    uncertainty_weight: float = Field(
+        0.5, ge=-1e3, le=1e3,
+        description="w2 of Eq. 3.9 (occupancy std).",
+    )
     distance_weight: float = Field(
         -1.0,
+        ge=-1e3, le=1e3,
         description="w3 of Eq. 3.9 (squared distance to the centroid estimate, divided by the "
         "squared diagonal of the current region).",
     )
@@ -130,10 +144,12 @@ class TwoPhaseCoverageConfig(CoverageConfig):
         0.6, gt=0, lt=1, description="Occupancy level of the object blob (0.6 in the dissertation)."
     )
     grid_spacing_m: float = Field(
-        0.01, gt=0, description="Grid spacing for sampling the map (centroid and stopping rule)."
+        0.01, gt=0, le=1.0,
+        description="Grid spacing for sampling the map (centroid and stopping rule)."
     )
     score_step_m: float = Field(
-        0.01, gt=0, description="Spacing of the points summed along a candidate line (Eq. 3.9)."
+        0.01, gt=0, le=1.0,
+        description="Spacing of the points summed along a candidate line (Eq. 3.9)."
     )
     stop_rule: Literal["angular-gap", "uncertain-area", "mean-std"] = Field(
         "angular-gap",

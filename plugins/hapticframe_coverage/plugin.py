@@ -19,6 +19,7 @@ def hapticframe_planners() -> Iterator[PlannerSpec]:
         summary="Binary-search coverage lines, then next-best lines on the map (Jia 2022, 3.4.4).",
         config=TwoPhaseCoverageConfig,
         factory="hapticframe_coverage._two_phase:TwoPhaseCoverage",
+        validator="hapticframe_coverage._checks:check",
         capabilities=frozenset({"finite", "reads-map"}),
     )
     yield PlannerSpec(
@@ -26,5 +27,6 @@ def hapticframe_planners() -> Iterator[PlannerSpec]:
         summary="Baseline: rake every parallel coverage line in boustrophedon order.",
         config=CoverageConfig,
         factory="hapticframe_coverage._coverage:BoustrophedonCoverage",
+        validator="hapticframe_coverage._checks:check",
         capabilities=frozenset({"finite"}),
     )

@@ -27,13 +27,14 @@ class AxisConfig(BaseModel):
     servo's position in radians (4096 pulses per turn, pulse 0 = 0 rad).
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     id: int = Field(ge=0, le=252, description="The servo's Dynamixel ID.")
     metres_per_rad: float = Field(
-        gt=0, description="Travel per radian of the shaft (lead / 2π, or the pulley radius)."
+        gt=0, le=1.0,
+        description="Travel per radian of the shaft (lead / 2π, or the pulley radius)."
     )
-    offset_m: float = Field(0.0, description="The axis coordinate at pulse 0.")
+    offset_m: float = Field(0.0, ge=-10.0, le=10.0, description="The axis coordinate at pulse 0.")
     min_pulse: int = Field(0, ge=0, le=4095, description="Min Position Limit (pulses).")
     max_pulse: int = Field(4095, ge=0, le=4095, description="Max Position Limit (pulses).")
 
@@ -47,7 +48,7 @@ class AxisConfig(BaseModel):
 class GantryConfig(BaseModel):
     """A Cartesian gantry: x and y in the map plane, z vertical (depth = −z)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     type: Literal["gantry"] = "gantry"
     x: AxisConfig = AxisConfig(id=1, metres_per_rad=0.125)
@@ -70,13 +71,13 @@ class JointConfig(BaseModel):
     mode (one turn): the joint's range is at most 360° / |gear_ratio|.
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     id: int = Field(ge=0, le=252, description="The servo's Dynamixel ID.")
     gear_ratio: float = Field(
         1.0, description="Servo turns per joint turn (a reduction, |ratio| ≥ 1); negative: "
         "the joint turns against the servo.")
-    offset_rad: float = Field(0.0, description="The joint angle at pulse 0.")
+    offset_rad: float = Field(0.0, ge=-10.0, le=10.0, description="The joint angle at pulse 0.")
     min_pulse: int = Field(0, ge=0, le=4095, description="Min Position Limit (pulses).")
     max_pulse: int = Field(4095, ge=0, le=4095, description="Max Position Limit (pulses).")
 
@@ -84,9 +85,9 @@ class JointConfig(BaseModel):
     def _sane(self) -> JointConfig:
         if self.max_pulse <= self.min_pulse:
             raise ValueError("max_pulse must exceed min_pulse")
-        if not (math.isfinite(self.gear_ratio) and abs(self.gear_ratio) >= 1.0):
-            raise ValueError(f"gear_ratio must be a reduction with |gear_ratio| ≥ 1 (negative "
-                             f"to reverse the joint), got {self.gear_ratio}")
+        if not (math.isfinite(self.gear_ratio) and 1.0 <= abs(self.gear_ratio) <= 1000.0):
+            raise ValueError(f"gear_ratio must be a reduction with 1 ≤ |gear_ratio| ≤ 1000 "
+                             f"(negative to reverse the joint), got {self.gear_ratio}")
         if not math.isfinite(self.offset_rad):
             raise ValueError("offset_rad must be finite")
         return self
@@ -102,11 +103,11 @@ class TwoLinkConfig(BaseModel):
     each joint through a 2:1 reduction (a joint range of 180°, 0.77 mrad per pulse).
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     type: Literal["two-link"]
-    l1_m: float = Field(0.4, gt=0, description="Shoulder-to-elbow length.")
-    l2_m: float = Field(0.4, gt=0, description="Elbow-to-fingertip length.")
+    l1_m: float = Field(0.4, gt=0, le=5.0, description="Shoulder-to-elbow length.")
+    l2_m: float = Field(0.4, gt=0, le=5.0, description="Elbow-to-fingertip length.")
     base_m: tuple[float, float] = Field(
         (0.375, -0.1), description="The shoulder axis's position (x, y) in the map frame.")
     elbow_side: Literal["left", "right"] = Field(
@@ -141,7 +142,7 @@ class DynamixelRobotConfig(PluginConfig):
     port: str = Field(
         "emulated", description="The serial device (e.g. /dev/ttyUSB0), or 'emulated'."
     )
-    baudrate: int = Field(1_000_000, gt=0, description="Bus baud rate.")
+    baudrate: int = Field(1_000_000, gt=0, le=10_000_000, description="Bus baud rate.")
     control_rate_hz: float = Field(50.0, gt=0, le=1000, description="Control steps per second.")
     kinematics: KinematicsConfig = Field(
         default_factory=GantryConfig, description="The mechanism: type 'gantry' (default, a "
@@ -154,34 +155,38 @@ class DynamixelRobotConfig(PluginConfig):
         "movement that leaves it.",
     )
     depth_m: float = Field(
-        0.044, gt=0, description="Raking depth for movements that do not give one."
+        0.044, gt=0, le=1.0, description="Raking depth for movements that do not give one."
     )
     transit_speed_m_per_s: float = Field(
-        0.1, gt=0, description="Speed of the move to a movement's start (no states recorded)."
+        0.1, gt=0, le=2.0,
+        description="Speed of the move to a movement's start (no states recorded)."
     )
     tolerance_m: float = Field(
-        0.001, gt=0, description="A movement ends once the measured fingertip is this close "
+        0.001, gt=0, le=0.1,
+        description="A movement ends once the measured fingertip is this close "
         "to its end (and the commanded point is there)."
     )
     settle_steps: int = Field(
-        100, ge=1, description="At most this many control steps past the commanded end to "
+        100, ge=1, le=100_000,
+        description="At most this many control steps past the commanded end to "
         "settle within tolerance_m (then halt_reason 'not_settled')."
     )
     max_retries: int = Field(
-        3, ge=0, description="Retries of a failed bus transaction before a recovery."
+        3, ge=0, le=100, description="Retries of a failed bus transaction before a recovery."
     )
     max_recoveries: int = Field(
-        3, ge=1, description="Failed recoveries in a row before DeviceError."
+        3, ge=1, le=100, description="Failed recoveries in a row before DeviceError."
     )
     reply_timeout_ms: float = Field(
-        500.0, gt=0, description="Emulator only: the SDK's reply timeout (real time). The "
+        500.0, gt=0, le=60_000,
+        description="Emulator only: the SDK's reply timeout (real time). The "
         "emulated servos answer at once in simulation time, so only an injected missing reply "
         "waits this long; a short one lets a loaded machine's delay pass for a lost reply, and "
         "the retries it causes change the run."
     )
     # -- emulator (port: emulated) -----------------------------------------------------------
     time_constant_s: float = Field(
-        0.05, gt=0, description="Emulator: first-order lag of each servo behind its goal."
+        0.05, gt=0, le=60.0, description="Emulator: first-order lag of each servo behind its goal."
     )
     emulated_ids: tuple[int, ...] | None = Field(
         None, description="Emulator: the servo IDs on the emulated bus (default: the "

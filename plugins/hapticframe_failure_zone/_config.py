@@ -67,23 +67,25 @@ class FailureZoneConfig(PluginConfig):
         "finite; the depth schedule below fills in where it is NaN (or always, when False).",
     )
     initial_depth_m: float = Field(
-        0.044, gt=0, description="Raking depth before any interaction (4.4 cm in the dissertation)."
+        0.044, gt=0, le=0.3,
+        description="Raking depth before any interaction (4.4 cm in the dissertation)."
     )
     depth_decrement_m: float = Field(
-        0.01, ge=0, description="Depth removed after the first interacting movement (1 cm)."
+        0.01, ge=0, le=0.3, description="Depth removed after the first interacting movement (1 cm)."
     )
     depth_decrement_ratio: float = Field(
         0.5, ge=0, le=1,
         description="Each later decrement is this fraction of the previous one (1, 0.5, 0.25 cm).",
     )
     min_depth_m: float = Field(
-        0.001, gt=0, description="Floor of the scheduled depth."
+        0.001, gt=0, le=0.3, description="Floor of the scheduled depth."
     )
     empirical_gamma_scale_cm2: float = Field(
-        72.0, gt=0, description="Table 3.1: γ_r = 1/(scale · ratioⁿ) cm⁻²; the scale, in cm²."
+        72.0, gt=0, le=1e6,
+        description="Table 3.1: γ_r = 1/(scale · ratioⁿ) cm⁻²; the scale, in cm²."
     )
     empirical_gamma_ratio: float = Field(
-        0.82, gt=0, description="Table 3.1: the per-pair ratio of γ_r's denominator."
+        0.82, gt=0, le=10, description="Table 3.1: the per-pair ratio of γ_r's denominator."
     )
     empirical_eta_base_deg: float = Field(
         50.0,
@@ -93,7 +95,7 @@ class FailureZoneConfig(PluginConfig):
         "(the failure zone lies ahead of the plate).",
     )
     empirical_eta_step_deg: float = Field(
-        7.0, ge=0, description="Table 3.1: the per-pair increase of η, degrees."
+        7.0, ge=0, le=90, description="Table 3.1: the per-pair increase of η, degrees."
     )
     # --- calibration against the classifier (module docstring of ._kernel); Eq. values ---
     free_range_scale: float = Field(
@@ -148,18 +150,20 @@ class FailureZoneConfig(PluginConfig):
         "object is less certain than later, aimed movements.",
     )
     min_range_m: float = Field(
-        0.002, gt=0, description="Smallest sector range (guards a vanishing depth)."
+        0.002, gt=0, le=10.0, description="Smallest sector range (guards a vanishing depth)."
     )
     max_range_m: float = Field(
-        0.25, gt=0, description="Largest sector range (bounds the points of a huge depth)."
+        0.25, gt=0, le=10.0, description="Largest sector range (bounds the points of a huge depth)."
     )
     sector_spacing_m: float = Field(
         0.015, gt=0,
+        le=1.0,
         description="Spacing of the polar grids of sector and disc points (rings and arcs); "
         "1.5 cm is a third of the map's 5 cm hinge spacing.",
     )
     observation_spacing_m: float = Field(
         0.02, ge=0,
+        le=10.0,
         description="Emit a sector only every this much fingertip travel (0: every sample); "
         "the first sample of a movement and every change of state are always emitted. 2 cm: "
         "consecutive free sectors (6 cm long at the full depth) still overlap threefold.",

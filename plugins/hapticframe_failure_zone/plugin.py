@@ -19,5 +19,6 @@ def hapticframe_sensor_models() -> Iterator[SensorModelSpec]:
         summary="Granular failure-zone kernels ahead of the fingertip (Jia 2022, Eqs. 3.2-3.4).",
         config=FailureZoneConfig,
         factory="hapticframe_failure_zone._kernel:FailureZoneKernel",
+        validator="hapticframe_failure_zone._checks:check",
         capabilities=frozenset({"streaming"}),
     )

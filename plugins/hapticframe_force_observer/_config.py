@@ -30,6 +30,7 @@ class ForceObserverConfig(PluginConfig):
         0.1,
         gt=0,
         allow_inf_nan=False,
+        le=10.0,
         description="Sample-and-hold alignment of the IMU onto the force sensor's timestamps: "
         "an IMU sample older than this makes the output sample invalid.",
     )
@@ -37,11 +38,13 @@ class ForceObserverConfig(PluginConfig):
         None,
         gt=0,
         allow_inf_nan=False,
+        le=100_000,
         description="Rate the low-pass filter is designed for; None takes the force input's "
         "channel rate, or 100 Hz without an input.",
     )
     cutoff_hz: float = Field(
-        10.0, gt=0, allow_inf_nan=False, description="Butterworth low-pass cutoff frequency."
+        10.0, gt=0, allow_inf_nan=False, le=10_000,
+        description="Butterworth low-pass cutoff frequency."
     )
     filter_order: int = Field(2, ge=1, le=8, description="Butterworth filter order.")
     model_dir: str | None = Field(
@@ -52,6 +55,7 @@ class ForceObserverConfig(PluginConfig):
     mass_kg: float | None = Field(
         None,
         allow_inf_nan=False,
+        ge=0, le=1000,
         description="m_e: mass beyond the force sensor (a gain in N per m/s²); None: 0.",
     )
     imu_rotation_wxyz: tuple[float, float, float, float] | None = Field(

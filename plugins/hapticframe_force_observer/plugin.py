@@ -17,6 +17,7 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         "inertia, gravity and offset removed (Eq. 3.10).",
         config=ForceObserverConfig,
         factory="hapticframe_force_observer._observer:ForceObserver",
+        validator="hapticframe_force_observer._checks:check",
         capabilities=frozenset({"trainable"}),
         requires=("scipy",),
         consumes={"force_n": (3,), "acceleration_m_per_s2": (3,)},

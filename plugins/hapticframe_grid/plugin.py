@@ -19,6 +19,7 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         summary="Log-odds occupancy grid with OctoMap's hit/miss/clamping constants.",
         config=OccupancyGridConfig,
         factory="hapticframe_grid._grid:OccupancyGrid",
+        validator="hapticframe_grid._checks:check",
         capabilities=frozenset({"gridded", "exact-update"}),
         requires=("scipy",),
         install_hint="pip install hapticframe  (numpy and scipy); figures need matplotlib",

@@ -24,45 +24,51 @@ class ForceRateJammingConfig(PluginConfig):
     sample_rate_hz: float | None = Field(
         None,
         gt=0,
+        le=100_000,
         description="Rate the low-pass filter is designed for; None takes the input sensor's "
         "channel rate, or 100 Hz without an input.",
     )
-    cutoff_hz: float = Field(3.0, gt=0, description="Butterworth low-pass cutoff frequency.")
+    cutoff_hz: float = Field(
+        3.0, gt=0, le=10_000,
+        description="Butterworth low-pass cutoff frequency.",
+    )
     filter_order: int = Field(2, ge=1, le=4, description="Butterworth filter order.")
     restart_after_gap_s: float = Field(
-        0.05, gt=0, description="A valid force more than this long after the previous valid "
+        0.05, gt=0, le=3600,
+        description="A valid force more than this long after the previous valid "
         "one (a sensor replugged or resynchronising) restarts the filter at rest on it, so "
         "that the force's change during the gap does not read as a force rate.",
     )
     jamming_force_n: float = Field(
-        6.0, allow_inf_nan=False, description="Filtered force above which jamming is possible."
+        6.0, allow_inf_nan=False, ge=-1e4, le=1e4,
+        description="Filtered force above which jamming is possible."
     )
     jamming_rate_n_per_s: float = Field(
         27.0,
         allow_inf_nan=False,
-        description="Filtered force rate above which jamming is possible.",
+        ge=-1e6, le=1e6, description="Filtered force rate above which jamming is possible.",
     )
     contact_force_n: float = Field(
         30.0,
         allow_inf_nan=False,
-        description="Filtered force above which direct contact is possible.",
+        ge=-1e4, le=1e4, description="Filtered force above which direct contact is possible.",
     )
     contact_rate_n_per_s: float = Field(
         70.0,
         allow_inf_nan=False,
-        description="Filtered force rate above which direct contact is possible.",
+        ge=-1e6, le=1e6, description="Filtered force rate above which direct contact is possible.",
     )
     force_scale_n: float = Field(
         2.0,
         gt=0,
         allow_inf_nan=False,
-        description="Softness of the force thresholds: margin per unit of logit.",
+        le=1e4, description="Softness of the force thresholds: margin per unit of logit.",
     )
     rate_scale_n_per_s: float = Field(
         5.0,
         gt=0,
         allow_inf_nan=False,
-        description="Softness of the rate thresholds: margin per unit of logit.",
+        le=1e6, description="Softness of the rate thresholds: margin per unit of logit.",
     )
 
     model_dir: str | None = Field(

@@ -16,6 +16,7 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         summary="Free / granular jamming / contact from filtered force and force rate (Fig. 3.4).",
         config=ForceRateJammingConfig,
         factory="hapticframe_jamming._classifier:ForceRateJammingClassifier",
+        validator="hapticframe_jamming._checks:check",
         capabilities=frozenset({"trainable"}),
         requires=("scipy",),
         consumes={"force_n": (2,)},

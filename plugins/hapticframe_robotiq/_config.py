@@ -32,7 +32,10 @@ class Ft300Config(PluginConfig):
         description="A device path (/dev/ttyUSB0, /dev/serial/by-id/...), a pyserial URL, or "
         "'emulated' for the sensor's emulator behind a pseudo-terminal.",
     )
-    baudrate: int = Field(19200, gt=0, description="Serial speed (the FT 300 uses 19200 8N1).")
+    baudrate: int = Field(
+        19200, gt=0, le=10_000_000,
+        description="Serial speed (the FT 300 uses 19200 8N1).",
+    )
     slave_id: int = Field(9, ge=1, le=247, description="Modbus slave id (the FT 300 uses 9).")
     tare_s: float = Field(
         0.2,
@@ -42,16 +45,17 @@ class Ft300Config(PluginConfig):
         "samples over this long is subtracted from every later sample; 0 delivers raw values.",
     )
     byte_timeout_s: float = Field(
-        0.08, gt=0, description="No byte for this long counts a stall (and ends a jam)."
+        0.08, gt=0, le=10.0, description="No byte for this long counts a stall (and ends a jam)."
     )
     frame_timeout_s: float = Field(
         0.16,
         gt=0,
+        le=60.0,
         description="No valid frame for this long: recover (re-jam and restart the stream, "
         "reconnecting first when the link dropped).",
     )
     modbus_timeout_s: float = Field(
-        0.4, gt=0, description="How long one Modbus request waits for its reply."
+        0.4, gt=0, le=60.0, description="How long one Modbus request waits for its reply."
     )
     modbus_retries: int = Field(
         3, ge=1, le=20, description="Attempts of one Modbus request before it fails."
@@ -85,6 +89,7 @@ class Ft300Config(PluginConfig):
     frozen_frames: int | None = Field(
         50,
         ge=2,
+        le=1_000_000,
         description="This many bit-identical frames in a row mark the sensor frozen: later "
         "identical frames are invalid until the values change (None: no check; a real sensor's "
         "noise makes even two identical frames rare, a noiseless emulator at rest needs None).",
@@ -98,10 +103,10 @@ class Ft300Config(PluginConfig):
         "params}).",
     )
     noise_std_n: float = Field(
-        0.1, ge=0, description="Emulator: white noise on each force component (N)."
+        0.1, ge=0, le=100.0, description="Emulator: white noise on each force component (N)."
     )
     noise_std_nm: float = Field(
-        0.003, ge=0, description="Emulator: white noise on each torque component (N·m)."
+        0.003, ge=0, le=10.0, description="Emulator: white noise on each torque component (N·m)."
     )
     offset_n: Vector3 = Field(
         (0.0, 0.0, 0.0), description="Emulator: constant force offset ε of the sensor (N)."

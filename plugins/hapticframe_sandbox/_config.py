@@ -16,18 +16,25 @@ class SandboxRobotConfig(PluginConfig):
     raking (α = 90°), an 80 N force limit, and the depth schedule of section 3.5.1.
     """
 
-    control_rate_hz: float = Field(100.0, gt=0, description="Control steps per second.")
-    depth_m: float = Field(0.044, gt=0, description="Initial raking depth below the free surface.")
+    control_rate_hz: float = Field(100.0, gt=0, le=10_000, description="Control steps per second.")
+    depth_m: float = Field(
+        0.044, gt=0, le=0.3,
+        description="Initial raking depth below the free surface.",
+    )
     depth_reduction_m: float = Field(
         0.01,
         ge=0,
+        le=0.3,
         description="Depth lost after the first exploratory movement that reaches the object "
         "(displaced soil); later reductions shrink by depth_reduction_ratio.",
     )
     depth_reduction_ratio: float = Field(
         0.5, ge=0, le=1, description="Factor between successive depth reductions (1, 0.5, 0.25 cm)."
     )
-    min_depth_m: float = Field(0.005, gt=0, description="The depth schedule never goes below this.")
+    min_depth_m: float = Field(
+        0.005, gt=0, le=0.3,
+        description="The depth schedule never goes below this.",
+    )
     rake_angle_deg: float = Field(
         90.0, gt=0, lt=180, description="Plate angle α to the free surface (90 = vertical)."
     )
@@ -44,16 +51,17 @@ class SandboxRobotConfig(PluginConfig):
         description="Failure-zone half-angle η; None uses (50 + 7n)° with n the number of "
         "completed pairs of object interactions (Table 3.1), capped at 90°.",
     )
-    plate_width_m: float = Field(0.02, gt=0, description="Width of the fingertip plate.")
+    plate_width_m: float = Field(0.02, gt=0, le=1.0, description="Width of the fingertip plate.")
     drag_coefficient_n_per_m2: float = Field(
         7750.0,
         ge=0,
+        le=1e6,
         description="Free plate drag F = c d²; 7750 gives about 15 N at 4.4 cm (Figure 3.6).",
     )
     shear_cycle_length_fraction: float = Field(
         0.5,
         gt=0,
-        description="Mean length of one shear-band nucleation cycle, as a fraction of the "
+        le=10, description="Mean length of one shear-band nucleation cycle, as a fraction of the "
         "rupture distance.",
     )
     shear_cycle_amplitude: float = Field(
@@ -69,46 +77,52 @@ class SandboxRobotConfig(PluginConfig):
         description="Relative spread (uniform ±) of each cycle's length and amplitude.",
     )
     drag_fluctuation_fraction: float = Field(
-        0.03, ge=0, description="Std of the slow random drag fluctuation, relative to the drag."
+        0.03, ge=0, le=1,
+        description="Std of the slow random drag fluctuation, relative to the drag."
     )
     drag_fluctuation_time_s: float = Field(
-        0.3, gt=0, description="Correlation time of that fluctuation."
+        0.3, gt=0, le=100, description="Correlation time of that fluctuation."
     )
     jamming_gain_n_per_m: float = Field(
         1200.0,
         ge=0,
-        description="Jamming surge when the plate reaches the object, per metre of depth "
+        le=1e6, description="Jamming surge when the plate reaches the object, per metre of depth "
         "(1200 gives about 53 N at 4.4 cm).",
     )
     jamming_exponent: float = Field(
-        1.5, gt=0, description="Shape p of the surge g d ((r − s)/r)^p as the plate approaches."
+        1.5, gt=0, le=10,
+        description="Shape p of the surge g d ((r − s)/r)^p as the plate approaches."
     )
     contact_stiffness_n_per_m: float = Field(
-        3000.0, ge=0, description="Force per metre pushed into an object after direct contact."
+        3000.0, ge=0, le=1e7,
+        description="Force per metre pushed into an object after direct contact."
     )
     force_limit_n: float = Field(
-        80.0, gt=0, description="The robot halts itself above this true force magnitude."
+        80.0, gt=0, le=10_000, description="The robot halts itself above this true force magnitude."
     )
     sector_radial_samples: int = Field(
-        40, ge=2, description="Samples per ray when locating objects in the failure zone."
+        40, ge=2, le=1000, description="Samples per ray when locating objects in the failure zone."
     )
     sector_angular_samples: int = Field(
-        21, ge=1, description="Rays across the failure zone (odd keeps one on the axis)."
+        21, ge=1, le=1001, description="Rays across the failure zone (odd keeps one on the axis)."
     )
     # The tool's inertia and the wrist sensor, for the physical truth that drives emulated
     # force/torque sensors and IMUs (docs/simulated-devices.md).
     end_effector_mass_kg: float = Field(
-        0.8, gt=0, description="Mass beyond the wrist force/torque sensor (plate and mount)."
+        0.8, gt=0, le=100,
+        description="Mass beyond the wrist force/torque sensor (plate and mount)."
     )
     acceleration_m_per_s2: float | None = Field(
         None,
         gt=0,
+        le=100,
         description="Acceleration at the start and deceleration at the end of each movement "
         "(a trapezoidal speed profile); None starts and stops at once (constant speed).",
     )
     sensor_height_m: float = Field(
         0.1,
         ge=0,
+        le=2.0,
         description="Height of the wrist sensor's origin above the fingertip: the lever arm "
         "of the environment force's torque.",
     )
@@ -141,5 +155,5 @@ class SandboxForceSensorConfig(PluginConfig):
     """A 2-D force sensor on the simulated fingertip: the true force plus white noise."""
 
     noise_std_n: float = Field(
-        0.3, ge=0, description="Standard deviation of the noise added to each force axis."
+        0.3, ge=0, le=1000, description="Standard deviation of the noise added to each force axis."
     )

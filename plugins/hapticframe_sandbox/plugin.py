@@ -16,6 +16,7 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         summary="Simulated plate raked through sand: plate drag, granular jamming, contact.",
         config=SandboxRobotConfig,
         factory="hapticframe_sandbox._robot:SandboxRobot",
+        validator="hapticframe_sandbox._checks:check",
         capabilities=frozenset({"simulated"}),
         # Another sandbox robot in inputs: this one works in the same sandbox (clock and
         # depth schedule shared), e.g. a second arm with its own workspace.

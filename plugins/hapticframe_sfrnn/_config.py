@@ -57,10 +57,16 @@ class RecurrentConfig(PluginConfig):
         description="Modalities the network is built for; their code channels "
         "(<modality>_code) are read. A configured modality missing at run time is zero-filled.",
     )
-    pac_code_size: int = Field(200, ge=1, description="Length of pac_code (thesis: 200 atoms).")
-    pdc_code_size: int = Field(100, ge=1, description="Length of pdc_code (thesis: 100 atoms).")
+    pac_code_size: int = Field(
+        200, ge=1, le=10_000,
+        description="Length of pac_code (thesis: 200 atoms).",
+    )
+    pdc_code_size: int = Field(
+        100, ge=1, le=10_000,
+        description="Length of pdc_code (thesis: 100 atoms).",
+    )
     electrodes_code_size: int = Field(
-        100, ge=1, description="Length of electrodes_code (thesis: 100 atoms)."
+        100, ge=1, le=10_000, description="Length of electrodes_code (thesis: 100 atoms)."
     )
     amplitude_inputs: bool = Field(
         False,
@@ -83,32 +89,35 @@ class RecurrentConfig(PluginConfig):
     amplitude_gain: float = Field(
         30.0,
         gt=0,
-        description="Weight of the amplitude inputs after RMS scaling (codes have 1): two "
+        le=1e4, description="Weight of the amplitude inputs after RMS scaling (codes have 1): two "
         "numbers beside 100-200 code atoms are otherwise drowned in the fusion layer's "
         "pre-activation. On the quick perception data (SF-RNN, 2 seeds) 30 gave the best "
         "robustness mean of 10, 30 and 100 (95.4 % against 94.2 % and 93.4 %).",
     )
-    frame_rate_hz: float = Field(100.0, gt=0, description="Rate of the code frames.")
+    frame_rate_hz: float = Field(100.0, gt=0, le=100_000, description="Rate of the code frames.")
     dropout: float = Field(
         0.4, ge=0.0, lt=1.0, description="Dropout rate in training (thesis: 0.4)."
     )
     window_frames: int = Field(
-        50, ge=2, description="Training window in frames (thesis: 500 ms at 100 Hz = 50)."
+        50, ge=2, le=100_000,
+        description="Training window in frames (thesis: 500 ms at 100 Hz = 50)."
     )
     free_stride_frames: int = Field(
-        10, ge=1, description="Sliding-window step over trials without contact (thesis: 10)."
+        10, ge=1, le=100_000,
+        description="Sliding-window step over trials without contact (thesis: 10)."
     )
     contact_stride_frames: int = Field(
-        5, ge=1, description="Sliding-window step over trials with contact (thesis: 5)."
+        5, ge=1, le=100_000, description="Sliding-window step over trials with contact (thesis: 5)."
     )
-    learning_rate: float = Field(1e-3, gt=0, description="Adam learning rate.")
+    learning_rate: float = Field(1e-3, gt=0, le=10.0, description="Adam learning rate.")
     weight_decay: float = Field(
-        1e-4, ge=0, description="L2 penalty on the weights (Adam weight_decay)."
+        1e-4, ge=0, le=1.0, description="L2 penalty on the weights (Adam weight_decay)."
     )
-    batch_size: int = Field(32, ge=1, description="Training windows per Adam step.")
-    max_epochs: int = Field(40, ge=1, description="Upper bound on training epochs.")
+    batch_size: int = Field(32, ge=1, le=100_000, description="Training windows per Adam step.")
+    max_epochs: int = Field(40, ge=1, le=100_000, description="Upper bound on training epochs.")
     patience: int = Field(
-        5, ge=1, description="Epochs without a better validation score before training stops."
+        5, ge=1, le=100_000,
+        description="Epochs without a better validation score before training stops."
     )
     early_stopping: Literal["balanced_accuracy", "loss"] = Field(
         "balanced_accuracy",
@@ -143,6 +152,7 @@ class RecurrentConfig(PluginConfig):
     threads: int = Field(
         1,
         ge=1,
+        le=1024,
         description="torch intra-op threads while training (restored afterwards): these small "
         "GRUs train fastest on one, and several threads on shared cores slow them ~10×.",
     )
@@ -201,19 +211,24 @@ class SFRNNConfig(RecurrentConfig):
     """SF-RNN (dissertation Fig. 2.2e): codes → fusion layer → GRU stack → two states."""
 
     fusion_units: int = Field(
-        100, ge=1, description="Width of the fully connected fusion layer over all codes."
+        100, ge=1, le=10_000,
+        description="Width of the fully connected fusion layer over all codes."
     )
-    gru_layers: int = Field(4, ge=1, description="Stacked GRU layers (thesis: 4).")
-    gru_units: int = Field(50, ge=1, description="Units per GRU layer (thesis: 50).")
+    gru_layers: int = Field(4, ge=1, le=64, description="Stacked GRU layers (thesis: 4).")
+    gru_units: int = Field(50, ge=1, le=4096, description="Units per GRU layer (thesis: 50).")
 
 
 class FusionRNNConfig(RecurrentConfig):
     """Fusion RNN (Jain et al.): one GRU stack per modality, joined by a fully connected layer."""
 
-    branch_layers: int = Field(2, ge=1, description="GRU layers per modality.")
-    branch_units: int = Field(50, ge=1, description="Units per GRU layer of each modality.")
+    branch_layers: int = Field(2, ge=1, le=64, description="GRU layers per modality.")
+    branch_units: int = Field(
+        50, ge=1, le=4096,
+        description="Units per GRU layer of each modality.",
+    )
     fusion_units: int = Field(
-        50, ge=1, description="Width of the fully connected layer joining the modalities."
+        50, ge=1, le=10_000,
+        description="Width of the fully connected layer joining the modalities."
     )
 
 
@@ -226,17 +241,17 @@ class LinearSVMConfig(PluginConfig):
         "(stage d), EMD tensors {'pac_imfs': 176, ...} (stage c) or raw frames "
         "{'pac': 22, 'pdc': 1, 'electrodes': 19}. Missing or invalid ones are zero-filled.",
     )
-    c: float = Field(1.0, gt=0, description="LinearSVC regularisation C.")
-    max_iter: int = Field(5000, ge=1, description="LinearSVC iteration cap.")
+    c: float = Field(1.0, gt=0, le=1e6, description="LinearSVC regularisation C.")
+    max_iter: int = Field(5000, ge=1, le=10_000_000, description="LinearSVC iteration cap.")
     calibration_folds: int = Field(
-        3, ge=2, description="Folds (grouped by trial) for the Platt-scaling calibration."
+        3, ge=2, le=100, description="Folds (grouped by trial) for the Platt-scaling calibration."
     )
     balance_classes: bool = Field(
         True,
         description="class_weight='balanced' (stands in for the thesis's random oversampling "
         "of the contact class).",
     )
-    frame_rate_hz: float = Field(100.0, gt=0, description="Rate of the input frames.")
+    frame_rate_hz: float = Field(100.0, gt=0, le=100_000, description="Rate of the input frames.")
     model_dir: str | None = Field(
         None,
         description="Directory written by save() (model.npz + model.json) to load at build "

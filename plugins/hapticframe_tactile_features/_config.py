@@ -59,13 +59,15 @@ class EMDFeaturesConfig(PluginConfig):
     frame_rate_hz: float = Field(
         100.0,
         gt=0,
+        le=100_000,
         description="BioTac frame rate (one pdc/electrode sample and one pac chunk per frame).",
     )
     pac_samples_per_frame: int = Field(
-        22, ge=1, description="pac samples delivered per frame (22 at 2,200 Hz and 100 frames/s)."
+        22, ge=1, le=10_000,
+        description="pac samples delivered per frame (22 at 2,200 Hz and 100 frames/s)."
     )
     electrode_count: int = Field(
-        19, ge=1, description="Electrodes per frame (19; 24 on the BioTac SP)."
+        19, ge=1, le=1000, description="Electrodes per frame (19; 24 on the BioTac SP)."
     )
     pac_imfs: int = Field(
         8, ge=1, le=12, description="IMF rows of pac_imfs (zero rows where fewer IMFs exist)."
@@ -76,11 +78,13 @@ class EMDFeaturesConfig(PluginConfig):
     pac_window_samples: int = Field(
         512,
         ge=512,
+        le=1_048_576,
         description="pac ring buffer decomposed every frame, in samples (≥ 2^(8+1) for 8 IMFs).",
     )
     pdc_window_samples: int = Field(
         64,
         ge=64,
+        le=1_048_576,
         description="pdc ring buffer decomposed every frame, in samples (≥ 2^(5+1) for 5 IMFs).",
     )
     delay_frames: int = Field(
@@ -94,18 +98,19 @@ class EMDFeaturesConfig(PluginConfig):
     sd_threshold: float = Field(
         0.1,
         ge=0,
+        le=1.0,
         description="Sifting stop: mean-envelope energy below this fraction of the proto-IMF "
         "energy (0 = fixed sifting).",
     )
-    max_sifts: int = Field(50, ge=1, description="Cap on sifting iterations per IMF.")
+    max_sifts: int = Field(50, ge=1, le=10_000, description="Cap on sifting iterations per IMF.")
     residue_ratio: float = Field(
         0.1,
         ge=0,
-        description="Stop decomposing when ||residue|| < residue_ratio · ||last IMF|| "
+        le=1.0, description="Stop decomposing when ||residue|| < residue_ratio · ||last IMF|| "
         "(thesis: 10 %; 0 = off).",
     )
     mirrored_extrema: int = Field(
-        2, ge=1, description="Extrema mirrored beyond each end of the window."
+        2, ge=1, le=100, description="Extrema mirrored beyond each end of the window."
     )
     emd_backend: Literal["auto", "numba", "numpy"] = Field(
         "auto",
@@ -135,10 +140,16 @@ class SparseCodingConfig(PluginConfig):
         description="Modalities to encode (pac → pac_code, pdc → pdc_code, "
         "electrodes → electrodes_code).",
     )
-    pac_atoms: int = Field(200, ge=1, description="Dictionary size k for pac (thesis: 200).")
-    pdc_atoms: int = Field(100, ge=1, description="Dictionary size k for pdc (thesis: 100).")
+    pac_atoms: int = Field(
+        200, ge=1, le=10_000,
+        description="Dictionary size k for pac (thesis: 200).",
+    )
+    pdc_atoms: int = Field(
+        100, ge=1, le=10_000,
+        description="Dictionary size k for pdc (thesis: 100).",
+    )
     electrodes_atoms: int = Field(
-        100, ge=1, description="Dictionary size k for the electrodes (thesis: 100)."
+        100, ge=1, le=10_000, description="Dictionary size k for the electrodes (thesis: 100)."
     )
     pac_shape: tuple[int, int] = Field(
         (8, 22), description="Shape of one pac_imfs tensor (IMFs, samples)."
@@ -150,16 +161,17 @@ class SparseCodingConfig(PluginConfig):
         (19, 5), description="Shape of one electrodes_window tensor (electrodes, frames)."
     )
     frame_rate_hz: float = Field(
-        100.0, gt=0, description="Rate of the feature tensors (and of the codes)."
+        100.0, gt=0, le=100_000, description="Rate of the feature tensors (and of the codes)."
     )
     lambda_scale: float = Field(
         1.2,
         gt=0,
-        description="Sparsity penalty λ = lambda_scale / sqrt(m), m the tensor size "
+        le=1e3, description="Sparsity penalty λ = lambda_scale / sqrt(m), m the tensor size "
         "(Mairal et al. 2010: 1.2).",
     )
     encode_max_iter: int = Field(
-        1000, ge=1, description="Coordinate-descent iteration cap of the lasso encoder."
+        1000, ge=1, le=1_000_000,
+        description="Coordinate-descent iteration cap of the lasso encoder."
     )
     encoder: Literal["auto", "numba", "sklearn"] = Field(
         "auto",
@@ -170,10 +182,13 @@ class SparseCodingConfig(PluginConfig):
     fit_epochs: int = Field(
         10,
         ge=1,
-        description="MiniBatchDictionaryLearning max_iter (passes over the data; early "
+        le=100_000, description="MiniBatchDictionaryLearning max_iter (passes over the data; early "
         "stopping may end sooner).",
     )
-    fit_batch_size: int = Field(256, ge=1, description="MiniBatchDictionaryLearning batch_size.")
+    fit_batch_size: int = Field(
+        256, ge=1, le=1_000_000,
+        description="MiniBatchDictionaryLearning batch_size.",
+    )
     amplitude: Literal["drop", "channel"] = Field(
         "drop",
         description="What happens to the size that the centring and unit-norm scaling remove "

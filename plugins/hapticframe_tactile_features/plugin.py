@@ -30,6 +30,7 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         "electrode windows (19×5).",
         config=EMDFeaturesConfig,
         factory="hapticframe_tactile_features._emd_features:EMDFeatureExtractor",
+        validator="hapticframe_tactile_features._checks:check_emd",
         requires=("scipy",),
         # numba is optional: without it the numpy EMD runs (same numbers, ~15x slower,
         # too slow for the 10 ms streaming budget).
@@ -46,6 +47,7 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         "dictionaries by MiniBatchDictionaryLearning).",
         config=SparseCodingConfig,
         factory="hapticframe_tactile_features._sparse_coding:SparseCodingExtractor",
+        validator="hapticframe_tactile_features._checks:check_sparse",
         capabilities=frozenset({"trainable"}),
         requires=("sklearn",),
         install_hint="pip install 'hapticframe[learn]'",

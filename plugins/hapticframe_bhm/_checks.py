@@ -1,0 +1,43 @@
+"""Checks of the Bayesian Hilbert map that ``validate`` runs (import-light: no numpy)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+from hapticframe import Finding, ValidationContext
+
+__all__ = ["check"]
+
+#: Largest weight-vector length (the map's precision is a dense D x D matrix; as _map).
+MAX_WEIGHTS = 5000
+#: The thesis's 75 x 50 cm search area: the region when neither config nor scene gives one.
+_DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
+
+
+def _hinges(low: float, high: float, spacing: float) -> float:
+    """Hinges along one axis as hinge_axis places them: the span, both edges, one padding."""
+    return max(1.0, math.ceil((high - low) / spacing - 1e-9)) + 3.0
+
+
+def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
+    """Refuse a hinge grid whose weights the dense posterior cannot hold."""
+    if config.region is not None:
+        r = config.region
+        x0, x1, y0, y1 = r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m
+    elif context.scene is not None:
+        r = context.scene.region
+        x0, x1, y0, y1 = r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m
+    else:
+        x0, x1, y0, y1 = _DEFAULT_REGION
+    spacing = config.hinge_spacing_m
+    weights = _hinges(x0, x1, spacing) * _hinges(y0, y1, spacing) + int(config.bias)
+    if weights > MAX_WEIGHTS:
+        gib = 8.0 * weights * weights / 2**30
+        yield Finding(
+            f"hinge spacing {spacing:g} m gives {weights:.3g} weights over the "
+            f"{x1 - x0:.3g} x {y1 - y0:.3g} m region (a {gib:.3g} GiB covariance); the limit is "
+            f"{MAX_WEIGHTS} weights: increase hinge_spacing_m",
+            field="hinge_spacing_m",
+        )

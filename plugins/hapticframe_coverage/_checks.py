@@ -1,0 +1,167 @@
+"""Checks of the coverage planners that ``validate`` runs (import-light: no numpy).
+
+Across components: the speed over each robot's control period (steps per line, the step's
+length against the smallest object and the failure zone ahead of the fingertip) and the
+search region against the line spacing and the map-sampling grids.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+from hapticframe import Finding, Kind, ValidationContext
+
+__all__ = ["check"]
+
+#: The thesis's 75 x 50 cm search area: the region when neither config, map nor scene gives one.
+_DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
+#: A step longer than this (m) is legal but coarse: a contact is detected that late.
+_COARSE_STEP_M = 0.005
+#: Most map samples the two-phase planner's centroid grid and line scores may take.
+_MAX_GRID_POINTS = 10_000_000
+_MAX_LINE_POINTS = 1_000_000
+#: Depth and rake angle assumed for a robot that does not say (the thesis's 4.4 cm, vertical).
+_DEPTH_M = 0.044
+
+
+def _bounds(region: Any) -> tuple[float, float, float, float]:
+    return (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+
+
+def _region(config: Any, context: ValidationContext) -> tuple[float, float, float, float]:
+    """The search region as the planner resolves it: its own, its first map's, the scene's."""
+    if config.region is not None:
+        return _bounds(config.region)
+    for view in context.inputs.values():
+        region = getattr(view.config, "region", None)
+        if view.kind == Kind.MAP and region is not None:
+            return _bounds(region)
+    if context.scene is not None:
+        return _bounds(context.scene.region)
+    return _DEFAULT_REGION
+
+
+def _smallest_object(scene: Any) -> tuple[float, int] | None:
+    """The smallest extent (m) over the scene's objects and the object's index."""
+    best: tuple[float, int] | None = None
+    for index, obj in enumerate(getattr(scene, "objects", None) or ()):
+        if getattr(obj, "radius_m", None) is not None:
+            size = 2.0 * obj.radius_m
+        elif getattr(obj, "semi_axes_m", None) is not None:
+            size = 2.0 * min(obj.semi_axes_m)
+        elif getattr(obj, "vertices_m", None):
+            xs = [v[0] for v in obj.vertices_m]
+            ys = [v[1] for v in obj.vertices_m]
+            size = min(max(xs) - min(xs), max(ys) - min(ys))
+        else:
+            continue
+        if math.isfinite(size) and size > 0 and (best is None or size < best[0]):
+            best = (size, index)
+    return best
+
+
+def _shear_band_angle_rad(robot: Any, scene: Any) -> float:
+    """β: the robot's, else the Arthur angle π/4 − (φ + ψ)/4 of the scene's material."""
+    beta = getattr(robot, "shear_band_angle_deg", None)
+    if beta is not None:
+        return math.radians(beta)
+    material = getattr(scene, "material", None)
+    phi = getattr(material, "friction_angle_deg", 42.0)
+    psi = getattr(material, "dilation_angle_deg", 12.0)
+    return math.pi / 4 - math.radians(phi + psi) / 4
+
+
+def _failure_zone_m(config: Any, robot: Any, scene: Any) -> float:
+    """The shortest rupture distance r = d (cot α + cot β) the robot rakes at."""
+    depth = config.depth_m if config.depth_m is not None else getattr(robot, "depth_m", None)
+    depth = _DEPTH_M if depth is None else depth
+    depth = min(depth, getattr(robot, "min_depth_m", depth))
+    alpha = math.radians(getattr(robot, "rake_angle_deg", 90.0))
+    beta = _shear_band_angle_rad(robot, scene)
+    return float(depth * (1.0 / math.tan(alpha) + 1.0 / math.tan(beta)))
+
+
+def _robots(context: ValidationContext) -> list[tuple[str, Any, float]]:
+    """(id, config, control rate) of every robot that declares its control rate."""
+    robots = []
+    for view in context.components.values():
+        rate = getattr(view.config, "control_rate_hz", None)
+        if view.kind == Kind.ROBOT and isinstance(rate, (int, float)) and rate > 0:
+            robots.append((view.id, view.config, float(rate)))
+    return robots
+
+
+def _speed(config: Any, context: ValidationContext, diagonal: float) -> Iterator[Finding]:
+    speed = config.speed_m_per_s
+    smallest = _smallest_object(context.scene)
+    max_steps = getattr(context.run, "max_steps_per_movement", None)
+    for robot_id, robot, rate in _robots(context):
+        step = speed / rate
+        where = (f"{speed:g} m/s with robot {robot_id!r} at {rate:g} Hz moves "
+                 f"{step * 1e3:.3g} mm per control step")
+        if max_steps is not None and diagonal / step > max_steps:
+            yield Finding(
+                f"{where}: a line across the {diagonal:.3g} m region takes up to "
+                f"{diagonal / step:.3g} steps, beyond run.max_steps_per_movement ({max_steps}); "
+                "raise the speed or lower the control rate",
+                field="speed_m_per_s",
+            )
+            continue
+        if smallest is not None and step >= smallest[0]:
+            yield Finding(
+                f"{where}, as long as scene object {smallest[1]} ({smallest[0] * 1e3:.3g} mm "
+                "across): one step jumps over it; lower the speed",
+                field="speed_m_per_s",
+            )
+            continue
+        zone = _failure_zone_m(config, robot, context.scene)
+        if zone > 0 and step >= zone:
+            yield Finding(
+                f"{where}, longer than the {zone * 1e3:.3g} mm failure zone ahead of the "
+                "fingertip: jamming cannot be seen before the plate passes it; lower the speed",
+                field="speed_m_per_s",
+            )
+        elif step > _COARSE_STEP_M:
+            yield Finding(
+                f"{where} (more than {_COARSE_STEP_M * 1e3:g} mm): contact is seen that coarsely",
+                field="speed_m_per_s",
+                severity="warning",
+            )
+
+
+def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
+    """Yield the coverage planner's cross-component findings (see the module docstring)."""
+    x0, x1, y0, y1 = _region(config, context)
+    width, height = x1 - x0, y1 - y0
+    spacing = config.line_spacing_m
+    if max(width, height) < spacing:
+        yield Finding(
+            f"the {width:.3g} x {height:.3g} m search region is smaller than one coverage line "
+            f"spacing ({spacing:g} m): lower line_spacing_m or enlarge the region",
+            field="line_spacing_m",
+        )
+    yield from _speed(config, context, math.hypot(width, height))
+    map_id = getattr(config, "map_id", None)
+    if map_id is not None and map_id not in context.inputs:
+        yield Finding(
+            f"map_id {map_id!r} is not one of the planner's inputs {list(context.inputs)}",
+            field="map_id",
+        )
+    grid = getattr(config, "grid_spacing_m", None)
+    if grid is not None:
+        points = (width / grid + 1) * (height / grid + 1)
+        if points > _MAX_GRID_POINTS:
+            yield Finding(
+                f"grid spacing {grid:g} m gives {points:.3g} map samples over the "
+                f"{width:.3g} x {height:.3g} m region; the limit is {_MAX_GRID_POINTS:.0e}",
+                field="grid_spacing_m",
+            )
+    step = getattr(config, "score_step_m", None)
+    if step is not None and math.hypot(width, height) / step > _MAX_LINE_POINTS:
+        yield Finding(
+            f"score step {step:g} m gives {math.hypot(width, height) / step:.3g} points per "
+            f"candidate line; the limit is {_MAX_LINE_POINTS:.0e}",
+            field="score_step_m",
+        )

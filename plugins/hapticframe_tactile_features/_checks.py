@@ -1,0 +1,90 @@
+"""Checks of the BioTac feature extractors that ``validate`` runs (import-light: no numpy).
+
+``emd-features`` must read a BioTac's raw channels, ``sparse-coding`` the tensors of
+``emd-features`` in the shapes it configures, and ``sparse-coding`` needs dictionaries: loaded
+(``dictionary_file``) or fitted by the run (``run.train_from``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+from hapticframe import Finding, ValidationContext
+
+from ._config import ELECTRODE_FRAMES, PDC_FRAMES, feature_channel, input_channel
+
+__all__ = ["check_emd", "check_sparse"]
+
+#: What the bundled producers deliver, by type (others are not known before they are built).
+_CHANNELS: dict[str, frozenset[str]] = {
+    "biotac": frozenset({"pac", "pdc", "tac", "tdc", "electrodes", "position_m", "contact"}),
+    "sandbox-force": frozenset({"force_n"}),
+    "robotiq-ft300": frozenset({"force_n", "torque_nm"}),
+    "force-observer": frozenset({"force_n"}),
+    "bno055": frozenset({"acceleration_m_per_s2", "linear_acceleration_m_per_s2",
+                         "gravity_m_per_s2", "angular_velocity_rad_per_s", "orientation_wxyz",
+                         "calibration"}),
+}
+#: Most dictionary entries of one modality (atoms x tensor size, float64: 800 MB).
+MAX_DICTIONARY = 100_000_000
+
+
+def check_emd(config: Any, context: ValidationContext) -> Iterator[Finding]:
+    """Refuse ``emd-features`` whose inputs are all known not to deliver its channels."""
+    known = {i: _CHANNELS.get(v.type) for i, v in context.inputs.items()}
+    if not known or any(c is None for c in known.values()):
+        return
+    wanted = [input_channel(m) for m in config.modalities]
+    if not any(ch in c for c in known.values() if c for ch in wanted):
+        yield Finding(
+            f"emd-features reads {', '.join(wanted)}, which none of its inputs delivers "
+            f"({', '.join(f'{i} ({context.inputs[i].type})' for i in known)}); wire it to a "
+            "BioTac",
+            field="modalities",
+        )
+
+
+def _emd_shapes(view: Any) -> dict[str, tuple[int, int]]:
+    c = view.config
+    return {
+        "pac": (c.pac_imfs, c.pac_samples_per_frame),
+        "pdc": (c.pdc_imfs, PDC_FRAMES),
+        "electrodes": (c.electrode_count, ELECTRODE_FRAMES),
+    }
+
+
+def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding]:
+    """Refuse untrained dictionaries, unreadable inputs and shapes its input does not emit."""
+    if (config.dictionary_file is None and context.extra.get("command") != "train"
+            and not getattr(context.run, "train_from", None)):
+        yield Finding(
+            "sparse-coding has no dictionaries: set dictionary_file to what `hapticframe train` "
+            "saved, or run.train_from to fit them before the run",
+            field="dictionary_file",
+        )
+    for modality in config.modalities:
+        rows, cols = getattr(config, f"{modality}_shape")
+        entries = getattr(config, f"{modality}_atoms") * rows * cols
+        if entries > MAX_DICTIONARY:
+            yield Finding(
+                f"the {modality} dictionary would hold {entries:.3g} values "
+                f"({8.0 * entries / 2**30:.3g} GiB); the limit is {MAX_DICTIONARY:.0e}",
+                field=f"{modality}_shape",
+            )
+    for view in context.inputs.values():
+        if view.type in _CHANNELS:
+            yield Finding(
+                f"sparse-coding encodes emd-features tensors; its input {view.id!r} "
+                f"({view.type}) delivers raw channels: put emd-features between them",
+            )
+        elif view.type == "emd-features" and config.dictionary_file is None:
+            shapes = _emd_shapes(view)
+            for modality in set(config.modalities) & set(view.config.modalities):
+                shape = tuple(getattr(config, f"{modality}_shape"))
+                if shape != shapes[modality]:
+                    yield Finding(
+                        f"{modality}_shape is {shape} but {view.id!r} emits "
+                        f"{feature_channel(modality)} of shape {shapes[modality]}",
+                        field=f"{modality}_shape",
+                    )
