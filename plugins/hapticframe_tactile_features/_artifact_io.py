@@ -159,11 +159,13 @@ def read_npz_arrays(
     path: Path,
     shapes: Mapping[str, tuple[int, ...]],
     optional: Collection[str] = (),
+    max_bytes: int | None = None,
 ) -> dict[str, NDArray[np.float64]]:
     """The arrays ``shapes`` names, as finite float64, from the ``.npz`` at ``path``.
 
     Each member's shape and dtype are checked against ``shapes`` from its header before
-    any data is read; the file may be no larger than :func:`npz_budget` of ``shapes``.
+    any data is read; the file may be no larger than ``max_bytes`` (default:
+    :func:`npz_budget` of ``shapes``).
     Names in ``optional`` may be absent (then absent from the result). Other members
     are ignored.
 
@@ -174,7 +176,7 @@ def read_npz_arrays(
         lacking a member, a member of another shape or of a non-floating dtype (object
         arrays included: nothing is unpickled), or holding NaN or infinity.
     """
-    check_regular_file(path, npz_budget(shapes))
+    check_regular_file(path, npz_budget(shapes) if max_bytes is None else max_bytes)
     try:
         headers = _npz_headers(path)
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError) as exc:
