@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import stat
 import zipfile
 import zlib
@@ -126,7 +127,9 @@ def schema_error(path: Path, exc: ValidationError, prefix: str = "") -> ValueErr
     for error in errors[:_SCHEMA_ERRORS_SHOWN]:
         parts = ([prefix] if prefix else []) + [str(part) for part in error["loc"]]
         where = ".".join(parts) or "the top level"
-        shown.append(f"{where}: {error['msg']}")
+        # "a valid dictionary or instance of _Thresholds": the class name means nothing to a user.
+        message = re.sub(r" or instance of \w+", "", error["msg"])
+        shown.append(f"{where}: {message}")
     more = len(errors) - len(shown)
     tail = f" (and {more} more)" if more > 0 else ""
     return ValueError(f"{path} does not hold a valid model: {'; '.join(shown)}{tail}")

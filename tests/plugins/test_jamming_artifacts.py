@@ -104,3 +104,25 @@ def test_a_fifo_and_a_huge_file_are_not_read(model_dir: Path) -> None:
     (model_dir / "thresholds.json").unlink()
     (model_dir / "thresholds.json").write_text(" " * (5 << 20))
     refused(model_dir, r"holds \d+ bytes, more than")
+
+
+def test_hapticframe_run_with_a_corrupt_model_dir_exits_2_naming_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hapticframe._cli import main
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    text = (examples / "search-ellipse.yaml").read_text()
+    model_dir = tmp_path / "trained"
+    model_dir.mkdir()
+    (model_dir / "thresholds.json").write_text('{"format": "hapticframe-force-rate-jamming", '
+                                               '"format_version": 1, "thresholds": [1, 2]}')
+    text = text.replace("    inputs: [wrist]\n",
+                        f"    inputs: [wrist]\n    config: {{model_dir: {model_dir}}}\n", 1)
+    assert "model_dir" in text
+    experiment = tmp_path / "experiment.yaml"
+    experiment.write_text(text)
+    assert main(["run", str(experiment), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "internal error" not in err and "thresholds.json" in err and "thresholds" in err
+    assert "instance of" not in err
