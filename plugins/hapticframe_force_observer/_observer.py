@@ -30,15 +30,17 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 from scipy import signal
 
 from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
+from ._artifact_io import read_json_object, read_npz_arrays, schema_error
 from ._config import ForceObserverConfig
 from ._functional import (
     ObserverFit,
@@ -295,34 +297,99 @@ class ForceObserver(FeatureExtractor):
         return out
 
     def load(self, directory: str | Path) -> None:
-        """Read what :meth:`save` wrote (no pickles); ValueError when it is not such a model.
+        """Read what :meth:`save` wrote (no pickles); ValueError naming the file when it is
+        not such a model.
 
-        The model is refused when its format or version differs, an array is missing or has
-        the wrong shape, a value is not finite, or the rotation is not in SO(3).
+        ``model.json`` must match :class:`_ModelFile` (strict types, finite bounded values,
+        no list where an object belongs); ``model.npz``'s arrays are checked from their
+        headers (shape, dtype) before reading, then for finite values; the rotation must
+        lie in SO(3), and the arrays must agree with the values ``model.json`` repeats.
         """
         path = Path(directory)
-        try:
-            meta = json.loads((path / "model.json").read_text())
-            with np.load(path / "model.npz", allow_pickle=False) as arrays:
-                rotation = np.asarray(arrays["rotation"], dtype=np.float64)
-                bias = np.asarray(arrays["bias_n"], dtype=np.float64)
-        except (OSError, KeyError, json.JSONDecodeError) as exc:
+        meta_path, arrays_path = path / "model.json", path / "model.npz"
+        if not meta_path.exists() or not arrays_path.exists():
             raise ValueError(
-                f"feature extractor {self.id!r}: {path} holds no force-observer model: {exc}"
-            ) from exc
-        if meta.get("format") != MODEL_FORMAT or meta.get("format_version") != _FORMAT_VERSION:
-            raise ValueError(
-                f"{path / 'model.json'} is not a {MODEL_FORMAT} v{_FORMAT_VERSION} model "
-                f"(format {meta.get('format')!r}, version {meta.get('format_version')!r})"
+                f"feature extractor {self.id!r}: {path} holds no force-observer model "
+                "(model.json and model.npz, written by `hapticframe train`)"
             )
         try:
-            check_rotation(rotation, f"the rotation in {path / 'model.npz'}")
-            parameters = ObserverFit(float(meta["mass_kg"]), rotation, bias)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"feature extractor {self.id!r}: {path}: {exc}") from exc
-        self._parameters = parameters
-        report = meta.get("training_report")
-        self._training = dict(report) if isinstance(report, dict) else {}
+            meta = read_json_object(meta_path)
+        except ValueError as exc:
+            raise self._no_model(path, exc) from None
+        if meta.get("format") != MODEL_FORMAT or meta.get("format_version") != _FORMAT_VERSION:
+            raise ValueError(
+                f"{meta_path} is not a {MODEL_FORMAT} v{_FORMAT_VERSION} model "
+                f"(format {str(meta.get('format'))[:80]!r}, version "
+                f"{str(meta.get('format_version'))[:20]!r})"
+            )
+        try:
+            record = _ModelFile.model_validate(meta)
+        except ValidationError as exc:
+            raise schema_error(meta_path, exc) from None
+        try:
+            arrays = read_npz_arrays(arrays_path, {"rotation": (3, 3), "bias_n": (3,)})
+        except ValueError as exc:
+            raise self._no_model(path, exc) from None
+        rotation, bias = arrays["rotation"], arrays["bias_n"]
+        try:
+            check_rotation(rotation, f"the rotation in {arrays_path}")
+        except ValueError as exc:
+            raise ValueError(f"feature extractor {self.id!r}: {exc}") from None
+        if not np.allclose(bias, record.bias_n, rtol=1e-9, atol=1e-12):
+            raise ValueError(
+                f"{path}: bias_n in model.npz {bias.tolist()} differs from model.json's "
+                f"{list(record.bias_n)}; the files come from different models"
+            )
+        from_quaternion = rotation_matrix_from_wxyz(record.rotation_wxyz)
+        if not np.allclose(from_quaternion, rotation, atol=1e-6):
+            raise ValueError(
+                f"{path}: the rotation in model.npz differs from model.json's rotation_wxyz; "
+                "the files come from different models"
+            )
+        self._parameters = ObserverFit(record.mass_kg, rotation, bias)
+        self._training = dict(record.training_report)
+
+    def _no_model(self, path: Path, exc: ValueError) -> ValueError:
+        return ValueError(f"feature extractor {self.id!r}: {path} holds no force-observer "
+                          f"model: {exc}")
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
+
+
+class _ModelFile(BaseModel):
+    """``model.json`` of a force observer (format version 1); strict JSON types."""
+
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True)
+
+    format: Literal["hapticframe-force-observer"]
+    format_version: Literal[1]
+    mass_kg: Finite
+    rotation_wxyz: tuple[Finite, Finite, Finite, Finite]
+    bias_n: tuple[Finite, Finite, Finite]
+    channels: dict[Literal["force", "acceleration"], str]
+    filter: dict[Literal["cutoff_hz", "filter_order", "sample_rate_hz"], Finite]
+    training_report: dict[str, Any]
+    versions: dict[str, str | None]
+
+    @field_validator("rotation_wxyz", mode="before")
+    @classmethod
+    def _from_list(cls, value: Any) -> Any:
+        # JSON has arrays only; strict mode would refuse one for a tuple.
+        return tuple(value) if isinstance(value, list) else value
+
+    @field_validator("bias_n", mode="before")
+    @classmethod
+    def _bias_from_list(cls, value: Any) -> Any:
+        return tuple(value) if isinstance(value, list) else value
+
+    @field_validator("rotation_wxyz")
+    @classmethod
+    def _unit(cls, value: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+        norm = float(np.linalg.norm(value))
+        if abs(norm - 1.0) > 1e-6:
+            raise ValueError(f"must be a unit quaternion, its norm is {norm:.6g}")
+        return value
 
 
 def _version_of(distribution: str) -> str | None:

@@ -34,10 +34,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from hapticframe.kinds import (
     BuildContext,
@@ -48,6 +49,7 @@ from hapticframe.kinds import (
 )
 
 from . import _functional as F
+from ._artifact_io import read_json_object, schema_error
 from ._config import ForceRateJammingConfig
 
 __all__ = [
@@ -449,49 +451,53 @@ class ForceRateJammingClassifier(Classifier):
         return target
 
     def load(self, directory: str | Path) -> None:
-        """Read the thresholds :meth:`save` wrote (ValueError when they do not fit).
+        """Read the thresholds :meth:`save` wrote (ValueError naming the file when they do
+        not fit).
 
-        Thresholds on a filtered force rate are only meaningful through the filter they were
-        fitted with, so the artifact is refused when its cutoff, order or sample rate differ
-        from this classifier's, as well as when it is not a thresholds file of this format.
+        The file must match :class:`_ThresholdsFile` (strict JSON types, finite thresholds,
+        no list where an object belongs). Thresholds on a filtered force rate are only
+        meaningful through the filter they were fitted with, so the artifact is refused
+        when its cutoff, order or sample rate differ from this classifier's.
         """
         path = Path(directory) / THRESHOLDS_FILE
         try:
-            record = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
+            record = read_json_object(path)
+        except ValueError as exc:
             raise ValueError(
                 f"classifier {self.id!r}: no jamming thresholds in {directory}: {exc}"
-            ) from exc
-        if (
-            not isinstance(record, dict)
-            or record.get("format") != THRESHOLDS_FORMAT
-            or record.get("format_version") != _FORMAT_VERSION
+            ) from None
+        if record.get("format") != THRESHOLDS_FORMAT or record.get("format_version") != (
+            _FORMAT_VERSION
         ):
             raise ValueError(
                 f"classifier {self.id!r}: {path} is not a {THRESHOLDS_FORMAT} "
                 f"v{_FORMAT_VERSION} file"
             )
-        saved, ours = record.get("filter") or {}, self._filter_settings()
+        try:
+            saved = _ThresholdsFile.model_validate(record)
+        except ValidationError as exc:
+            raise ValueError(
+                f"classifier {self.id!r}: bad thresholds: {schema_error(path, exc)}"
+            ) from None
+        ours = self._filter_settings()
         mismatched = [
-            f"{key} {saved.get(key)!r} (saved) vs {value!r} (configured)"
+            f"{key} {getattr(saved.filter, key)!r} (saved) vs {value!r} (configured)"
             for key, value in ours.items()
-            if not isinstance(saved.get(key), (int, float))
-            or not math.isclose(float(saved[key]), value, rel_tol=1e-9)
+            if not math.isclose(float(getattr(saved.filter, key)), value, rel_tol=1e-9)
         ]
         if mismatched:
             raise ValueError(
                 f"classifier {self.id!r}: the thresholds in {path} were fitted through another "
                 f"filter: {'; '.join(mismatched)}. Configure the same filter or refit"
             )
-        thresholds = record.get("thresholds") or {}
         try:
-            values = {name: float(thresholds[name]) for name in _THRESHOLD_FIELDS}
-            config = type(self.config).model_validate({**self.config.model_dump(), **values})
-        except (KeyError, TypeError, ValueError) as exc:
+            config = type(self.config).model_validate(
+                {**self.config.model_dump(), **saved.thresholds.model_dump()}
+            )
+        except ValueError as exc:
             raise ValueError(f"classifier {self.id!r}: bad thresholds in {path}: {exc}") from exc
         self.config = config
-        report = record.get("training_report")
-        self._training = dict(report) if isinstance(report, dict) else {}
+        self._training = dict(saved.training_report)
         self._build()
 
     # --- extras ----------------------------------------------------------------------------
@@ -518,3 +524,36 @@ class ForceRateJammingClassifier(Classifier):
         magnitude = F.force_magnitude(batch.channels[name]) if len(batch) else np.empty(0)
         valid = np.asarray(batch.valid.get(name, np.ones(len(batch), dtype=bool)), dtype=bool)
         return self._tracker.process(batch.timestamps_s, magnitude, valid)
+
+
+# A threshold beyond the largest force the classifier reads could never be crossed.
+_Threshold = Annotated[float, Field(allow_inf_nan=False, ge=-F.MAX_FORCE_N, le=F.MAX_FORCE_N)]
+
+
+class _Strict(BaseModel):
+    # JSON types as written (no "6.0" for 6.0, no true for 1); unknown fields are errors.
+    model_config = ConfigDict(strict=True, extra="forbid", frozen=True)
+
+
+class _Thresholds(_Strict):
+    jamming_force_n: _Threshold
+    jamming_rate_n_per_s: _Threshold
+    contact_force_n: _Threshold
+    contact_rate_n_per_s: _Threshold
+
+
+class _Filter(_Strict):
+    cutoff_hz: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    filter_order: Annotated[int, Field(ge=1, le=4)]
+    sample_rate_hz: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class _ThresholdsFile(_Strict):
+    """``thresholds.json`` (format version 1)."""
+
+    format: Literal["hapticframe-force-rate-jamming"]
+    format_version: Literal[1]
+    thresholds: _Thresholds
+    filter: _Filter
+    force_channel: Annotated[str, Field(max_length=200)]
+    training_report: dict[str, Any]

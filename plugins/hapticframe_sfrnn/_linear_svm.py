@@ -30,9 +30,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+from pydantic import ValidationError
 
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
+from ._artifact_io import read_json_object, read_npz_arrays, schema_error
 from ._config import CLASSES, LinearSVMConfig
 from ._functional import (
     INPUT_CLIP,
@@ -43,6 +45,7 @@ from ._functional import (
     sigmoid_pair,
     version_of,
 )
+from ._persist import MAX_SVM_WIDTH, SVMModelFile, validate_config
 
 __all__ = ["SVM_FORMAT", "LinearSVMClassifier"]
 
@@ -212,26 +215,55 @@ class LinearSVMClassifier(Classifier):
         return out
 
     def load(self, directory: str | Path) -> None:
-        """Read a model written by :meth:`save` (no pickles)."""
+        """Read a model written by :meth:`save` (no pickles), checked whole first.
+
+        ``model.json`` must match :class:`~._persist.SVMModelFile` (strict types, finite
+        Platt parameters) and its config :class:`LinearSVMConfig`; ``model.npz``'s arrays
+        must have the declared width (checked from the headers before reading), finite
+        values and a positive spread; a model whose score or Platt slope is zero (the
+        same probability for every frame) is refused.
+
+        Raises
+        ------
+        ValueError
+            Naming the file that is missing, truncated, of another format, or does not fit.
+        """
         path = Path(directory)
-        meta = json.loads((path / "model.json").read_text())
+        meta_path, arrays_path = path / "model.json", path / "model.npz"
+        meta = read_json_object(meta_path)
         if meta.get("format") != SVM_FORMAT or meta.get("format_version") != _FORMAT_VERSION:
-            raise ValueError(f"{path / 'model.json'} is not a {SVM_FORMAT} v{_FORMAT_VERSION} file")
-        inputs = {k: int(v) for k, v in meta["inputs"].items()}
-        with np.load(path / "model.npz", allow_pickle=False) as arrays:
-            coef, mean, spread = (
-                np.asarray(arrays[k], dtype=np.float64) for k in ("coef", "mean", "spread")
+            raise ValueError(f"{meta_path} is not a {SVM_FORMAT} v{_FORMAT_VERSION} file")
+        try:
+            record = SVMModelFile.model_validate(meta)
+        except ValidationError as exc:
+            raise schema_error(meta_path, exc) from None
+        config = validate_config(meta_path, LinearSVMConfig, {**record.config, "model_dir": None})
+        inputs = dict(record.inputs)
+        if inputs != dict(config.inputs):
+            raise ValueError(
+                f"{meta_path}: inputs {inputs} differ from the config's {dict(config.inputs)}"
             )
         width = sum(inputs.values())
-        if not coef.shape == mean.shape == spread.shape == (width,):
-            raise ValueError(f"{path / 'model.npz'} arrays do not match the inputs {inputs}")
-        self.config = LinearSVMConfig.model_validate({**meta["config"], "model_dir": None})
+        if width > MAX_SVM_WIDTH:
+            raise ValueError(f"{meta_path}: the inputs total {width} values; the limit is "
+                             f"{MAX_SVM_WIDTH}")
+        arrays = read_npz_arrays(arrays_path, {k: (width,) for k in ("coef", "mean", "spread")})
+        if not (arrays["spread"] > 0).all():
+            raise ValueError(f"{arrays_path}: spread holds zero or negative values; the inputs "
+                             "are divided by it")
+        for where, name, zero in ((arrays_path, "coef", not arrays["coef"].any()),
+                                  (meta_path, "platt_a", record.platt_a == 0)):
+            if zero:
+                raise ValueError(
+                    f"{where}: {name} is zero, so every frame would get the same probability"
+                )
+        self.config = config
         self.groups = inputs
-        self.coef, self.mean, self.spread = coef, mean, spread
-        self.intercept = float(meta["intercept"])
-        self.platt_a, self.platt_b = float(meta["platt_a"]), float(meta["platt_b"])
-        self.fitted = bool(meta.get("fitted", False))
-        self.training_metrics = dict(meta.get("training_metrics") or {})
+        self.coef, self.mean, self.spread = arrays["coef"], arrays["mean"], arrays["spread"]
+        self.intercept = record.intercept
+        self.platt_a, self.platt_b = record.platt_a, record.platt_b
+        self.fitted = record.fitted
+        self.training_metrics = dict(record.training_metrics)
 
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         metrics: dict[str, Any] = {}

@@ -50,9 +50,11 @@ from typing import Any
 import numpy as np
 import torch
 from numpy.typing import ArrayLike
+from pydantic import ValidationError
 
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
+from ._artifact_io import read_json_object, schema_error
 from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, amplitude_channel
 from ._functional import (
     INPUT_CLIP,
@@ -64,6 +66,13 @@ from ._functional import (
     version_of,
 )
 from ._networks import FusionRNNNet, RecurrentNet, SFRNNNet, init_parameters
+from ._persist import (
+    MAX_PARAMETERS,
+    RecurrentLimits,
+    RecurrentModelFile,
+    read_weights,
+    validate_config,
+)
 from ._training import train_network
 
 __all__ = ["MODEL_FORMAT", "FusionRNNClassifier", "RecurrentClassifier", "SFRNNClassifier"]
@@ -93,7 +102,9 @@ class RecurrentClassifier(Classifier):
 
     # -- construction ------------------------------------------------------------------
 
-    def _make_network(self, config: Any) -> RecurrentNet:  # pragma: no cover - abstract
+    def _make_network(
+        self, config: Any, modality_sizes: list[int]
+    ) -> RecurrentNet:  # pragma: no cover - abstract
         raise NotImplementedError
 
     def _build(self, config: RecurrentConfig) -> None:
@@ -109,7 +120,7 @@ class RecurrentClassifier(Classifier):
         self.modality_sizes = [
             sum(self.groups[c] for c in self.modality_channels[m]) for m in config.modalities
         ]
-        self.net = self._make_network(config)
+        self.net = self._make_network(config, self.modality_sizes)
         init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
         self.net.eval()
         self._scale = np.ones(sum(self.groups.values()))
@@ -299,31 +310,99 @@ class RecurrentClassifier(Classifier):
     def load(self, directory: str | Path) -> None:
         """Adopt the model saved in ``directory`` (its architecture and weights).
 
+        Everything is checked before anything is built: ``model.json`` against
+        :class:`~._persist.RecurrentModelFile` and its config against this component's
+        config class (strict types, bounded sizes, at most
+        :data:`~._persist.MAX_PARAMETERS` parameters), then every tensor of ``weights.pt``
+        against the network that config describes (names, shapes, dtypes, finite values,
+        a positive input scale, non-zero linear weights).
+
         Raises
         ------
         ValueError
-            When the files are missing or of another format or architecture.
+            Naming the file: missing, empty, truncated or corrupt files, another format or
+            architecture, metadata that breaks the schema, tensors that do not fit it, or a
+            weights file holding more than tensors (not loaded: it may be unsafe).
         """
         path = Path(directory)
         meta_path, weights_path = path / "model.json", path / "weights.pt"
-        if not meta_path.is_file() or not weights_path.is_file():
+        if not meta_path.exists() or not weights_path.exists():
             raise ValueError(f"{path} lacks model.json or weights.pt")
-        meta = json.loads(meta_path.read_text())
+        meta = read_json_object(meta_path)
         if meta.get("format") != MODEL_FORMAT or meta.get("format_version") != _FORMAT_VERSION:
             raise ValueError(f"{meta_path} is not a {MODEL_FORMAT} v{_FORMAT_VERSION} file")
         if meta.get("architecture") != self.architecture:
-            raise ValueError(
-                f"{path} holds a {meta.get('architecture')!r} model, not {self.architecture!r}"
-            )
-        saved = {**meta["config"], "model_dir": None, "progress": self.config.progress}
-        self._build(type(self.config).model_validate(saved))
-        state = torch.load(weights_path, map_location="cpu", weights_only=True)
+            architecture = str(meta.get("architecture"))[:80]
+            raise ValueError(f"{path} holds a {architecture!r} model, not {self.architecture!r}")
+        try:
+            record = RecurrentModelFile.model_validate(meta)
+        except ValidationError as exc:
+            raise schema_error(meta_path, exc) from None
+        try:
+            RecurrentLimits.model_validate(record.config)
+        except ValidationError as exc:
+            raise schema_error(meta_path, exc, prefix="config") from None
+        saved = {**record.config, "model_dir": None, "progress": self.config.progress}
+        config = validate_config(meta_path, type(self.config), saved)
+        expected = self._expected_state(meta_path, record, config)
+        state = read_weights(weights_path, expected)
+        self._check_values(weights_path, state)
+        self._build(config)
         self.net.load_state_dict(state)
         self.net.eval()
         self._scale = self.net.input_scale.numpy().astype(np.float64).copy()
-        self.fitted = bool(meta.get("fitted", False))
-        self.training_metrics = dict(meta.get("training_metrics") or {})
-        self.feature_settings = dict(meta.get("feature_settings") or {})
+        self.fitted = record.fitted
+        self.training_metrics = dict(record.training_metrics)
+        self.feature_settings = dict(record.feature_settings)
+
+    def _expected_state(
+        self, meta_path: Path, record: RecurrentModelFile, config: RecurrentConfig
+    ) -> dict[str, tuple[tuple[int, ...], torch.dtype]]:
+        """Names, shapes and dtypes of the tensors ``config``'s network holds, from a
+        network on the ``meta`` device (no memory allocated), after checking that the rest
+        of ``model.json`` agrees with ``config``."""
+        groups: dict[str, int] = {}
+        for m in config.modalities:
+            groups.update(config.input_groups(m))
+        if list(record.modalities) != list(config.modalities):
+            raise ValueError(
+                f"{meta_path}: modalities {record.modalities} differ from the config's "
+                f"{list(config.modalities)}"
+            )
+        if record.inputs != groups:
+            raise ValueError(
+                f"{meta_path}: inputs {record.inputs} differ from what the config reads {groups}"
+            )
+        if list(record.classes) != list(CLASSES):
+            raise ValueError(f"{meta_path}: classes {record.classes[:5]} are not {list(CLASSES)}")
+        sizes = [sum(config.input_groups(m).values()) for m in config.modalities]
+        with torch.device("meta"):
+            shapes = self._make_network(config, sizes).state_dict()
+        total = sum(t.numel() for t in shapes.values())
+        if total > MAX_PARAMETERS:
+            raise ValueError(
+                f"{meta_path} describes a network of {total:.3g} parameters; the limit is "
+                f"{MAX_PARAMETERS:.3g} (check gru_units, fusion_units and the code sizes)"
+            )
+        return {k: (tuple(t.shape), t.dtype) for k, t in shapes.items()}
+
+    @staticmethod
+    def _check_values(weights_path: Path, state: Mapping[str, torch.Tensor]) -> None:
+        """Refuse weights that load but cannot classify: a scale that divides by zero, or a
+        linear layer of zeros (every frame would get the same probabilities)."""
+        scale = state["input_scale"]
+        if bool((scale <= 0).any()):
+            bad = int((scale <= 0).sum())
+            raise ValueError(
+                f"{weights_path}: input_scale holds {bad} zero or negative value(s); every "
+                "input is divided by it"
+            )
+        for name, tensor in state.items():
+            if name.endswith(".weight") and not bool(tensor.any()):
+                raise ValueError(
+                    f"{weights_path}: {name} is all zero, so every frame would get the same "
+                    "probabilities"
+                )
 
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         report = self.fill_report.as_dict()
@@ -342,9 +421,9 @@ class SFRNNClassifier(RecurrentClassifier):
     def __init__(self, config: SFRNNConfig, context: BuildContext) -> None:
         super().__init__(config, context)
 
-    def _make_network(self, config: SFRNNConfig) -> RecurrentNet:
+    def _make_network(self, config: SFRNNConfig, modality_sizes: list[int]) -> RecurrentNet:
         return SFRNNNet(
-            self.modality_sizes,
+            modality_sizes,
             config.fusion_units,
             config.gru_layers,
             config.gru_units,
@@ -361,9 +440,9 @@ class FusionRNNClassifier(RecurrentClassifier):
     def __init__(self, config: FusionRNNConfig, context: BuildContext) -> None:
         super().__init__(config, context)
 
-    def _make_network(self, config: FusionRNNConfig) -> RecurrentNet:
+    def _make_network(self, config: FusionRNNConfig, modality_sizes: list[int]) -> RecurrentNet:
         return FusionRNNNet(
-            self.modality_sizes,
+            modality_sizes,
             config.branch_layers,
             config.branch_units,
             config.fusion_units,

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import json
+import math
 import platform
 from collections.abc import Mapping, Sequence
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
+from ._artifact_io import npz_budget, read_json_object, read_npz_arrays, schema_error
 from ._config import Modality, SparseCodingConfig, feature_channel
 from ._sparse import (
     AMPLITUDE_FEATURES,
@@ -311,55 +314,129 @@ class SparseCodingExtractor(FeatureExtractor):
 
     def load(self, path: str | Path) -> None:
         """Read dictionaries written by :meth:`save` (``PATH.npz`` and ``PATH.json``, or
-        ``dictionaries.*`` inside ``PATH`` when it is a directory).
+        ``dictionaries.*`` inside ``PATH`` when it is a directory), checked whole first.
+
+        The ``.json`` must match :class:`_DictionaryFile` (strict types, bounded sizes) and
+        this component's config (modalities, sizes, λ); each array's shape and dtype are
+        checked from the ``.npz`` headers before reading, then its values: finite, atoms of
+        norm in (0, 1] (sklearn's constraint; a zero atom or one dictionary of equal atoms
+        encodes nothing), a positive amplitude reference.
 
         Raises
         ------
         ValueError
-            If the files are not such a pair, or lack a configured modality, or their
-            shapes or λ differ from this component's config.
+            Naming the file: missing, empty, truncated, another format, metadata that
+            breaks the schema, or arrays that do not fit this component's config.
         """
         base = _stem(path)
-        if not base.with_suffix(".json").is_file():
+        meta_path, arrays_path = base.with_suffix(".json"), base.with_suffix(".npz")
+        if not meta_path.exists():
             raise ValueError(
                 f"no dictionaries at {path} (neither a directory holding dictionaries.json and "
                 "dictionaries.npz nor the stem of such a pair); `hapticframe train` writes them"
             )
-        meta = json.loads(base.with_suffix(".json").read_text())
+        meta = read_json_object(meta_path)
         if meta.get("format") != DICTIONARY_FORMAT:
-            raise ValueError(f"{base.with_suffix('.json')} is not a {DICTIONARY_FORMAT} file")
+            raise ValueError(f"{meta_path} is not a {DICTIONARY_FORMAT} file")
         if meta.get("format_version") not in _READABLE_VERSIONS:
-            raise ValueError(f"unsupported dictionary format version {meta.get('format_version')}")
-        if not np.isclose(float(meta["lambda_scale"]), self.config.lambda_scale):
+            version = str(meta.get("format_version"))[:20]
+            raise ValueError(f"{meta_path}: unsupported dictionary format version {version}")
+        try:
+            record = _DictionaryFile.model_validate(meta)
+        except ValidationError as exc:
+            raise schema_error(meta_path, exc) from None
+        if not np.isclose(record.lambda_scale, self.config.lambda_scale):
             raise ValueError(
-                f"dictionaries were learned with lambda_scale {meta['lambda_scale']}, the config "
-                f"says {self.config.lambda_scale}"
+                f"{meta_path}: dictionaries were learned with lambda_scale "
+                f"{record.lambda_scale}, the config says {self.config.lambda_scale}"
             )
+        shapes: dict[str, tuple[int, ...]] = {}
+        for m in self.modalities:
+            if m not in record.modalities or m not in record.atoms or m not in record.tensor_shapes:
+                raise ValueError(f"{meta_path} has no dictionary for {m!r}")
+            saved = (record.atoms[m], math.prod(record.tensor_shapes[m]))
+            expected = (self.n_atoms(m), self.dimension(m))
+            if saved != expected or tuple(record.tensor_shapes[m]) != self.tensor_shape(m):
+                raise ValueError(
+                    f"{meta_path}: the {m} dictionary has shape {saved} for tensors "
+                    f"{tuple(record.tensor_shapes[m])}; the config expects shape {expected} "
+                    f"for {self.tensor_shape(m)} ({m}_atoms, {m}_shape)"
+                )
+            shapes[f"{m}_dictionary"] = expected
+            shapes[f"{m}_amplitude_reference"] = ()
+        # The file may hold more modalities than configured: its budget counts all of them.
+        declared = {f"{m}_dictionary": (record.atoms[m], math.prod(record.tensor_shapes[m]))
+                    for m in record.atoms if m in record.tensor_shapes}
+        budget = npz_budget({**declared, **shapes})
+        # Version 1 files predate the amplitude channel: unit reference.
+        optional = [k for k in shapes if k.endswith("_amplitude_reference")]
+        arrays = read_npz_arrays(arrays_path, shapes, optional=optional, max_bytes=budget)
         loaded: dict[Modality, NDArray[np.float64]] = {}
         references: dict[Modality, float] = {}
-        if not base.with_suffix(".npz").is_file():
-            raise ValueError(f"{base.with_suffix('.npz')} is missing beside its .json")
-        with np.load(base.with_suffix(".npz"), allow_pickle=False) as data:
-            for m in self.modalities:
-                key = f"{m}_dictionary"
-                if key not in data:
-                    raise ValueError(f"{base.with_suffix('.npz')} has no dictionary for {m!r}")
-                d = np.array(data[key], dtype=np.float64)
-                expected = (self.n_atoms(m), self.dimension(m))
-                if d.shape != expected or not np.isfinite(d).all():
-                    raise ValueError(f"{key} has shape {d.shape}, expected finite {expected}")
-                loaded[m] = d
-                # Version 1 files predate the amplitude channel: unit reference.
-                ref_key = f"{m}_amplitude_reference"
-                ref = float(data[ref_key]) if ref_key in data else 1.0
-                if not (np.isfinite(ref) and ref > 0):
-                    raise ValueError(f"{ref_key} must be positive and finite, got {ref}")
-                references[m] = ref
+        for m in self.modalities:
+            d = arrays[f"{m}_dictionary"]
+            norms = np.linalg.norm(d, axis=1)
+            if (norms <= _MIN_ATOM_NORM).any() or (norms > 1.0 + 1e-6).any():
+                bad = int(np.count_nonzero((norms <= _MIN_ATOM_NORM) | (norms > 1.0 + 1e-6)))
+                raise ValueError(
+                    f"{arrays_path}: {m}_dictionary has {bad} atom(s) of zero norm or norm "
+                    "above 1; learned atoms have norms in (0, 1]"
+                )
+            if d.shape[0] > 1 and np.all(d == d[0]):
+                raise ValueError(
+                    f"{arrays_path}: every atom of {m}_dictionary is the same, so the codes "
+                    "would carry one number"
+                )
+            ref = float(arrays.get(f"{m}_amplitude_reference", np.array(1.0)))
+            if not ref > 0:
+                raise ValueError(
+                    f"{arrays_path}: {m}_amplitude_reference must be positive, got {ref}"
+                )
+            loaded[m] = d
+            references[m] = ref
         self.dictionaries = loaded
         self.amplitude_references = references
-        self.fitted = bool(meta.get("fitted", False))
-        self.fit_stats = dict(meta.get("fit", {}).get("stats", {}))
+        self.fitted = record.fitted
+        stats = (record.fit or {}).get("stats")
+        self.fit_stats = dict(stats) if isinstance(stats, dict) else {}
         self._refresh()
+
+
+_MIN_ATOM_NORM = 1e-8
+#: Most values one saved dictionary may declare (80 MB of float64; the thesis's pac
+#: dictionary holds 200 x 176).
+_MAX_DICTIONARY_VALUES = 10_000_000
+_Count = Annotated[int, Field(ge=1, le=100_000)]
+
+
+class _DictionaryFile(BaseModel):
+    """The ``.json`` beside saved dictionaries (format versions 1 and 2).
+
+    Strict JSON types; fields this reader does not use are ignored (version 1 files).
+    """
+
+    model_config = ConfigDict(strict=True, extra="ignore", frozen=True)
+
+    format: Literal["hapticframe-sparse-dictionaries"]
+    format_version: Literal[1, 2]
+    modalities: list[Modality] = Field(min_length=1, max_length=3)
+    atoms: dict[Modality, _Count]
+    tensor_shapes: dict[Modality, Annotated[list[_Count], Field(min_length=2, max_length=2)]]
+    lambda_scale: Annotated[float, Field(gt=0, allow_inf_nan=False)]
+    fitted: bool = False
+    fit: dict[str, Any] | None = None
+
+    @model_validator(mode="after")
+    def _bounded(self) -> _DictionaryFile:
+        for m, shape in self.tensor_shapes.items():
+            size = self.atoms.get(m, 1) * math.prod(shape)
+            if size > _MAX_DICTIONARY_VALUES:
+                raise ValueError(
+                    f"the {m} dictionary would hold {size:.3g} values; the limit is "
+                    f"{_MAX_DICTIONARY_VALUES:.3g}"
+                )
+        return self
+
 
 
 def _stem(path: str | Path) -> Path:
