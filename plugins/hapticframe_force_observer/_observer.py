@@ -37,10 +37,10 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 from scipy import signal
 
+from hapticframe.artifacts import read_json_object, read_npz_arrays, schema_error
 from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
-from ._artifact_io import read_json_object, read_npz_arrays, schema_error
 from ._config import ForceObserverConfig
 from ._functional import (
     ObserverFit,

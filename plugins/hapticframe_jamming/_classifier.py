@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from hapticframe.artifacts import read_json_object, schema_error
 from hapticframe.kinds import (
     BuildContext,
     Classifier,
@@ -49,7 +50,6 @@ from hapticframe.kinds import (
 )
 
 from . import _functional as F
-from ._artifact_io import read_json_object, schema_error
 from ._config import ForceRateJammingConfig
 
 __all__ = [

@@ -32,9 +32,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import ValidationError
 
+from hapticframe.artifacts import read_json_object, read_npz_arrays, schema_error
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
-from ._artifact_io import read_json_object, read_npz_arrays, schema_error
 from ._config import CLASSES, LinearSVMConfig
 from ._functional import (
     INPUT_CLIP,

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from ._artifact_io import check_regular_file, schema_error
+from hapticframe.artifacts import check_regular_file, schema_error
 
 if TYPE_CHECKING:
     import torch

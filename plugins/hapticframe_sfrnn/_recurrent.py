@@ -52,9 +52,9 @@ import torch
 from numpy.typing import ArrayLike
 from pydantic import ValidationError
 
+from hapticframe.artifacts import read_json_object, schema_error
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
-from ._artifact_io import read_json_object, schema_error
 from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, amplitude_channel
 from ._functional import (
     INPUT_CLIP,

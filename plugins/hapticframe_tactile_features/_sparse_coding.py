@@ -14,9 +14,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from hapticframe.artifacts import npz_budget, read_json_object, read_npz_arrays, schema_error
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
-from ._artifact_io import npz_budget, read_json_object, read_npz_arrays, schema_error
 from ._config import Modality, SparseCodingConfig, feature_channel
 from ._sparse import (
     AMPLITUDE_FEATURES,

@@ -7,8 +7,7 @@ regular file (not a FIFO or a device) no larger than what the model can need, an
 ``.npz`` member's declared shape and dtype are checked from its header before its data is
 decompressed.
 
-The same module is in each persistent plugin (a plugin never imports another's private
-module); it is meant to become one core helper.
+Persistent plugins read their saved models through it (``load``); a lab's plugin can too.
 """
 
 from __future__ import annotations
