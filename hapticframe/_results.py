@@ -407,8 +407,12 @@ class OutputDir:
         """
         out = cls(Path(path), record, command)
         out._create()
-        out._probe(min_free_bytes() if min_free is None else min_free)
-        out._clear(overwrite)
+        try:
+            out._probe(min_free_bytes() if min_free is None else min_free)
+            out._clear(overwrite)
+        except BaseException:
+            out._remove_created()  # a refused --out is left as it was found
+            raise
         return out
 
     def _create(self) -> None:
@@ -568,6 +572,9 @@ class OutputDir:
         command that failed before writing any result leaves nothing behind."""
         self.drop_staging()
         _remove_quietly(self.record_path)
+        self._remove_created()
+
+    def _remove_created(self) -> None:
         for folder in self.created:
             try:
                 folder.rmdir()  # only when empty: never a file of anyone's

@@ -40,7 +40,7 @@ from typing import Any
 
 from . import _assembly
 from ._config import Experiment
-from ._errors import HapticframeError, RunError, RunInterrupted, UsageError
+from ._errors import HapticframeError, RunError, RunInterrupted
 from ._evaluate import score_run
 from ._loop import devices_of, run_loop
 from ._results import OutputDir, OutputError, RunSummary, environment, run_record, save_outputs
