@@ -274,7 +274,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     experiment = _validate(args, args.file)
     echo = (lambda _text: None) if args.quiet else _progress_line
     metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
-                             progress=not args.quiet)
+                             progress=not args.quiet, min_free_bytes=_min_free(args))
     label_channel = experiment.model.run.label_channel
     _out(f"results in {args.out} (all metrics in metrics.json): "
          + _summary(metrics, label_channel))
@@ -286,9 +286,35 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     experiment = _validate(args, args.file)
     record = train_experiment(experiment, args.out, overwrite=args.overwrite,
-                              echo=_progress_line)
+                              echo=_progress_line, min_free_bytes=_min_free(args))
     _out(f"trained {', '.join(record['trained']) or 'nothing'}; artifacts in {args.out}")
     return 0
+
+
+def _min_free(args: argparse.Namespace) -> int | None:
+    """``--min-free-mb`` in bytes; None: the default (HAPTICFRAME_MIN_FREE_MB or 50 MB)."""
+    megabytes = getattr(args, "min_free_mb", None)
+    return None if megabytes is None else int(megabytes * 1024 * 1024)
+
+
+def _megabytes(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of megabytes") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError("must be a finite number of megabytes, at least 0")
+    return value
+
+
+def _add_out_options(p: argparse.ArgumentParser, what: str, replaces: str) -> None:
+    p.add_argument("--out", required=True, metavar="DIR", help=f"directory for {what}")
+    p.add_argument("--overwrite", action="store_true",
+                   help=f"delete {replaces} already in DIR first (only files hapticframe "
+                   "wrote and listed; refused when DIR holds others)")
+    p.add_argument("--min-free-mb", type=_megabytes, default=None, metavar="MB",
+                   help="free space DIR must have before anything runs (default: "
+                   "HAPTICFRAME_MIN_FREE_MB or 50)")
 
 
 def _short(value: float) -> str:
@@ -352,8 +378,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="assemble and run an experiment")
     p.add_argument("file", metavar="FILE")
-    p.add_argument("--out", required=True, metavar="DIR", help="directory for results")
-    p.add_argument("--overwrite", action="store_true", help="replace results already in DIR")
+    _add_out_options(p, "results", "the results of a run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     _add_plugin_module_option(p)
@@ -361,8 +386,7 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")
-    p.add_argument("--out", required=True, metavar="DIR", help="directory for the artifacts")
-    p.add_argument("--overwrite", action="store_true", help="replace a training run already in DIR")
+    _add_out_options(p, "the artifacts", "the artifacts of a training run")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_train)

@@ -5,7 +5,14 @@ The orchestrator. It calls, in this order and never the other way round:
 :mod:`~hapticframe._train` (fit before the run, ``run.train_from``),
 :mod:`~hapticframe._loop` (the closed or open loop), :mod:`~hapticframe._evaluate`
 (score the run) and :mod:`~hapticframe._results` (write ``trace.npz``, ``metrics.json`` and
-``run.json``). An experiment that fails to build writes nothing.
+``run.json``).
+
+``--out`` is checked before anything is built (a directory, writable, enough free space,
+no results it may not replace: :class:`~hapticframe._results.OutputDir`); ``run.json``
+then says ``status: running`` until the run ends, and every file is written atomically
+into a staging folder that moves into ``--out`` at the end, so a run killed at any point
+leaves a directory that says it is unfinished. An experiment that fails to build writes
+nothing.
 
 Devices (:class:`~hapticframe.kinds.Device`) are configured and activated once everything
 is built and released, in reverse order, when the run ends in any way. A
@@ -20,6 +27,7 @@ when the run did not finish.
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import threading
 import time
@@ -32,10 +40,10 @@ from typing import Any
 
 from . import _assembly
 from ._config import Experiment
-from ._errors import HapticframeError, RunError, RunInterrupted, UsageError
+from ._errors import HapticframeError, RunError, RunInterrupted
 from ._evaluate import score_run
 from ._loop import devices_of, run_loop
-from ._results import RunSummary, run_record, save_outputs, write_json
+from ._results import OutputDir, OutputError, RunSummary, environment, run_record, save_outputs
 from ._safety import FORCE_LIMIT, stop_robots
 from ._session import Session
 from ._train import collect_recordings, fit_components, training_reports
@@ -45,16 +53,6 @@ from .kinds import Component
 __all__ = ["RunSummary", "run_experiment"]
 
 _log = logging.getLogger("hapticframe.run")
-
-
-def _prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {out_dir} exists and is not a directory")
-    if out_dir.exists() and (out_dir / "run.json").exists() and not overwrite:
-        raise UsageError(
-            f"--out {out_dir} already holds a run (run.json); choose another directory or "
-            "pass --overwrite"
-        )
 
 
 def _fit_before_run(session: Session) -> None:
@@ -148,6 +146,36 @@ def _device_health(components: Mapping[str, Component]) -> dict[str, dict[str, i
     return {cid: dict(d.health.as_dict()) for cid, d in devices_of(components).items()}
 
 
+def _running_record(experiment: Experiment, started_utc: str) -> dict[str, Any]:
+    """What ``run.json`` says while the run runs (its final content replaces it)."""
+    return {
+        "status": "running",
+        "experiment_file": str(experiment.file),
+        "name": experiment.model.name,
+        "seed": experiment.seed,
+        "started_utc": started_utc,
+        "pid": os.getpid(),
+        "versions": environment(),
+    }
+
+
+def _finish(directory: OutputDir, record: dict[str, Any], primary: BaseException | None) -> None:
+    """Move the run's files into place and write the final ``run.json``.
+
+    When that fails (a full disk), ``run.json`` keeps saying ``running`` and the staged
+    files stay in the staging folder; the failure is raised, or, when the run is already
+    failing, logged beside the first error so that it does not hide it.
+    """
+    try:
+        files = directory.commit(record)
+        directory.finish(record, files)
+    except OutputError as exc:
+        if primary is None:
+            raise OutputError(f"{exc}; {directory.record} still says the run is unfinished",
+                              exc.path) from exc
+        _log.error("%s; %s still says the run is unfinished", exc, directory.record)
+
+
 def run_experiment(
     experiment: Experiment,
     out_dir: str | Path,
@@ -155,12 +183,15 @@ def run_experiment(
     overwrite: bool = False,
     echo: Callable[[str], None] | None = None,
     progress: bool = True,
+    min_free_bytes: int | None = None,
 ) -> RunSummary:
     """Build and run ``experiment``, writing results into ``out_dir``.
 
     ``echo`` receives the progress lines (default: the ``hapticframe.run`` logger at INFO
     level); ``progress=False`` also asks the components to draw no progress bars of their
-    own (``--quiet``).
+    own (``--quiet``). ``out_dir`` must have ``min_free_bytes`` free (default 50 MB, or
+    ``HAPTICFRAME_MIN_FREE_MB``); with ``overwrite`` the results of an earlier run there
+    are deleted first (only files its ``run.json`` lists).
 
     Returns
     -------
@@ -170,7 +201,11 @@ def run_experiment(
     Raises
     ------
     ExperimentError, UsageError
-        Before anything is written (exit status 2).
+        Before anything is written (exit status 2): ``out_dir`` lies below a file, or holds
+        results that ``overwrite`` may not (or was not asked to) replace.
+    OutputError
+        ``out_dir`` cannot be written or is short of space (before anything runs), or a
+        result file cannot be written while running (naming the file; exit status 1).
     RunError
         When the run fails, or a component's ``close()`` raises; ``run.json`` then records
         the failure (exit status 1).
@@ -178,26 +213,31 @@ def run_experiment(
         On Ctrl-C (SIGINT) or SIGTERM while running; ``run.json`` records
         ``status: interrupted`` and the signal (exit status 130 or 143).
     """
-    out = Path(out_dir)
-    _prepare_out_dir(out, overwrite)
+    directory = OutputDir.prepare(out_dir, overwrite=overwrite, min_free=min_free_bytes)
+    out = directory.path
     say = echo if echo is not None else _log.info
     close_errors: list[str] = []
 
     def on_close_error(component_id: str, exc: BaseException) -> None:
         close_errors.append(f"closing {component_id!r} failed: {type(exc).__name__}: {exc}")
 
+    started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    # Before anything is built: a run killed from here on leaves a run.json that says so.
+    directory.begin(_running_record(experiment, started_utc))
     session: Session | None = None
     error: str | None = None
     signal_name: str | None = None
     metrics: dict[str, Any] = {}
+    primary: BaseException | None = None
     try:
         with _sigterm_as_interrupt(), ExitStack() as stack:
             components = _assembly.build_components(
                 experiment, stack, progress=progress, on_close_error=on_close_error
             )
-            out.mkdir(parents=True, exist_ok=True)  # only once everything is built
-            session = Session(experiment, out, components, say)
-            session.started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
+            # Every file of the run goes to the staging folder until the run ends.
+            session = Session(experiment, directory.staging, components, say,
+                              results_dir=out)
+            session.started_utc = started_utc
             try:
                 session.hook.hapticframe_session_start(session=session.view())
                 _fit_before_run(session)
@@ -241,8 +281,13 @@ def run_experiment(
                     session=session.view(), status=session.status
                 )
         # The stack has closed every component by now.
+    except BaseException as exc:
+        primary = exc
+        raise
     finally:
-        if session is not None:
+        if session is None:
+            directory.discard()  # it failed to build: nothing was written
+        else:
             if session.safety_halts:
                 session.details["safety_halts"] = session.safety_halts
             if session.status != "ok":
@@ -257,7 +302,7 @@ def run_experiment(
             elif close_errors:
                 session.details["close_errors"] = close_errors
             wall = time.perf_counter() - session.started
-            write_json(out / "run.json", run_record(session, wall, error, signal_name))
+            _finish(directory, run_record(session, wall, error, signal_name), primary)
     if close_errors:
         raise RunError("; ".join(close_errors))
     summary = RunSummary(metrics)

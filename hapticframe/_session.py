@@ -28,9 +28,12 @@ class Session:
     """Everything one run holds while it runs (private to the core's run modules)."""
 
     experiment: Experiment
+    #: The staging folder the run writes into (see :class:`~hapticframe._results.OutputDir`).
     out_dir: Path
     components: Components
     echo: Callable[[str], None]
+    #: The ``--out`` directory the staged files move into when the run ends.
+    results_dir: Path | None = None
     movements: list[MovementResult] = field(default_factory=list)
     recorder: TraceRecorder = field(default_factory=TraceRecorder)
     #: Entries for ``run.json``'s ``details`` (training, sensor reads, ...).
@@ -72,7 +75,14 @@ class SessionView:
     name : str
     seed : int
     out_dir : Path
-        Where the run writes its results.
+        The run's ``--out`` directory, where its results are once it has ended.
+    write_dir : Path
+        Where the run writes its files while it runs: a staging folder inside ``out_dir``
+        whose files move into ``out_dir`` when the run ends and which ``run.json`` then
+        lists (a killed run never leaves half its files looking finished). A hook that
+        writes files writes them here, with :func:`hapticframe.plotting.save_figure` or
+        another atomic writer; a file written straight into ``out_dir`` is not the run's
+        (``--overwrite`` will not delete it).
     settings : RunSettings
         The experiment's ``run`` section.
     components : mapping of str to Component
@@ -105,6 +115,10 @@ class SessionView:
 
     @property
     def out_dir(self) -> Path:
+        return self._session.results_dir or self._session.out_dir
+
+    @property
+    def write_dir(self) -> Path:
         return self._session.out_dir
 
     @property

@@ -8,7 +8,10 @@ taken from the sensors' label channel (``run.label_channel``, default ``contact`
 classifier inputs' timestamps. Components that are
 :class:`~hapticframe.kinds.Persistent` write their artifacts into ``DIR/<component id>/``,
 and ``DIR/train.json`` records the seed, versions, plugins, the resolved config and the
-report of each :class:`~hapticframe.kinds.Trainable` component.
+report of each :class:`~hapticframe.kinds.Trainable` component. ``train.json`` says
+``status: running`` from before the build until the artifacts are in place: they are saved
+into a staging folder and moved into ``DIR`` together (see
+:class:`~hapticframe._results.OutputDir`).
 
 This module uses :mod:`~hapticframe._assembly` and :mod:`~hapticframe._results`; the run
 (:mod:`~hapticframe._run`) uses it to fit before its loop, never the other way round.
@@ -17,9 +20,11 @@ This module uses :mod:`~hapticframe._assembly` and :mod:`~hapticframe._results`;
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +36,7 @@ from ._config import Experiment
 from ._dataflow import merge_batches
 from ._errors import HapticframeError, RunError, UsageError
 from ._kind import Kind
-from ._results import environment, write_json
+from ._results import OutputDir, OutputError, environment
 from .kinds import Component, Persistent, SampleBatch, Trainable
 
 __all__ = [
@@ -163,44 +168,87 @@ def train_experiment(
     *,
     overwrite: bool = False,
     echo: Callable[[str], None] = _log.info,
+    min_free_bytes: int | None = None,
 ) -> dict[str, Any]:
-    """Fit every trainable component of ``experiment`` and save the artifacts into ``out_dir``."""
-    out = Path(out_dir)
-    if (out / "train.json").exists() and not overwrite:
-        raise UsageError(f"--out {out} already holds a training run (train.json); pass --overwrite")
+    """Fit every trainable component of ``experiment`` and save the artifacts into ``out_dir``.
+
+    ``out_dir`` is checked first as for a run (a directory, writable, ``min_free_bytes``
+    free, no results ``overwrite`` may not replace). ``train.json`` says
+    ``status: running`` until the training run ends; the artifacts are saved into a
+    staging folder and moved into ``out_dir`` (``DIR/<component id>/``) only once every
+    one is saved, so a killed save never leaves a truncated or empty artifact where a run
+    would load it. A failed training run keeps no artifacts; its ``train.json`` records
+    the error.
+    """
+    directory = OutputDir.prepare(out_dir, record="train.json", command="training run",
+                                  overwrite=overwrite, min_free=min_free_bytes)
+    out = directory.path
     started = time.perf_counter()
     label_channel = experiment.model.run.label_channel
-    with ExitStack() as stack:
-        components = build_components(experiment, stack)
-        # With run.train_from, the training sensors stand in for the sensors a run streams.
-        sources = dict(experiment.model.run.train_from) or {
-            e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
-        }
-        recordings = collect_recordings(components, sources)
-        echo(f"training on {len(recordings)} recordings")
-        trained = fit_components(experiment, components, recordings, label_channel, echo)
-        out.mkdir(parents=True, exist_ok=True)
-        saved = _save(components, trained, out)
-        record = {
-            "status": "ok",
-            "seed": experiment.seed,
-            "recordings": len(recordings),
-            "label_channel": label_channel,
-            "trained": trained,
-            "artifacts": saved,
-            "reports": training_reports(components, trained),
-            "versions": environment(),
-            "plugins": [
-                {"id": e.id, "kind": e.kind.value, "type": e.type,
-                 "distribution": e.registered.source.distribution,
-                 "version": e.registered.source.version}
-                for e in experiment.components
-            ],
+    head = {
+        "seed": experiment.seed,
+        "started_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "pid": os.getpid(),
+        "versions": environment(),
+    }
+    directory.begin(head)
+    built = False
+    try:
+        with ExitStack() as stack:
+            components = build_components(experiment, stack)
+            built = True
+            # With run.train_from, the training sensors stand in for the sensors a run streams.
+            sources = dict(experiment.model.run.train_from) or {
+                e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
+            }
+            recordings = collect_recordings(components, sources)
+            echo(f"training on {len(recordings)} recordings")
+            trained = fit_components(experiment, components, recordings, label_channel, echo)
+            saved = _save(components, trained, directory.staging, out)
+            record = {
+                **head,
+                "status": "ok",
+                "error": None,
+                "recordings": len(recordings),
+                "label_channel": label_channel,
+                "trained": trained,
+                "artifacts": saved,
+                "reports": training_reports(components, trained),
+                "plugins": _plugins(experiment),
+                "resolved_config": experiment.resolved_config(),
+                "wall_time_s": time.perf_counter() - started,
+            }
+    except BaseException as exc:
+        if not built:
+            directory.discard()  # nothing was trained: nothing is left behind
+            raise
+        # Half-saved artifacts must never be loaded: a failed training run keeps none.
+        directory.drop_staging()
+        failed = {
+            **head,
+            "status": "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
+            "error": str(exc) or type(exc).__name__,
+            "plugins": _plugins(experiment),
             "resolved_config": experiment.resolved_config(),
             "wall_time_s": time.perf_counter() - started,
         }
-        write_json(out / "train.json", record)
-        return record
+        try:
+            directory.finish(failed, [])
+        except OutputError as write_error:  # never hides the error that ended the training
+            _log.error("%s; train.json still says the training run is unfinished", write_error)
+        raise
+    files = directory.commit(record)
+    directory.finish(record, files)
+    return {**record, "files": files}
+
+
+def _plugins(experiment: Experiment) -> list[dict[str, Any]]:
+    return [
+        {"id": e.id, "kind": e.kind.value, "type": e.type,
+         "distribution": e.registered.source.distribution,
+         "version": e.registered.source.version}
+        for e in experiment.components
+    ]
 
 
 def _label_source(
@@ -213,15 +261,17 @@ def _label_source(
 
 
 def _save(
-    components: Mapping[str, Component], trained: Sequence[str], out: Path
+    components: Mapping[str, Component], trained: Sequence[str], staging: Path, out: Path
 ) -> dict[str, str]:
+    """Save each persistent component into ``staging/<id>``; return where each will be
+    once the staging folder's content moves into ``out``."""
     saved = {}
     for cid in trained:
         component = components[cid]
         if isinstance(component, Persistent):
-            target = out / cid
-            target.mkdir(parents=True, exist_ok=True)
+            target = staging / cid
             with _located(cid, type(component).__name__, "saving"):
+                target.mkdir(parents=True, exist_ok=True)
                 component.save(target)
-            saved[cid] = str(target)
+            saved[cid] = str(out / cid)
     return saved

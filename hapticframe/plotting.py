@@ -130,12 +130,26 @@ def layout_map(
         legend.set_bbox_to_anchor((0.5, 0.05 / height), transform=figure.transFigure)
 
 
-def save_figure(figure: Figure, path: Path) -> Path:
-    """Write ``figure`` as PNG at :data:`DPI` (the folder is created); return ``path``."""
+def save_figure(figure: Figure, path: str | Path) -> Path:
+    """Write ``figure`` as PNG at :data:`DPI`, atomically (the folder is created); return
+    ``path``.
+
+    The figure is written to a temporary name beside ``path`` and renamed, so a killed or
+    failed save never leaves a truncated or empty file, and never spoils the file that was
+    there. Raises :class:`~hapticframe.RunError` naming ``path`` when it cannot be written
+    (disk full, no permission).
+    """
+    from ._results import atomic_path, output_error
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # zlib level 6 (the default) costs a few times level 3 for files a tenth smaller.
-    figure.savefig(path, dpi=DPI, pil_kwargs={"compress_level": 3})
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise output_error(path.parent, exc, "cannot create the folder") from exc
+    with atomic_path(path) as temp:
+        # zlib level 6 (the default) costs a few times level 3 for files a tenth smaller.
+        figure.savefig(temp, format=path.suffix.lstrip(".").lower() or "png", dpi=DPI,
+                       pil_kwargs={"compress_level": 3})
     return path
 
 
