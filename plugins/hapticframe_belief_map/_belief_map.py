@@ -144,11 +144,11 @@ def fit_calibrated_svc(
             svc(train).decision_function(held.positions - origin_m) for train, held in splits
         ])
         final = svc(bins)
-    slope, intercept = fn.platt_fit(
-        decision,
-        np.concatenate([held.labels for _, held in splits]),
-        np.concatenate([held.weights for _, held in splits]),
-    )
+        slope, intercept = fn.platt_fit(
+            decision,
+            np.concatenate([held.labels for _, held in splits]),
+            np.concatenate([held.weights for _, held in splits]),
+        )
     return PlattSVC(final, slope, intercept)
 
 
