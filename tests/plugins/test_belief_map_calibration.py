@@ -186,3 +186,28 @@ def test_folds_hold_whole_cells_and_leave_both_classes_to_train_on() -> None:
             # ...and every training set still holds both classes.
             assert set(labels[train]) == {0, 1}
         np.testing.assert_array_equal(folds, fn.cell_folds(keys, 3, seed=trial))
+
+
+# --- the conformance kit's scattered-points check --------------------------------------------
+
+
+class _Inverted(BeliefMap):
+    """The belief map read upside down: what the check must refuse."""
+
+    def query(self, points_m):  # type: ignore[no-untyped-def]
+        estimate = super().query(points_m)
+        return type(estimate)(1.0 - estimate.mean, estimate.std)
+
+
+def test_the_kit_ranks_the_belief_map_and_refuses_an_inverted_map() -> None:
+    from hapticframe import MapSpec
+    from hapticframe.testing import CheckFailure
+    from hapticframe.testing._spatial import check_map_ranks_scattered_points
+    from hapticframe_belief_map import plugin
+
+    (spec,) = plugin.hapticframe_maps()
+    check_map_ranks_scattered_points(spec)
+    inverted = MapSpec(
+        "inverted-belief", "x", BeliefMapConfig, f"{__name__}:_Inverted", requires=("sklearn",))
+    with pytest.raises(CheckFailure, match=r"AUC 0\.\d+ \(below 0.5: the map is inverted\)"):
+        check_map_ranks_scattered_points(inverted)
