@@ -4,10 +4,15 @@ The thesis stores fingertip contact estimates at their positions in an RBF SVC (
 A.10) and calibrates its scores into ``P(object | x)`` with Platt scaling (Eq. A.11),
 refitting every 10 classifier steps. Here:
 
-- The classifier is ``CalibratedClassifierCV(SVC(kernel="rbf"), method="sigmoid",
-  ensemble=False)``: one SVC fitted on all points, and a sigmoid fitted on out-of-fold
-  decision values. ``SVC(probability=True)`` would do the same, but it is deprecated in
-  scikit-learn 1.9 (removed in 1.11). Folds are a seeded, shuffled ``StratifiedKFold``.
+- The classifier is an ``SVC(kernel="rbf")`` fitted on all points, and Platt's sigmoid
+  ``P = sigmoid(s f + c)`` fitted on held-out decision values ``f`` (what
+  ``CalibratedClassifierCV(method="sigmoid", ensemble=False)`` does, and ``SVC(probability=
+  True)``, deprecated in scikit-learn 1.9). Two differences keep the map from inverting
+  (issue 16: 3,000 noisy scattered points, 6.4 cm cells, AUC 0.04): the held-out data are
+  raw observations (dealt to folds by a hash of their position and binned per fold), not
+  bins, whose free and contact twins in one coarse cell would score each other; and the
+  slope is bounded, ``s >= 0``, so a higher decision value never lowers ``P``
+  (:func:`._functional.calibration_splits`, :func:`._functional.platt_fit`).
 - Labels are the contact decision (target > 0.5), as the thesis labels with the SF-RNN's
   state; observation weights become sample weights.
 - The update cost is bounded: observations are binned per (cell, decided class) into a
@@ -15,7 +20,7 @@ refitting every 10 classifier steps. Here:
   whenever more than ``max_points`` bins exist. A refit therefore sees at most
   ``max_points`` weighted points, whatever the number of observations; a bin of ``k``
   coincident observations is exactly ``k`` duplicated points to the SVM.
-- Until each class has at least two bins (cross-validated calibration needs two folds), the
+- Until each class has bins in at least two cells (calibration needs two folds), the
   map returns the Laplace-smoothed contact fraction ``(w_contact + 1) / (w + 2)`` on observed
   ground (blended into the unexplored prior as below): 0.5 everywhere before any
   observation, never NaN.
@@ -53,7 +58,7 @@ from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Regi
 from . import _functional as fn
 from ._config import BeliefMapConfig
 
-__all__ = ["BeliefMap", "BeliefSnapshot", "fit_calibrated_svc"]
+__all__ = ["BeliefMap", "BeliefSnapshot", "PlattSVC", "fit_calibrated_svc"]
 
 FloatArray = NDArray[np.float64]
 
@@ -64,51 +69,87 @@ _FIGURE_CELLS = 120
 _PATH_POINTS = 20_000
 
 
+@dataclass(frozen=True)
+class PlattSVC:
+    """An RBF SVC and the monotone Platt link of its decision values.
+
+    Attributes
+    ----------
+    svc : sklearn.svm.SVC
+        Fitted on every point (classes 0 free, 1 contact).
+    slope : float
+        ``s >= 0`` in ``P(contact) = sigmoid(s f + c)``.
+    intercept : float
+        ``c``.
+    """
+
+    svc: Any
+    slope: float
+    intercept: float
+
+    def link(self, decision: ArrayLike) -> FloatArray:
+        """``sigmoid(slope * decision + intercept)``: non-decreasing in ``decision``."""
+        from scipy.special import expit
+
+        return np.asarray(
+            expit(self.slope * np.asarray(decision, dtype=np.float64) + self.intercept),
+            dtype=np.float64,
+        )
+
+    def probability(self, points_m: FloatArray) -> FloatArray:
+        """``P(contact)`` at (centred) ``points_m``."""
+        return self.link(self.svc.decision_function(points_m))
+
+
 def fit_calibrated_svc(
-    positions_m: FloatArray,
-    labels: NDArray[np.int64],
-    weights: FloatArray,
+    bins: fn.Bins,
+    splits: list[tuple[fn.Bins, fn.Bins]],
+    origin_m: FloatArray,
     *,
     gamma_per_m2: float,
     penalty_c: float,
-    folds: int,
     seed: int,
-) -> Any:
-    """Fit ``CalibratedClassifierCV(SVC(rbf), ensemble=False)`` deterministically.
+) -> PlattSVC:
+    """Fit an RBF SVC on ``bins`` and Platt's monotone sigmoid on held-out decision values.
 
     Parameters
     ----------
-    positions_m : (m, 2) float64
-        Training points, already centred (the RBF is translation invariant; centring keeps
-        libsvm's ``|x|^2 + |y|^2 - 2 x.y`` distances accurate far from the origin).
-    labels : (m,) int
-        0 for free movement, 1 for contact; both must occur at least ``folds`` times.
-    weights : (m,) float64
-        Positive sample weights.
+    bins : Bins
+        Training points (merged over folds), with both classes.
+    splits : list of (Bins, Bins)
+        ``(training, held-out)`` pairs (:func:`._functional.calibration_splits`); each
+        training set holds both classes.
+    origin_m : (2,) float64
+        Subtracted from every position before fitting (the RBF is translation invariant;
+        centring keeps libsvm's ``|x|^2 + |y|^2 - 2 x.y`` distances accurate far from the
+        origin).
     """
     # scikit-learn loads only when a map is first fitted.
     from sklearn import config_context
-    from sklearn.calibration import CalibratedClassifierCV
-    from sklearn.model_selection import StratifiedKFold
     from sklearn.svm import SVC
 
-    splitter = StratifiedKFold(n_splits=folds, shuffle=True, random_state=seed)
-    model = CalibratedClassifierCV(
-        SVC(kernel="rbf", gamma=gamma_per_m2, C=penalty_c, random_state=seed),
-        method="sigmoid",
-        cv=splitter,
-        ensemble=False,
-    )
-    # The problems are tiny: BLAS threads only add start-up cost (Platt's 2-parameter L-BFGS
-    # fit took 60 ms instead of 10 ms with OpenBLAS threads on two cores).
+    def svc(train: fn.Bins) -> Any:
+        model = SVC(kernel="rbf", gamma=gamma_per_m2, C=penalty_c, random_state=seed)
+        return model.fit(train.positions - origin_m, train.labels, sample_weight=train.weights)
+
+    # The problems are tiny: BLAS threads only add start-up cost (Platt's 2-parameter fit
+    # took 60 ms instead of 10 ms with OpenBLAS threads on two cores).
     # Inputs are finite by construction (Observations validates them); scikit-learn's
-    # per-call parameter validation costs more than the four small SVC fits themselves.
+    # per-call parameter validation costs more than the small SVC fits themselves.
     with (
         _blas_controller().limit(limits=1, user_api="blas"),
         config_context(assume_finite=True, skip_parameter_validation=True),
     ):
-        model.fit(positions_m, labels, sample_weight=weights)
-    return model
+        decision = np.concatenate([
+            svc(train).decision_function(held.positions - origin_m) for train, held in splits
+        ])
+        final = svc(bins)
+        slope, intercept = fn.platt_fit(
+            decision,
+            np.concatenate([held.labels for _, held in splits]),
+            np.concatenate([held.weights for _, held in splits]),
+        )
+    return PlattSVC(final, slope, intercept)
 
 
 @functools.cache
@@ -127,8 +168,8 @@ class BeliefSnapshot:
     ----------
     observations_seen : int
         Observations fused when it was fitted (it includes indices below this).
-    model : object
-        The fitted ``CalibratedClassifierCV``; never refitted in place.
+    model : PlattSVC
+        The fitted classifier and link; never refitted in place.
     origin_m : (2,) float64
         Subtracted from query points before prediction.
     fingertip_m : (2,) float64
@@ -136,7 +177,7 @@ class BeliefSnapshot:
     """
 
     observations_seen: int
-    model: Any
+    model: PlattSVC
     origin_m: FloatArray
     fingertip_m: FloatArray
     representatives_m: FloatArray
@@ -149,9 +190,7 @@ class BeliefSnapshot:
         if points_m.shape[0] == 0:
             return np.empty(0)
         with _blas_controller().limit(limits=1, user_api="blas"):
-            proba = self.model.predict_proba(points_m - self.origin_m)
-        column = list(self.model.classes_).index(1)
-        p = np.clip(np.asarray(proba[:, column], dtype=np.float64), 0.0, 1.0)
+            p = np.clip(self.model.probability(points_m - self.origin_m), 0.0, 1.0)
         return _blend(
             p, points_m, self.representatives_m, self.cell_size_m, self.length_scale_m,
             self.unexplored_prior,
@@ -234,7 +273,7 @@ class BeliefMap(Map):
     @property
     def representatives(self) -> int:
         """Number of (cell, class) bins the next refit is fitted on."""
-        return len(self._bins)
+        return self._bins.cells_and_classes
 
     @property
     def observations_seen(self) -> int:
@@ -242,7 +281,7 @@ class BeliefMap(Map):
 
     @property
     def fitted(self) -> bool:
-        """Whether an SVC is fitted (both classes seen in at least two bins each)."""
+        """Whether an SVC is fitted (both classes seen in at least two cells each)."""
         return self._current is not None
 
     @property
@@ -272,7 +311,9 @@ class BeliefMap(Map):
         self._keep_path(points)
         self._total_weight += float(weights.sum())
         self._contact_weight += float(weights[targets > 0.5].sum())
-        new_bins = fn.bin_observations(points, targets, weights, self.cell_size_m)
+        new_bins = fn.bin_observations(
+            points, targets, weights, self.cell_size_m, self.config.calibration_folds
+        )
         self._bins, self._level = fn.bound_bins(
             fn.merge_bins(self._bins, new_bins), self._level, self.config.max_points
         )
@@ -301,22 +342,22 @@ class BeliefMap(Map):
     def refit(self) -> None:
         """Fit the classifier on the current bins now (a no-op for the prior's state)."""
         self._pending = 0
-        labels = self._bins.labels
-        counts = np.bincount(labels, minlength=2)
-        if counts.min() < 2:
+        merged = fn.merge_folds(self._bins)
+        # A cell holds at most one merged bin per class: bins of a class count its cells.
+        if np.bincount(merged.labels, minlength=2).min() < 2:
             self._current = None
             return
-        positions = self._bins.positions
-        weights = self._bins.weights
-        origin = (weights[:, None] * positions).sum(axis=0) / weights.sum()
         started = time.perf_counter()
+        splits = fn.calibration_splits(self._bins, self.config.calibration_folds, self._seed)
+        positions = merged.positions
+        weights = merged.weights
+        origin = (weights[:, None] * positions).sum(axis=0) / weights.sum()
         model = fit_calibrated_svc(
-            positions - origin,
-            labels,
-            weights,
+            merged,
+            splits,
+            origin,
             gamma_per_m2=self.config.gamma_per_m2,
             penalty_c=self.config.penalty_c,
-            folds=int(min(self.config.calibration_folds, counts.min())),
             seed=self._seed,
         )
         self.refit_durations_s.append(time.perf_counter() - started)
@@ -451,7 +492,7 @@ class BeliefMap(Map):
             )
         return {
             "belief_map_refits": int(self.refits),
-            "belief_map_representatives": len(self._bins),
+            "belief_map_representatives": self.representatives,
             "belief_map_cell_size_m": self.cell_size_m,
             "belief_map_snapshots": sorted(snapshots),
         }

@@ -11,6 +11,22 @@ to ``floor(k / 2)`` exactly (``floor(floor(x / c) / 2) == floor(x / (2 c))``), s
 bins after coarsening gives the same bins as binning the raw points at the coarser size;
 the number of occupied bins can only grow as data arrive, so the level reached by streaming
 updates equals the level a single fit of the union reaches.
+
+Calibration
+-----------
+Platt scaling (Eq. A.11) fits ``P = sigmoid(s f + c)`` to held-out SVC decision values
+``f``. Two things keep it from inverting the map (issue 16):
+
+- The held-out data are raw observations, not bins: each observation belongs to a fold by
+  a hash of its position (:func:`observation_folds`), bins are kept per fold, and a fold's
+  bins are scored by an SVC fitted on the other folds' (:func:`calibration_splits`). Bins
+  dealt to folds would not do: a noisy coarse cell holds a free and a contact bin at nearly
+  one position, and split across folds each is scored by its opposite-class twin, so the
+  scores point the wrong way (3,000 scattered points, 6.4 cm cells: Platt's ``A`` was
+  +8.8 and the map's AUC 0.04).
+- The slope is bounded, ``s >= 0`` (:func:`platt_fit`): a higher decision value never
+  lowers ``P``. Scores that rank the held-out data no better than chance give ``s = 0``, a
+  flat map at the smoothed base rate, never an inverted one.
 """
 
 from __future__ import annotations
@@ -26,10 +42,15 @@ __all__ = [
     "bernoulli_std",
     "bin_observations",
     "bound_bins",
+    "calibration_splits",
+    "cell_folds",
     "coarsen_bins",
     "contact_targets",
     "extent_region",
     "merge_bins",
+    "merge_folds",
+    "observation_folds",
+    "platt_fit",
     "smoothed_fraction",
     "support_weight",
 ]
@@ -85,8 +106,9 @@ class Bins:
 
     Attributes
     ----------
-    keys : (m, 3) float64
-        Cell index along x, along y, and the decided class (0 free, 1 contact).
+    keys : (m, 4) float64
+        Cell index along x, along y, the decided class (0 free, 1 contact) and the
+        calibration fold of the observations (:func:`observation_folds`).
     weights : (m,) float64
         Summed observation weight (positive).
     position_sums : (m, 2) float64
@@ -102,7 +124,7 @@ class Bins:
 
     @classmethod
     def empty(cls) -> Bins:
-        return cls(np.empty((0, 3)), np.empty(0), np.empty((0, 2)))
+        return cls(np.empty((0, 4)), np.empty(0), np.empty((0, 2)))
 
     @property
     def positions(self) -> FloatArray:
@@ -113,13 +135,25 @@ class Bins:
     def labels(self) -> NDArray[np.int64]:
         return self.keys[:, 2].astype(np.int64)
 
+    @property
+    def cells_and_classes(self) -> int:
+        """Number of distinct (cell, class) pairs: the bins once folds are merged."""
+        if not len(self):
+            return 0
+        # Rows are sorted by (x, y, class, fold), so equal (x, y, class) rows are adjacent.
+        return 1 + int(np.any(self.keys[1:, :3] != self.keys[:-1, :3], axis=1).sum())
+
+    def select(self, rows: NDArray[np.bool_]) -> Bins:
+        """The bins where ``rows`` is True (still sorted)."""
+        return Bins(self.keys[rows], self.weights[rows], self.position_sums[rows])
+
 
 def _aggregate(keys: FloatArray, weights: FloatArray, position_sums: FloatArray) -> Bins:
     if keys.shape[0] == 0:
         return Bins.empty()
-    # Sort rows lexicographically (x cell, y cell, class) and number the runs of equal rows;
-    # np.unique(axis=0) does the same through a much slower structured-dtype sort.
-    order = np.lexsort((keys[:, 2], keys[:, 1], keys[:, 0]))
+    # Sort rows lexicographically (x cell, y cell, class, fold) and number the runs of equal
+    # rows; np.unique(axis=0) does the same through a much slower structured-dtype sort.
+    order = np.lexsort(keys.T[::-1])
     ordered = keys[order]
     starts = np.empty(len(ordered), dtype=bool)
     starts[0] = True
@@ -138,12 +172,35 @@ def _aggregate(keys: FloatArray, weights: FloatArray, position_sums: FloatArray)
     return Bins(unique, summed_w, sums)
 
 
-def bin_observations(
-    points_m: FloatArray, targets: FloatArray, weights: FloatArray, cell_size_m: float
-) -> Bins:
-    """Bin observations by cell and decided class (target > 0.5 is contact).
+def observation_folds(points_m: FloatArray, folds: int) -> FloatArray:
+    """Calibration fold ``0 .. folds - 1`` of each observation, from a hash of its position.
 
-    Observations with zero weight carry no information and are dropped.
+    A hash rather than the arrival index keeps the map independent of arrival order;
+    coincident observations share a fold.
+    """
+    pts = np.ascontiguousarray(points_m, dtype=np.float64).reshape(-1, 2)
+    bits = pts.view(np.uint64)
+    # splitmix64's finaliser over both coordinates' bits (uint64 arithmetic wraps).
+    h = (bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)) ^ (bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F))
+    h ^= h >> np.uint64(30)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    h ^= h >> np.uint64(27)
+    h *= np.uint64(0x94D049BB133111EB)
+    h ^= h >> np.uint64(31)
+    return (h % np.uint64(folds)).astype(np.float64)
+
+
+def bin_observations(
+    points_m: FloatArray,
+    targets: FloatArray,
+    weights: FloatArray,
+    cell_size_m: float,
+    folds: int = 1,
+) -> Bins:
+    """Bin observations by cell, decided class (target > 0.5 is contact) and fold.
+
+    Observations with zero weight carry no information and are dropped. ``folds`` is the
+    number of calibration folds the observations are dealt to (:func:`observation_folds`).
     """
     w = np.asarray(weights, dtype=np.float64)
     keep = w > 0
@@ -153,7 +210,7 @@ def bin_observations(
     with np.errstate(over="ignore"):
         cells = np.floor(pts / cell_size_m)
     cells = np.nan_to_num(cells, posinf=np.finfo(np.float64).max, neginf=-np.finfo(np.float64).max)
-    keys = np.column_stack([cells, decided])
+    keys = np.column_stack([cells, decided, observation_folds(pts, folds)])
     return _aggregate(keys, w, pts * w[:, None])
 
 
@@ -170,6 +227,14 @@ def merge_bins(first: Bins, second: Bins) -> Bins:
     )
 
 
+def merge_folds(bins: Bins, exclude: float | None = None) -> Bins:
+    """Bins of all folds (but ``exclude``) merged per (cell, class), with fold 0."""
+    rows = np.ones(len(bins), dtype=bool) if exclude is None else bins.keys[:, 3] != exclude
+    keys = bins.keys[rows].copy()
+    keys[:, 3] = 0.0
+    return _aggregate(keys, bins.weights[rows], bins.position_sums[rows])
+
+
 def coarsen_bins(bins: Bins) -> Bins:
     """Merge bins into cells of twice the edge length."""
     keys = bins.keys.copy()
@@ -178,14 +243,16 @@ def coarsen_bins(bins: Bins) -> Bins:
 
 
 def bound_bins(bins: Bins, level: int, max_points: int) -> tuple[Bins, int]:
-    """Coarsen until at most ``max_points`` bins remain; return the bins and the new level.
+    """Coarsen until at most ``max_points`` (cell, class) pairs remain; return the bins and
+    the new level.
 
-    ``level`` counts doublings of the base cell size. At most two bins (one per class) are
-    left once every point shares one cell, so ``max_points >= 2`` always terminates.
+    ``level`` counts doublings of the base cell size. Folds are not counted: a refit's SVCs
+    are fitted on bins merged over folds. At most two pairs (one per class) are left once
+    every point shares one cell, so ``max_points >= 2`` always terminates.
     """
     if max_points < 2:
         raise ValueError("max_points must be at least 2")
-    while len(bins) > max_points:
+    while bins.cells_and_classes > max_points:
         coarser = coarsen_bins(bins)
         level += 1
         if len(coarser) == len(bins) and np.array_equal(coarser.keys, bins.keys):
@@ -236,3 +303,135 @@ def support_weight(
     distance, _ = cKDTree(representatives_m).query(q, k=1)
     beyond = np.maximum(np.asarray(distance) - cell_size_m / np.sqrt(2.0), 0.0)
     return np.exp(-0.5 * (beyond / length_scale_m) ** 2)
+
+
+def cell_folds(keys: FloatArray, folds: int, seed: int) -> NDArray[np.intp]:
+    """Cross-validation fold of each bin: whole cells per fold, both classes left to train on.
+
+    Parameters
+    ----------
+    keys : (m, 3) or (m, 4) float64
+        Keys of bins merged over folds (x cell, y cell, class[, fold]), as :attr:`Bins.keys`.
+    folds : int
+        Folds wanted; fewer are used when fewer cells hold a class (a cell holds at most one
+        bin of each class, so ``min(folds, contact cells, free cells)``).
+    seed : int
+        Seeds the shuffle of cells, so the folds depend only on the bins (not their order).
+
+    Returns
+    -------
+    (m,) intp
+        Fold index per bin, ``0 .. k - 1``; every fold holds a contact bin, and every
+        complement of a fold holds bins of both classes.
+
+    Raises
+    ------
+    ValueError
+        When fewer than two cells hold a bin of either class.
+    """
+    keys = np.asarray(keys, dtype=np.float64)
+    labels = keys[:, 2] > 0.5
+    cells, group = np.unique(keys[:, :2], axis=0, return_inverse=True)
+    group = group.ravel()
+    n_cells = cells.shape[0]
+    has_contact = np.bincount(group, weights=labels, minlength=n_cells) > 0
+    has_free = np.bincount(group, weights=~labels, minlength=n_cells) > 0
+    k = min(int(folds), int(has_contact.sum()), int(has_free.sum()))
+    if k < 2:
+        raise ValueError(
+            "cross-validated calibration needs at least two cells with contact and two without "
+            f"(got {int(has_contact.sum())} and {int(has_free.sum())})"
+        )
+    order = np.random.default_rng(seed).permutation(n_cells)
+    fold_of_cell = np.full(n_cells, -1, dtype=np.intp)
+    # Cells with contact are dealt round robin, those with both classes first: every fold
+    # then holds contact, and so does every complement (at least two folds have some).
+    contact_cells = order[has_contact[order]]
+    contact_cells = contact_cells[np.argsort(~has_free[contact_cells], kind="stable")]
+    fold_of_cell[contact_cells] = np.arange(contact_cells.size) % k
+    # Free-only cells go to the fold with the fewest free cells so far, so free ground also
+    # lies in at least two folds.
+    free_count = np.bincount(fold_of_cell[contact_cells[has_free[contact_cells]]], minlength=k)
+    for cell in order[has_free[order] & ~has_contact[order]]:
+        target = int(np.argmin(free_count))
+        fold_of_cell[cell] = target
+        free_count[target] += 1
+    return fold_of_cell[group]
+
+
+def calibration_splits(bins: Bins, folds: int, seed: int) -> list[tuple[Bins, Bins]]:
+    """``(training, held-out)`` pairs whose held-out decision values Platt's sigmoid is fitted on.
+
+    Each fold's bins are held out, and the training set is the other folds' bins merged per
+    (cell, class), when that holds both classes. When the held-out bins of such folds lack
+    a class (a handful of contact observations that all hashed to one fold), whole cells
+    are held out instead (:func:`cell_folds`) from the bins merged over folds.
+
+    Raises
+    ------
+    ValueError
+        When fewer than two cells hold a bin of either class.
+    """
+    splits = []
+    for fold in np.unique(bins.keys[:, 3]):
+        train = merge_folds(bins, exclude=float(fold))
+        if np.unique(train.labels).size == 2:
+            splits.append((train, bins.select(bins.keys[:, 3] == fold)))
+    scored = np.concatenate([held.labels for _, held in splits]) if splits else np.empty(0)
+    if np.unique(scored).size == 2:
+        return splits
+    merged = merge_folds(bins)
+    by_cell = cell_folds(merged.keys, folds, seed)
+    return [
+        (merged.select(by_cell != fold), merged.select(by_cell == fold))
+        for fold in np.unique(by_cell)
+    ]
+
+
+def platt_fit(
+    decision: FloatArray, labels: NDArray[np.int64], weights: FloatArray
+) -> tuple[float, float]:
+    """Platt's sigmoid ``P(contact) = sigmoid(slope * f + intercept)`` with ``slope >= 0``.
+
+    Maximum likelihood with Platt's smoothed targets ``(w1 + 1) / (w1 + 2)`` and
+    ``1 / (w0 + 2)`` (``w`` the summed weights of a class), as scikit-learn's
+    ``_sigmoid_calibration``, whose ``A`` is ``-slope``; but the slope is bounded below by
+    zero, so the link is monotone non-decreasing and cannot invert the decision function.
+
+    Parameters
+    ----------
+    decision : (n,) float64
+        Out-of-fold decision values (positive means contact).
+    labels : (n,) int
+        0 free, 1 contact.
+    weights : (n,) float64
+        Positive sample weights (a weight ``k`` counts as ``k`` repeated samples).
+    """
+    from scipy.optimize import minimize
+    from scipy.special import expit
+
+    f = np.asarray(decision, dtype=np.float64)
+    y = np.asarray(labels) > 0
+    w = np.asarray(weights, dtype=np.float64)
+    # Large scores (heavily weighted bins) are scaled for the optimiser, as scikit-learn does;
+    # the fitted slope is scaled back.
+    scale = float(np.max(np.abs(f))) if f.size else 0.0
+    scale = scale if scale >= 30.0 else 1.0
+    f = f / scale
+    w1, w0 = float(w[y].sum()), float(w[~y].sum())
+    target = np.where(y, (w1 + 1.0) / (w1 + 2.0), 1.0 / (w0 + 2.0))
+
+    def loss(params: FloatArray) -> tuple[float, FloatArray]:
+        z = params[0] * f + params[1]
+        residual = w * (expit(z) - target)
+        value = float(np.sum(w * (np.logaddexp(0.0, z) - target * z)))
+        return value, np.array([float(residual @ f), float(residual.sum())])
+
+    rate = float(np.sum(w * target) / np.sum(w))
+    start = np.array([0.0, np.log(rate / (1.0 - rate))])
+    result = minimize(
+        loss, start, jac=True, method="L-BFGS-B", bounds=[(0.0, None), (None, None)],
+        options={"gtol": 1e-6, "ftol": 64 * np.finfo(np.float64).eps},
+    )
+    slope, intercept = (float(v) for v in result.x)
+    return max(slope, 0.0) / scale, intercept
