@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import rankdata
 
-from hapticframe import BenchOptions, Circle, Polygon, Scene
+from hapticframe import BenchOptions, Circle, Polygon, Scene, atomic_write
 from hapticframe.kinds import BuildContext, Observations
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 
@@ -199,8 +199,7 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
     checks = check_targets(BHM_TARGETS, results)
     results["targets"] = {c.target.name: c.as_dict() for c in checks}
     results["targets_met"] = all(c.met for c in checks)
-    (options.out_dir / "bhm.json").write_text(json.dumps(results, indent=2) + "\n",
-                                              encoding="utf-8")
+    atomic_write(options.out_dir / "bhm.json", json.dumps(results, indent=2) + "\n")
     lines = [
         "# Bayesian Hilbert Map timings",
         "",
@@ -221,7 +220,7 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
         )
     lines += ["", f"AUC on 20,000 fresh points: {results['auc']:.4f} "
               f"(region-dependent smoothing: {results['rds_auc']:.4f})", ""]
-    (options.out_dir / "bhm.md").write_text("\n".join(lines), encoding="utf-8")
+    atomic_write(options.out_dir / "bhm.md", "\n".join(lines))
     options.echo(f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}; "
                  f"{load_note(results['machine']['load_average_1min'])}")
     for check in checks:

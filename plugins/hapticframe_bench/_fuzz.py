@@ -37,7 +37,13 @@ from typing import Any
 import numpy as np
 import yaml
 
-from hapticframe import BenchOptions, ExperimentError, HapticframeError, validate_mapping
+from hapticframe import (
+    BenchOptions,
+    ExperimentError,
+    HapticframeError,
+    atomic_write,
+    validate_mapping,
+)
 
 __all__ = [
     "CATEGORIES",
@@ -310,14 +316,14 @@ def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
         "failures": failure_records,
         "wall_time_s": time.perf_counter() - started,
     }
-    (out_dir / "fuzz.json").write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+    atomic_write(out_dir / "fuzz.json", json.dumps(summary, indent=2) + "\n")
     lines = ["# Fuzzing the examples (issue 16)", "",
              f"{len(outcomes)} mutants, seed {options.seed}: "
              + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
              + f"; {len(failures)} failures; {summary['wall_time_s']:.0f} s.", ""]
     lines += [f"- {f['status']}: {f['example']} {f['change'][:80]} — {f['detail'][:160]}"
               for f in failure_records]
-    (out_dir / "fuzz.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    atomic_write(out_dir / "fuzz.md", "\n".join(lines) + "\n")
     options.echo(f"fuzz: {len(outcomes)} mutants, {len(failures)} failures "
                  f"({out_dir / 'fuzz.md'})")
     return summary

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe import BenchOptions
+from hapticframe import BenchOptions, atomic_write
 from hapticframe.kinds import BuildContext, SampleBatch
 from hapticframe_tactile_features import (
     EMDFeatureExtractor,
@@ -437,8 +437,8 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
     checks = check_targets(LATENCY_TARGETS, results["chain"])
     results["targets"] = {c.target.name: c.as_dict() for c in checks}
     results["targets_met"] = all(c.met for c in checks)
-    (options.out_dir / "latency.json").write_text(
-        json.dumps(results, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    atomic_write(options.out_dir / "latency.json",
+                 json.dumps(results, indent=2, allow_nan=False) + "\n")
     chain = results["chain"]
     lines = ["# Streaming chain latency per 10 ms frame", "",
              f"{chain['frames']} frames, one thread, {chain['machine']}; EMD backend "
@@ -455,7 +455,7 @@ def run_latency_bench(options: BenchOptions) -> dict[str, Any]:
                   f"library's defaults; {p['emd_ms_fixed10']:.2f} ms vs "
                   f"{p['pyemd_ms_fixed10']:.1f} ms ({p['speedup_fixed10']:.0f}x) at 10 sifts "
                   "each.", ""]
-    (options.out_dir / "latency.md").write_text("\n".join(lines), encoding="utf-8")
+    atomic_write(options.out_dir / "latency.md", "\n".join(lines))
     options.echo(load_note(results["load_average_1min"]))
     for check in checks:
         options.echo(check.line())

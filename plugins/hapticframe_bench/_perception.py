@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe import BenchOptions, UsageError
+from hapticframe import BenchOptions, UsageError, atomic_write
 from hapticframe_sfrnn import balanced_accuracy
 
 from ._latency import measure_streaming_latency
@@ -528,10 +528,9 @@ def run_perception(options: BenchOptions, plan: SuitePlan | None = None) -> dict
     checks = check_targets(PERCEPTION_TARGETS, result)
     result["targets"] = {c.target.name: c.as_dict() for c in checks}
     result["targets_met"] = all(c.met for c in checks)
-    (out / "perception.json").write_text(json.dumps(result, indent=2, allow_nan=False) + "\n",
-                                         encoding="utf-8")
+    atomic_write(out / "perception.json", json.dumps(result, indent=2, allow_nan=False) + "\n")
     save_figure(result, out / "perception.png")
-    (out / "perception.md").write_text(render_markdown(result), encoding="utf-8")
+    atomic_write(out / "perception.md", render_markdown(result))
     options.echo(f"SF-RNN test {result['sfrnn_test_accuracy']:.3f}, robustness mean "
                  f"{result['sfrnn_robustness_mean']:.3f} vs (d)+Linear SVM "
                  f"{result['robustness_mean_by_architecture']['(d)+Linear SVM']:.3f} "

@@ -10,6 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from hapticframe import atomic_path
+
 from ._targets import record_rows
 
 __all__ = ["THESIS", "accuracy_axis_range", "render_markdown", "save_figure"]
@@ -374,6 +376,7 @@ def save_figure(result: dict[str, Any], path: Path) -> Path | None:
     axes[1].set_ylabel("balanced accuracy (%)")
     axes[1].set_title("Robustness set (2 cm/s, five media)")
     axes[1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as temp:
+        fig.savefig(temp, dpi=110)
     plt.close(fig)
     return path

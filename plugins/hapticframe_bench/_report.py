@@ -11,6 +11,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from hapticframe import atomic_path
+
 from ._targets import record_rows
 
 __all__ = [
@@ -202,7 +204,8 @@ def save_trial_figure(path: Path, summary: Mapping[str, Any]) -> bool:
     except ImportError:
         return False
     path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110)
+    with atomic_path(path) as temp:
+        figure.savefig(temp, dpi=110)
     return True
 
 

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 import hapticframe
-from hapticframe import BenchOptions, RunError, run_experiment, validate_mapping
+from hapticframe import BenchOptions, RunError, atomic_write, run_experiment, validate_mapping
 
 from ._aggregate import aggregate_trials, trial_figures
 from ._placements import SHAPES, Placement, draw_placements
@@ -606,8 +606,8 @@ def run_suite(
     summary["targets"] = search_targets(summary)
     summary = _json_ready(summary)
     text = json.dumps(summary, indent=2, sort_keys=False, allow_nan=False)
-    (out_dir / "search.json").write_text(text + "\n", encoding="utf-8")
-    (out_dir / "search.md").write_text(render_markdown(summary), encoding="utf-8")
+    atomic_write(out_dir / "search.json", text + "\n")
+    atomic_write(out_dir / "search.md", render_markdown(summary))
     if not save_trial_figure(out_dir / "search.png", summary):
         options.echo("search.png skipped: matplotlib is not installed")
     for check in check_lines(summary["targets"]):

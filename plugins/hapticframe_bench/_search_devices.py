@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 import hapticframe
-from hapticframe import BenchOptions, Kind, UsageError, validate_mapping
+from hapticframe import BenchOptions, Kind, UsageError, atomic_write, validate_mapping
 from hapticframe.kinds import (
     BuildContext,
     Component,
@@ -587,9 +587,9 @@ def run_search_devices(options: BenchOptions, *, shapes: Sequence[str] = SHAPES,
                             + (["--quick"] if options.quick else [])),
     }
     result = _json_ready(result)
-    (out_dir / "search-devices.json").write_text(
-        json.dumps(result, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-    (out_dir / "search-devices.md").write_text(render_markdown(result), encoding="utf-8")
+    atomic_write(out_dir / "search-devices.json",
+                 json.dumps(result, indent=2, allow_nan=False) + "\n")
+    atomic_write(out_dir / "search-devices.md", render_markdown(result))
     for line in check_lines(result["targets"]):
         options.echo(line)
     options.echo(f"search-devices done in {result['wall_time_s']:.1f} s: "

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import hapticframe
-from hapticframe import BenchOptions, Kind, UsageError
+from hapticframe import BenchOptions, Kind, UsageError, atomic_write
 
 from ._placements import SHAPES
 from ._search import SEARCH_PLANNER, run_suite
@@ -201,9 +201,9 @@ def run_search_dynamixel(options: BenchOptions, *, shapes: Sequence[str] = SHAPE
                             + (["--quick"] if options.quick else [])),
     }
     result = _json_ready(result)
-    (out_dir / "search-dynamixel.json").write_text(
-        json.dumps(result, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-    (out_dir / "search-dynamixel.md").write_text(render_markdown(result), encoding="utf-8")
+    atomic_write(out_dir / "search-dynamixel.json",
+                 json.dumps(result, indent=2, allow_nan=False) + "\n")
+    atomic_write(out_dir / "search-dynamixel.md", render_markdown(result))
     for line in check_lines(result["targets"]):
         options.echo(line)
     options.echo(f"search-dynamixel done in {result['wall_time_s']:.1f} s: "

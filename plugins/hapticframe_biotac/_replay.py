@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe import save_npz
+
 from ._frame import SIGNAL_CHANNELS, BioTacFrames, layout_for
 
 __all__ = [
@@ -96,8 +98,7 @@ def save_npz(
         arrays["position_m"] = frames.position_m
         arrays["contact"] = frames.contact
     path.parent.mkdir(parents=True, exist_ok=True)
-    # numpy's stub types **kwds as if a key could be `allow_pickle`; none of these names is.
-    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+    save_npz(path, **arrays)
     return path
 
 

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 from scipy import signal
 
+from hapticframe import atomic_write, save_npz
 from hapticframe.artifacts import read_json_object, read_npz_arrays, schema_error
 from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
@@ -270,7 +271,7 @@ class ForceObserver(FeatureExtractor):
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
         p = self._parameters
-        np.savez(out / "model.npz", rotation=p.rotation, bias_n=p.bias_n)
+        save_npz(out / "model.npz", compressed=False, rotation=p.rotation, bias_n=p.bias_n)
         meta = {
             "format": MODEL_FORMAT,
             "format_version": _FORMAT_VERSION,
@@ -293,7 +294,7 @@ class ForceObserver(FeatureExtractor):
                 "python": platform.python_version(),
             },
         }
-        (out / "model.json").write_text(json.dumps(meta, indent=2, allow_nan=False))
+        atomic_write(out / "model.json", json.dumps(meta, indent=2, allow_nan=False))
         return out
 
     def load(self, directory: str | Path) -> None:

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from hapticframe import atomic_write
 from hapticframe.artifacts import read_json_object, schema_error
 from hapticframe.kinds import (
     BuildContext,
@@ -447,7 +448,7 @@ class ForceRateJammingClassifier(Classifier):
             "training_report": self._training,
         }
         target = out / THRESHOLDS_FILE
-        target.write_text(json.dumps(record, indent=2, allow_nan=False))
+        atomic_write(target, json.dumps(record, indent=2, allow_nan=False))
         return target
 
     def load(self, directory: str | Path) -> None:

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe import save_npz
 from hapticframe.kinds import (
     BuildContext,
     Device,
@@ -472,7 +473,7 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         out_dir.mkdir(parents=True, exist_ok=True)
         truth, robot_ids = world.ground_truth()
         extra: dict[str, Any] = {} if robot_ids is None else {"robot_id": robot_ids}
-        np.savez_compressed(
+        save_npz(
             out_dir / "ground_truth.npz",
             timestamps_s=truth.timestamps_s,
             state=truth.states,

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from pydantic import ValidationError
 
+from hapticframe import atomic_write, save_npz
 from hapticframe.artifacts import read_json_object, read_npz_arrays, schema_error
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
@@ -210,8 +211,9 @@ class LinearSVMClassifier(Classifier):
         """Write ``model.npz`` (coef, mean, spread) and ``model.json`` into ``directory``."""
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
-        np.savez(out / "model.npz", coef=self.coef, mean=self.mean, spread=self.spread)
-        (out / "model.json").write_text(json.dumps(self.metadata(), indent=2, allow_nan=False))
+        save_npz(out / "model.npz", compressed=False, coef=self.coef, mean=self.mean,
+                 spread=self.spread)
+        atomic_write(out / "model.json", json.dumps(self.metadata(), indent=2, allow_nan=False))
         return out
 
     def load(self, directory: str | Path) -> None:

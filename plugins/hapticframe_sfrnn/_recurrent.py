@@ -52,6 +52,7 @@ import torch
 from numpy.typing import ArrayLike
 from pydantic import ValidationError
 
+from hapticframe import atomic_path, atomic_write
 from hapticframe.artifacts import read_json_object, schema_error
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
@@ -303,8 +304,9 @@ class RecurrentClassifier(Classifier):
         """Write ``weights.pt`` and ``model.json`` into ``directory`` (created); return it."""
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
-        torch.save(self.net.state_dict(), out / "weights.pt")
-        (out / "model.json").write_text(json.dumps(self.metadata(), indent=2, allow_nan=False))
+        with atomic_path(out / "weights.pt") as temp:
+            torch.save(self.net.state_dict(), temp)
+        atomic_write(out / "model.json", json.dumps(self.metadata(), indent=2, allow_nan=False))
         return out
 
     def load(self, directory: str | Path) -> None:

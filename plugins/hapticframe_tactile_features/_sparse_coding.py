@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from hapticframe import atomic_write, save_npz
 from hapticframe.artifacts import npz_budget, read_json_object, read_npz_arrays, schema_error
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
@@ -308,8 +309,8 @@ class SparseCodingExtractor(FeatureExtractor):
              for m in self.modalities}
         )  # fmt: skip
         # numpy's stub types **kwds as if a key could be `allow_pickle`; none of these names is.
-        np.savez(arrays, **payload)  # type: ignore[arg-type]
-        meta.write_text(json.dumps(self.metadata(), indent=2, allow_nan=False) + "\n")
+        save_npz(arrays, compressed=False, **payload)
+        atomic_write(meta, json.dumps(self.metadata(), indent=2, allow_nan=False) + "\n")
         return arrays, meta
 
     def load(self, path: str | Path) -> None:

@@ -212,6 +212,12 @@ class ForgetfulMap(CellMap):
         super().update(observations)
 
 
+class InvertedMap(CellMap):
+    def query(self, points_m):  # type: ignore[no-untyped-def]
+        est = super().query(points_m)
+        return MapEstimate(1.0 - np.asarray(est.mean), est.std)
+
+
 class MeanOfNothingMap(CellMap):
     _level = 1.0
 
@@ -464,6 +470,8 @@ BROKEN = [
      "check_map_streaming_matches_batch", "sequential updates"),
     (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"),
      "check_map_extremes", "no observations"),
+    (MapSpec("inverted", "x", CellConfig, f"{M}:InvertedMap"),
+     "check_map_ranks_scattered_points", "inverted"),
     (PlannerSpec("endless", "x", EndlessConfig, f"{M}:EndlessPlanner"),
      "check_planner_contract", "max_movements"),
     (RobotSpec("restarting-robot", "x", LineRobotConfig, f"{M}:LineRobot",
