@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe import save_npz
+from hapticframe import save_npz as save_npz_atomically
 
 from ._frame import SIGNAL_CHANNELS, BioTacFrames, layout_for
 
@@ -98,7 +98,7 @@ def save_npz(
         arrays["position_m"] = frames.position_m
         arrays["contact"] = frames.contact
     path.parent.mkdir(parents=True, exist_ok=True)
-    save_npz(path, **arrays)
+    save_npz_atomically(path, **arrays)
     return path
 
 
