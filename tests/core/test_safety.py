@@ -152,7 +152,8 @@ def test_the_sandbox_halts_within_one_sample_with_and_without_lookahead(lab_dir)
 @pytest.mark.parametrize("silent_as", ["invalid", "missing"])
 def test_a_stalled_force_stream_halts_within_the_configured_time(lab_dir, silent_as, lookahead):
     code, out = run(lab_dir, scripted(f"silent_from_s: 0.3, silent_as: {silent_as}",
-                                      f"force_stall_s: 0.25, lookahead_steps: {lookahead}"))
+                                      f"force_stall_s: 0.25, lookahead_steps: {lookahead}, "
+                                      "stall_resumes: 0"))
     assert code == 0
     halts = read(out, "run.json")["details"]["safety_halts"]
     assert halts[0]["reason"] == "force_stream_stalled" and halts[0]["movement"] == 0
@@ -164,6 +165,25 @@ def test_a_stalled_force_stream_halts_within_the_configured_time(lab_dir, silent
     # The second movement never gets a valid sample: halted 0.25 s after it began.
     assert second.final_state.timestamp_s == pytest.approx(0.55 + 0.25)
     assert read(out, "metrics.json")["halt_latency_samples_max"] is None
+
+
+def test_a_stalled_movement_resumes_from_where_it_stopped_a_bounded_number_of_times(lab_dir):
+    code, out = run(lab_dir, scripted("silent_from_s: 0.3", "force_stall_s: 0.25"))
+    assert code == 0
+    halts = read(out, "run.json")["details"]["safety_halts"]
+    first = [h for h in halts if h["movement"] == 0]
+    # Halted at 0.55 s, resumed (the stream still silent) and halted 0.25 s later, twice:
+    # run.stall_resumes (2) resumptions, then the movement ends halted.
+    assert [h["reason"] for h in first] == ["force_stream_stalled"] * 3
+    assert [h["robot_time_s"] for h in first] == pytest.approx([0.55, 0.80, 1.05])
+    result = lab().RESULTS[0]
+    assert result.halt_reason == "force_stream_stalled"
+    assert result.extra["stall_resumes"] == 2
+    # Each resumption starts where the robot stopped: one movement, never a step back.
+    trace = np.load(out / "trace.npz")
+    index = trace["robot/arm/movement_index"]
+    x = trace["robot/arm/position_m"][index == 0, 0]
+    assert np.all(np.diff(x) >= 0)
 
 
 def test_the_stall_check_can_be_switched_off(lab_dir):
