@@ -19,12 +19,12 @@ from .._errors import ExperimentError, Issue
 from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
+from .._scene import NAME_PATTERN
 from ._checks import core_checks, run_validators
 from ._load import LoadedFile, join_path, load_file
 from ._model import (
     CHANNEL_PATTERN,
     ID_PATTERN,
-    NAME_PATTERN,
     TEXT_PATTERN,
     ExperimentRoot,
     build_experiment_model,
