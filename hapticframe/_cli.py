@@ -84,7 +84,17 @@ def _validate(args: argparse.Namespace, file: str) -> Any:
     from ._config import load_file, validate_data
 
     loaded = load_file(file)
-    return validate_data(loaded, strict=args.strict, plugin_manager=_manager(args, args.strict))
+    experiment = validate_data(loaded, strict=args.strict,
+                               plugin_manager=_manager(args, args.strict))
+    _print_warnings(experiment)
+    return experiment
+
+
+def _print_warnings(experiment: Any) -> None:
+    """What is legal but suspicious, located like errors: ``warning: FILE:LINE: PATH: ...``
+    on stderr (``validate``, ``run`` and ``train`` all print them)."""
+    for issue in experiment.warnings:
+        _err(f"warning: {issue.render(experiment.file)}")
 
 
 def _add_plugin_module_option(p: argparse.ArgumentParser) -> None:

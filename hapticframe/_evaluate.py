@@ -46,15 +46,23 @@ def evaluate_map(
     level: float = 0.6,
     spacing_m: float = 0.0025,
     near_m: ArrayLike | None = None,
+    found_within_m: float | None = None,
 ) -> dict[str, Any]:
     """Compare the map's estimated object with the nearest true object.
 
     The estimate is the connected region where the occupancy mean reaches ``level``: the
     one closest to ``near_m`` (where the robot met the object) when given, else the one
     holding the most occupancy. Its centroid and its ``level`` curve are compared with the
-    true object's centroid and outline. Distances are directed Hausdorff distances in both
-    directions. When nothing reaches ``level`` the object counts as not found and the
-    distances are None.
+    true object's centroid and outline (the true object nearest the estimated centroid).
+    Distances are directed Hausdorff distances in both directions.
+
+    The object counts as found (``object_found``) only when the estimated centroid lies
+    within ``found_within_m`` of that true object's centroid; None takes the object's
+    reach (the largest distance from its centroid to its outline: the radius of a circle,
+    the semi-major axis of an ellipse). ``found_within_m`` in the result is the distance
+    used. A blob too far off is still reported (its centroid and distances), but not
+    found. When nothing reaches ``level`` the object is not found and the distances are
+    None.
     """
     region = the_map.region
     xs, ys, points = sample_grid(
@@ -63,6 +71,7 @@ def evaluate_map(
     mean = the_map.query(points).mean.reshape(len(ys), len(xs))
     out: dict[str, Any] = {
         "object_found": False,
+        "found_within_m": found_within_m,
         "centroid_error_m": None,
         "estimated_centroid_m": None,
         "hausdorff_est_to_true_m": None,
@@ -75,9 +84,12 @@ def evaluate_map(
     truths = [obj.centroid_m for obj in scene.objects]
     nearest = int(np.argmin([np.linalg.norm(centroid - t) for t in truths]))
     truth = scene.objects[nearest]
-    out["object_found"] = True
+    within = truth.reach_m() if found_within_m is None else float(found_within_m)
+    error = float(np.linalg.norm(centroid - truth.centroid_m))
+    out["object_found"] = error <= within
+    out["found_within_m"] = within
     out["estimated_centroid_m"] = centroid.tolist()
-    out["centroid_error_m"] = float(np.linalg.norm(centroid - truth.centroid_m))
+    out["centroid_error_m"] = error
     outline = main_outline(xs, ys, mean, level, near_m=centroid)
     out["_outline"] = outline
     if outline is not None:
@@ -338,6 +350,7 @@ def score_run(session: Session) -> dict[str, Any]:
             level=settings.outline_level,
             spacing_m=settings.evaluation_spacing_m,
             near_m=np.mean(met, axis=0) if met else None,
+            found_within_m=settings.found_within_m,
         ))
         outline = out.pop("_outline")
         out["evaluated_map"] = map_id

@@ -37,13 +37,16 @@ _REFERENCE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
 
 
 class PluginConfig(BaseModel):
-    """Base class for plugin config models: frozen, and unknown keys are errors.
+    """Base class for plugin config models: frozen, unknown keys are errors, and every float
+    must be finite (``inf`` and ``NaN`` are refused at ``validate``).
 
-    Keep config modules import-light (pydantic, stdlib): they are imported to validate
-    experiment files and to write schemas, where torch or pyserial must not load.
+    A field that means "no limit" is optional (``None``), never infinite. Nested models of a
+    config derive from this class too, so that the same holds inside them. Keep config
+    modules import-light (pydantic, stdlib): they are imported to validate experiment files
+    and to write schemas, where torch or pyserial must not load.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 #: Directories that lab-local plugin modules (``--plugin-module``) were imported from.

@@ -9,6 +9,7 @@ model or opens a device.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
@@ -20,7 +21,14 @@ from ._load import LoadedFile
 if TYPE_CHECKING:
     from ._validate import ComponentEntry
 
-__all__ = ["ComponentView", "Finding", "ValidationContext", "run_validators"]
+__all__ = [
+    "ComponentView",
+    "Finding",
+    "ValidationContext",
+    "core_checks",
+    "declared_channels",
+    "run_validators",
+]
 
 
 @dataclass(frozen=True)
@@ -123,3 +131,295 @@ def run_validators(
             issue = Issue(path, finding.message, line)
             (errors if finding.severity == "error" else warnings).append(issue)
     return errors, warnings
+
+
+# --- the core's own checks across sections ------------------------------------------------
+
+#: The most points the evaluation grid (``run.evaluation_spacing_m`` over the evaluated
+#: map's region) may hold: 4e6 points are 64 MB of coordinates and one map query.
+MAX_EVALUATION_POINTS = 4_000_000
+#: A step of the fingertip (speed / control rate) at least this fraction of the smallest
+#: object's width is reported as coarse (a warning); a step as long as the width is refused.
+COARSE_STEP_FRACTION = 0.1
+#: The capability of a plugin that needs a robot among its inputs (a simulated sensor
+#: mounted on the simulated robot, a sensor model that locates by the robot's pose).
+NEEDS_ROBOT = "needs-robot"
+#: The capability of a planner that reads a map (it plans on it).
+READS_MAP = "reads-map"
+
+
+def declared_channels(config: Any) -> frozenset[str] | None:
+    """The channels a sensor's config says it delivers, or None when it cannot say before
+    the sensor is built.
+
+    A sensor's config model may define ``declared_channels(self)`` returning the channel
+    names (``run.label_channel`` and a sensor model's ``position_m`` are then checked at
+    ``validate``), or None when they depend on a file or a device.
+    """
+    method = getattr(config, "declared_channels", None)
+    if not callable(method):
+        return None
+    try:
+        names = method()
+    except Exception:  # a plugin's convenience method never breaks validation
+        return None
+    return None if names is None else frozenset(str(n) for n in names)
+
+
+class _Report:
+    """Collects located errors and warnings."""
+
+    def __init__(self, loaded: LoadedFile) -> None:
+        self.loaded = loaded
+        self.errors: list[Issue] = []
+        self.warnings: list[Issue] = []
+
+    def error(self, path: str, message: str) -> None:
+        self.errors.append(Issue(path, message, self.loaded.line_of(path)))
+
+    def warning(self, path: str, message: str) -> None:
+        self.warnings.append(Issue(path, message, self.loaded.line_of(path)))
+
+
+def core_checks(
+    entries: Iterable[ComponentEntry], model: Any, loaded: LoadedFile
+) -> tuple[list[Issue], list[Issue]]:
+    """The core's checks of a validated experiment whose graph is sound: the scene as a
+    whole, the closed or open loop, what each kind needs in its inputs, the run settings
+    against the components, and the pace of the closed loop against ``run`` and the scene.
+    Returns ``(errors, warnings)``, located."""
+    entries = list(entries)
+    report = _Report(loaded)
+    scene = getattr(model, "scene", None)
+    if scene is not None:
+        for path, message in scene.problems():
+            report.error(f"scene.{path}", message)
+    _check_loop(entries, model.run, report)
+    _check_inputs(entries, model.run, report)
+    _check_run_settings(entries, model.run, scene, report)
+    _check_pace(entries, model.run, scene, report)
+    return report.errors, report.warnings
+
+
+def _of(entries: list[ComponentEntry], kind: Kind) -> list[ComponentEntry]:
+    return [e for e in entries if e.kind is kind]
+
+
+def _ids(entries: Iterable[ComponentEntry]) -> str:
+    return ", ".join(repr(e.id) for e in entries)
+
+
+def _check_loop(entries: list[ComponentEntry], run: Any, report: _Report) -> None:
+    """A closed loop has exactly one planner and at least one robot; an open loop streams
+    at least one sensor."""
+    planners, robots = _of(entries, Kind.PLANNER), _of(entries, Kind.ROBOT)
+    if planners or robots:
+        if len(planners) > 1:
+            report.error(planners[1].path, (
+                f"a closed loop has exactly one planner; found {len(planners)} "
+                f"({_ids(planners)}): keep one"
+            ))
+        if not planners:
+            report.error(robots[0].path, (
+                f"a closed loop needs a planner to propose the movements of {_ids(robots)}: "
+                "add one under planners"
+            ))
+        if not robots:
+            report.error(planners[0].path, (
+                f"a closed loop needs at least one robot to carry out the movements of "
+                f"{planners[0].id!r}: add one under robots"
+            ))
+        return
+    training = set(run.train_from.values())
+    streamed = [e for e in _of(entries, Kind.SENSOR) if e.id not in training]
+    if not streamed:
+        report.error("", (
+            "nothing to run: the experiment has no robot and no sensor to stream (add a "
+            "planner and a robot for a closed loop, or a sensor for an open loop)"
+        ))
+
+
+def _check_inputs(entries: list[ComponentEntry], run: Any, report: _Report) -> None:
+    """What each component needs among its inputs, as the run loop reads them."""
+    by_id = {e.id: e for e in entries}
+    training = set(run.train_from.values())
+    streamed = [e for e in _of(entries, Kind.SENSOR) if e.id not in training]
+    for entry in entries:
+        kinds = [by_id[i].kind for i in entry.inputs if i in by_id]
+        where = f"{entry.path}.inputs"
+        named = f"{entry.kind} {entry.id!r} ({entry.type})"
+        if NEEDS_ROBOT in entry.registered.spec.capabilities and Kind.ROBOT not in kinds:
+            report.error(where, f"{named} needs a robot among its inputs: name one")
+        if entry.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER) and not entry.inputs:
+            report.error(where, (
+                f"{named} reads sensors or feature extractors: name at least one in inputs"
+            ))
+        elif entry.kind is Kind.SENSOR_MODEL:
+            classifiers = kinds.count(Kind.CLASSIFIER)
+            if classifiers != 1:
+                report.error(where, (
+                    f"{named} locates the decisions of exactly one classifier: name one "
+                    f"classifier in its inputs (found {classifiers})"
+                ))
+            if Kind.ROBOT not in kinds:
+                own = [by_id[i] for i in entry.inputs if by_id[i].kind is Kind.SENSOR]
+                candidates = own + streamed
+                channels = [declared_channels(c.config) for c in candidates]
+                if not candidates or all(
+                    names is not None and "position_m" not in names for names in channels
+                ):
+                    report.error(where, (
+                        f"{named} needs fingertip positions: add a robot to its inputs or "
+                        "use a sensor with a 'position_m' channel"
+                    ))
+        elif entry.kind is Kind.MAP and not entry.inputs:
+            report.warning(where, (
+                f"{named} has no sensor model in its inputs: it is never updated"
+            ))
+        elif (
+            entry.kind is Kind.PLANNER and READS_MAP in entry.registered.spec.capabilities
+            and Kind.MAP not in kinds
+        ):
+            report.warning(where, (
+                f"{named} plans on a map but has none in its inputs: name the map it reads"
+            ))
+
+
+def _check_run_settings(
+    entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
+) -> None:
+    """``run.evaluation_map`` names a map; ``run.label_channel`` is a channel of the
+    sensors that deliver labels, where their configs say which channels they have."""
+    by_id = {e.id: e for e in entries}
+    maps = _of(entries, Kind.MAP)
+    if run.evaluation_map is not None and (
+        run.evaluation_map not in by_id or by_id[run.evaluation_map].kind is not Kind.MAP
+    ):
+        found = by_id.get(run.evaluation_map)
+        what = f"a {found.kind}" if found is not None else "no component"
+        report.error("run.evaluation_map", (
+            f"run.evaluation_map {run.evaluation_map!r} names {what}, not a map; the maps "
+            f"are: {_ids(maps) or 'none'}"
+        ))
+    label = run.label_channel
+    for source in dict.fromkeys(run.train_from.values()):
+        entry = by_id.get(source)
+        names = declared_channels(entry.config) if entry is not None else None
+        if names is not None and label not in names:
+            report.error("run.label_channel", (
+                f"training sensor {source!r} delivers no channel {label!r} (its channels: "
+                f"{', '.join(sorted(names)) or 'none'}); set run.label_channel to the "
+                "channel that holds its labels"
+            ))
+    if not run.train_from and _of(entries, Kind.CLASSIFIER):
+        sensors = _of(entries, Kind.SENSOR)
+        declared = [declared_channels(s.config) for s in sensors]
+        if sensors and all(n is not None and label not in n for n in declared):
+            report.warning("run.label_channel", (
+                f"no sensor delivers the label channel {label!r}: the classifiers are not "
+                "scored and `hapticframe train` has no labels to fit on"
+            ))
+
+
+def _region_of(entry: ComponentEntry, by_id: Mapping[str, ComponentEntry], scene: Any
+               ) -> tuple[Any, str] | None:
+    """The region a planner or map works in, as its config, its first map or the scene
+    says: ``(region, where it comes from)``, or None when nothing says."""
+    own = getattr(entry.config, "region", None)
+    if own is not None and hasattr(own, "x_max_m"):
+        return own, f"{entry.path}.config.region"
+    for name in entry.inputs:
+        source = by_id.get(name)
+        region = getattr(source.config, "region", None) if source is not None else None
+        if source is not None and source.kind is Kind.MAP and hasattr(region, "x_max_m"):
+            return region, f"{source.path}.config.region"
+    if scene is not None:
+        return scene.region, "scene.region"
+    return None
+
+
+def _sides(region: Any) -> tuple[float, float]:
+    return (float(region.x_max_m - region.x_min_m), float(region.y_max_m - region.y_min_m))
+
+
+def _number(config: Any, name: str) -> float | None:
+    value = getattr(config, name, None)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    value = float(value)
+    return value if math.isfinite(value) and value > 0 else None
+
+
+def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Report) -> None:
+    """The closed loop's steps against ``run`` and the scene, where the configs say the
+    planner's speed (``speed_m_per_s``) and the robots' control rates (``control_rate_hz``):
+    the longest line of the planner's region must end within
+    ``run.max_steps_per_movement`` steps, and one step must not jump over the smallest
+    object. Also bounds the evaluation grid."""
+    by_id = {e.id: e for e in entries}
+    planners, robots = _of(entries, Kind.PLANNER), _of(entries, Kind.ROBOT)
+    objects = list(scene.objects) if scene is not None else []
+    narrowest = min(objects, key=lambda o: o.min_width_m(), default=None)
+    if len(planners) == 1 and robots:
+        planner = planners[0]
+        speed = _number(planner.config, "speed_m_per_s")
+        found = _region_of(planner, by_id, scene)
+        rated = [(r, rate) for r in robots
+                 if (rate := _number(r.config, "control_rate_hz")) is not None]
+        if speed is not None and rated:
+            speed_path = f"{planner.path}.config.speed_m_per_s"
+            robot, rate = max(rated, key=lambda pair: pair[1])  # the most steps per metre
+            if found is not None:
+                region, _ = found
+                length = math.hypot(*_sides(region))
+                steps = math.ceil(length * rate / speed)
+                if steps > run.max_steps_per_movement:
+                    report.error("run.max_steps_per_movement", (
+                        f"a line across the planner's region (its diagonal, {length:.4g} m) "
+                        f"at {speed:.4g} m/s takes {steps:.4g} steps of robot {robot.id!r} at "
+                        f"{rate:.4g} Hz, more than run.max_steps_per_movement "
+                        f"({run.max_steps_per_movement}): raise it or the planner's "
+                        "speed_m_per_s"
+                    ))
+            step_m = speed / min(rate for _, rate in rated)
+            if narrowest is not None:
+                width = narrowest.min_width_m()
+                if step_m >= width:
+                    report.error(speed_path, (
+                        f"one control step covers {step_m:.4g} m ({speed:.4g} m/s at "
+                        f"{min(r for _, r in rated):.4g} Hz), as much as the smallest "
+                        f"object is wide ({width:.4g} m): the fingertip could jump over it; "
+                        "lower the speed"
+                    ))
+                elif step_m >= COARSE_STEP_FRACTION * width:
+                    report.warning(speed_path, (
+                        f"one control step covers {step_m:.4g} m, {step_m / width:.0%} of "
+                        f"the smallest object's width ({width:.4g} m): the fingertip meets "
+                        "it in few steps"
+                    ))
+    evaluated = _evaluated_map(entries, run)
+    if objects and evaluated is not None:
+        found = _region_of(evaluated, by_id, scene)
+        if found is not None:
+            entry = evaluated
+            width, height = _sides(found[0])
+            spacing = run.evaluation_spacing_m
+            points = (width / spacing + 1) * (height / spacing + 1)
+            if points > MAX_EVALUATION_POINTS:
+                report.error("run.evaluation_spacing_m", (
+                    f"scoring map {entry.id!r} on its {width:.4g} x {height:.4g} m region at "
+                    f"{spacing:g} m spacing takes {points:.3g} grid points; the limit is "
+                    f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
+                ))
+
+
+def _evaluated_map(entries: list[ComponentEntry], run: Any) -> ComponentEntry | None:
+    """The map a run scores against the scene, as :mod:`hapticframe._evaluate` picks it."""
+    maps = {e.id: e for e in _of(entries, Kind.MAP)}
+    if run.evaluation_map is not None:
+        return maps.get(run.evaluation_map)
+    for planner in _of(entries, Kind.PLANNER):
+        for name in planner.inputs:
+            if name in maps:
+                return maps[name]
+    return list(maps.values())[-1] if maps else None

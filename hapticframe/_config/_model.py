@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
 from .._kind import Kind
 from .._registry import Registry
-from .._scene import Scene
+from .._scene import NAME_PATTERN, Scene
 from .._specs import PluginSpec
 
 __all__ = [
@@ -25,10 +25,16 @@ SCHEMA_VERSION = 1
 ID_PATTERN = r"^[A-Za-z][A-Za-z0-9_-]{0,63}$"
 MODULE_PATTERN = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$"
 
-_STRICT = ConfigDict(extra="forbid", frozen=True)
+_STRICT = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 #: A component id as experiment files write it.
 _ComponentId = Annotated[str, Field(pattern=ID_PATTERN)]
+#: A channel name: the characters of an id (no spaces, no control characters).
+CHANNEL_PATTERN = r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$"
+#: Free text: no control characters but tab and newline.
+TEXT_PATTERN = r"^[^\x00-\x08\x0b-\x1f\x7f-\x9f]*$"
+#: An integer that is written as one: ``true`` and ``"7"`` are refused, not read as 1 and 7.
+_Count = Annotated[int, Field(strict=True)]
 
 
 class RunSettings(BaseModel):
@@ -40,16 +46,21 @@ class RunSettings(BaseModel):
         description="Stop an exploratory movement as soon as a classifier's most probable "
         "class is not its background class (classes[0]).",
     )
-    max_movements: int = Field(50, ge=1, le=10_000, description="Upper bound on movements.")
-    max_steps_per_movement: int = Field(100_000, ge=1, description="Robot steps per movement.")
-    max_reads: int = Field(
-        1_000_000, ge=1, description="Sensor reads in an open-loop run (no robot)."
+    max_movements: _Count = Field(50, ge=1, le=10_000, description="Upper bound on movements.")
+    max_steps_per_movement: _Count = Field(
+        100_000, ge=1, le=100_000_000,
+        description="Robot steps per movement. `validate` refuses a value below the steps "
+        "the longest line of the planner's region takes at its speed and the robot's control "
+        "rate, where the configs say both (planner `speed_m_per_s`, robot `control_rate_hz`).",
     )
-    map_update_every_steps: int = Field(
+    max_reads: _Count = Field(
+        1_000_000, ge=1, le=10**10, description="Sensor reads in an open-loop run (no robot)."
+    )
+    map_update_every_steps: _Count = Field(
         0, ge=0,
         description="Update maps every N steps during a movement; 0 updates once per movement.",
     )
-    lookahead_steps: int = Field(
+    lookahead_steps: _Count = Field(
         64, ge=1, le=4096,
         description="Robot steps a closed loop may simulate ahead and classify as one batch "
         "when the robot, the streamed sensors, the feature extractors and the classifiers "
@@ -60,11 +71,22 @@ class RunSettings(BaseModel):
     outline_level: float = Field(
         0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
     )
-    evaluation_map: str | None = Field(
-        None, description="Map id scored against the scene; default: the planner's map."
+    evaluation_map: _ComponentId | None = Field(
+        None,
+        description="Map id scored against the scene (it must name a map of the "
+        "experiment); default: the planner's map.",
+    )
+    found_within_m: float | None = Field(
+        None, gt=0, le=10.0,
+        description="Scoring: the object counts as found when the estimated centroid lies "
+        "within this distance of the nearest true object's centroid; None: within that "
+        "object's reach (the largest distance from its centroid to its outline: the radius "
+        "of a circle, the semi-major axis of an ellipse), i.e. the estimate lies in the "
+        "circle about the true centroid that holds the object. metrics.json records the "
+        "distance used (found_within_m).",
     )
     label_channel: str = Field(
-        "contact",
+        "contact", pattern=CHANNEL_PATTERN,
         description="Sensor channel holding per-sample class labels for `hapticframe train` "
         "and `train_from`.",
     )
@@ -82,19 +104,19 @@ class RunSettings(BaseModel):
         0.0025, gt=0, le=0.05, description="Grid spacing for outline and centroid estimates."
     )
     force_limit_n: float | None = Field(
-        80.0, gt=0,
+        80.0, gt=0, le=100_000,
         description="Safety: the first valid sample of a streamed sensor's force channel "
         "(unit N; the magnitude over its components) above this halts the robot in the same "
         "tick, reason 'force_limit' (dissertation 3.5.3.3: 80 N). The halt latency in robot "
         "steps goes to metrics.json (halt_latency_samples_max). null disables the limit.",
     )
     force_stall_s: float | None = Field(
-        0.25, gt=0,
+        0.25, gt=0, le=3600,
         description="Safety: while a movement is active, no valid force sample for this long "
         "(by the robot's state timestamps) halts the robot, reason 'force_stream_stalled'. "
         "Only in runs that stream a force sensor; null disables it.",
     )
-    stall_resumes: int = Field(
+    stall_resumes: _Count = Field(
         2, ge=0, le=100,
         description="A movement halted for a stalled force stream ('force_stream_stalled', "
         "e.g. a sensor being replugged) resumes this many times at most: the same robot "
@@ -156,13 +178,25 @@ class ExperimentRoot(BaseModel):
     from ``experiment.model``.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True, title="hapticframe experiment")
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False,
+                              title="hapticframe experiment")
 
     # Literal[SCHEMA_VERSION]: a type checker accepts only a literal value here.
     schema_version: Literal[1] = Field(description="Experiment file format version.")
-    name: str = Field(min_length=1, max_length=200, description="Name of the experiment.")
-    description: str = Field("", description="Free text.")
-    seed: int = Field(ge=0, lt=2**63, description="Seeds every component's random generator.")
+    name: str = Field(
+        pattern=NAME_PATTERN,
+        description="Name of the experiment: one line of at most 200 characters, no control "
+        "characters.",
+    )
+    description: str = Field(
+        "", max_length=10_000, pattern=TEXT_PATTERN,
+        description="Free text (tabs and newlines, no other control characters).",
+    )
+    seed: int = Field(
+        ge=0, lt=2**63, strict=True,
+        description="Seeds every component's random generator: a non-negative integer "
+        "(`true` or a string is refused).",
+    )
     scene: Scene | None = Field(None, description="What the simulated world contains.")
     run: RunSettings = Field(default_factory=RunSettings)
 

@@ -19,9 +19,16 @@ from .._errors import ExperimentError, Issue
 from .._kind import Kind
 from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
 from .._registry import Registered, Registry
-from ._checks import run_validators
+from .._scene import NAME_PATTERN
+from ._checks import core_checks, run_validators
 from ._load import LoadedFile, join_path, load_file
-from ._model import ExperimentRoot, build_experiment_model
+from ._model import (
+    CHANNEL_PATTERN,
+    ID_PATTERN,
+    TEXT_PATTERN,
+    ExperimentRoot,
+    build_experiment_model,
+)
 
 __all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
 
@@ -156,8 +163,11 @@ def validate_data(
         issues.extend(_check_graph(entries, loaded))
         issues.extend(_check_train_from(model.run.train_from, entries, loaded))
         if not issues:
-            errors, warnings = run_validators(entries, model, loaded)
-            issues.extend(errors)
+            # The core's checks and the plugins' validators together: every error at once.
+            errors, warnings = core_checks(entries, model, loaded)
+            plugin_errors, plugin_warnings = run_validators(entries, model, loaded)
+            issues.extend(errors + plugin_errors)
+            warnings.extend(plugin_warnings)
         if not issues:
             return Experiment(file, model, tuple(_build_order(entries)), registry, pm,
                               tuple(warnings))
@@ -243,10 +253,28 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
             "schema_version must be 1 (this hapticframe reads version 1), got "
             f"{error.get('input')!r}"
         )
+    elif kind == "string_pattern_mismatch" and error.get("ctx", {}).get("pattern") in _PATTERNS:
+        shown = repr(error.get("input"))
+        message = (f"{_PATTERNS[error['ctx']['pattern']]} "
+                   f"(got {shown[:60]}{'...' if len(shown) > 60 else ''})")
+    elif kind in ("int_type", "int_parsing") and isinstance(error.get("input"), bool | str):
+        message = (f"must be an integer written as a number, not "
+                   f"{type(error['input']).__name__} {error['input']!r:.60}")
     elif "input" in error and kind not in ("model_type", "dict_type", "list_type"):
         shown = repr(error["input"])
         message = f"{message} (got {shown[:60]}{'...' if len(shown) > 60 else ''})"
     return Issue(dotted, message, loaded.line_of(dotted))
+
+
+#: What a string of each pattern must look like, said in words.
+_PATTERNS = {
+    ID_PATTERN: "an id is a letter followed by at most 63 letters, digits, '-' or '_'",
+    CHANNEL_PATTERN: "a channel name is a letter or '_' followed by at most 63 letters, "
+    "digits, '_', '.' or '-'",
+    NAME_PATTERN: "a name is one line of 1 to 200 characters without control characters "
+    "(NUL, newline, ...)",
+    TEXT_PATTERN: "free text holds no control characters but tabs and newlines",
+}
 
 
 def _key_suggestion(parts: list[str | int], loaded: LoadedFile, registry: Registry) -> str:
