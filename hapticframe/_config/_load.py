@@ -8,7 +8,7 @@ alias expands to is capped.
 
 Every parser here recurses once per level of nesting, so a file nested 500 deep would end in
 ``RecursionError``. Nesting is capped at :data:`MAX_DEPTH` containers *while parsing*: YAML's
-composer counts its depth, JSON and TOML are pre-scanned for bracket depth outside strings
+composer (in Python, over libyaml's events where PyYAML has libyaml) counts its depth, JSON and TOML are pre-scanned for bracket depth outside strings
 and comments (one regular-expression pass; skipped when the file has too few brackets to
 reach the cap), and TOML's dotted keys, which nest without brackets, are measured after.
 The file is read through one descriptor that must be a regular file (a FIFO or a device,
@@ -93,29 +93,62 @@ class _TooDeep(Exception):
         self.line = line
 
 
-class _BoundedLoader(yaml.SafeLoader):
-    """PyYAML's safe loader whose (recursive) composer stops at :data:`MAX_DEPTH`.
+class _BoundedComposer(yaml.composer.Composer):
+    """PyYAML's composer stopping at :data:`MAX_DEPTH`: the scanner and the parser keep
+    explicit stacks; only composing recurses, once a level."""
 
-    The scanner and parser keep explicit stacks; only composing recurses, once a level.
-    """
-
-    def __init__(self, stream: str) -> None:
-        super().__init__(stream)
-        self._depth = 0
+    _depth = 0
 
     def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         self._depth += 1
         try:
             # The node about to be composed has _depth - 1 containers around it.
+            events: Any = self  # the parser's methods, from the class this is mixed into
             if self._depth > MAX_DEPTH and (
-                self.check_event(yaml.SequenceStartEvent)
-                or self.check_event(yaml.MappingStartEvent)
+                events.check_event(yaml.SequenceStartEvent)
+                or events.check_event(yaml.MappingStartEvent)
             ):
-                event = self.peek_event()  # type: ignore[no-untyped-call]
-                raise _TooDeep(event.start_mark.line + 1)
+                raise _TooDeep(events.peek_event().start_mark.line + 1)
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
+
+
+if getattr(yaml, "__with_libyaml__", False):
+    from yaml._yaml import CParser
+
+    class _BoundedLoader(
+        CParser, _BoundedComposer, yaml.constructor.SafeConstructor, yaml.resolver.Resolver
+    ):
+        """libyaml's events (ten times faster than PyYAML's scanner and parser) composed
+        in Python, so that the depth is counted: libyaml's own composer recurses in C."""
+
+        # CParser composes in C; these are the Python composer's.
+        check_node = _BoundedComposer.check_node
+        get_node = _BoundedComposer.get_node
+        get_single_node = _BoundedComposer.get_single_node
+
+        def __init__(self, stream: str) -> None:
+            CParser.__init__(self, stream)
+            _BoundedComposer.__init__(self)
+            yaml.constructor.SafeConstructor.__init__(self)
+            yaml.resolver.Resolver.__init__(self)
+
+else:  # pragma: no cover - PyYAML built without libyaml
+
+    class _BoundedLoader(  # type: ignore[no-redef]
+        yaml.reader.Reader, yaml.scanner.Scanner, yaml.parser.Parser, _BoundedComposer,
+        yaml.constructor.SafeConstructor, yaml.resolver.Resolver,
+    ):
+        """PyYAML's safe loader with the bounded composer."""
+
+        def __init__(self, stream: str) -> None:
+            yaml.reader.Reader.__init__(self, stream)
+            yaml.scanner.Scanner.__init__(self)
+            yaml.parser.Parser.__init__(self)
+            _BoundedComposer.__init__(self)
+            yaml.constructor.SafeConstructor.__init__(self)
+            yaml.resolver.Resolver.__init__(self)
 
 
 class _YamlConverter:
@@ -186,6 +219,8 @@ def _yaml_lines(text: str, file: str) -> tuple[Any, dict[str, int]]:
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
+        if "maximum nesting depth" in str(exc.problem):  # libyaml's own cap (1000 levels)
+            raise ExperimentError(file, [Issue("", _too_deep_message(), line)]) from None
         message = " ".join(str(part) for part in (exc.context, exc.problem) if part)
         raise ExperimentError(file, [Issue("", f"YAML syntax error: {message}", line)]) from None
     except yaml.YAMLError as exc:
