@@ -6,14 +6,14 @@ every mapping key gets its line number, duplicate keys are errors (PyYAML silent
 the last), and aliases cannot expand into a "billion laughs": the number of values an
 alias expands to is capped.
 
-Every parser here recurses once per level of nesting, so a file nested 500 deep would end in
-``RecursionError``. Nesting is capped at :data:`MAX_DEPTH` containers *while parsing*: YAML's
-composer (in Python, over libyaml's events where PyYAML has libyaml) counts its depth, JSON and TOML are pre-scanned for bracket depth outside strings
-and comments (one regular-expression pass; skipped when the file has too few brackets to
-reach the cap), and TOML's dotted keys, which nest without brackets, are measured after.
-The file is read through one descriptor that must be a regular file (a FIFO or a device,
-whose ``stat()`` size is 0, is refused before any read) and the read itself stops at
-:data:`MAX_FILE_BYTES` + 1 bytes.
+Every parser here recurses once per level of nesting, so a file nested 500 deep would end
+in ``RecursionError``. Nesting is capped at :data:`MAX_DEPTH` containers *while parsing*:
+YAML's composer (in Python, over libyaml's events where PyYAML has libyaml) counts its
+depth; JSON and TOML are pre-scanned for bracket depth outside strings and comments
+(skipped when the file has too few brackets to reach the cap); TOML's dotted keys, which
+nest without brackets, are measured after. The file is read through one descriptor that
+must be a regular file (a FIFO or a device, whose ``stat()`` size is 0, is refused before
+any read) and the read itself stops at :data:`MAX_FILE_BYTES` + 1 bytes.
 """
 
 from __future__ import annotations
