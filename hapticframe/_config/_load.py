@@ -5,13 +5,26 @@ plain data comes out (no ``!!python`` tags: only the standard scalar tags are ac
 every mapping key gets its line number, duplicate keys are errors (PyYAML silently keeps
 the last), and aliases cannot expand into a "billion laughs": the number of values an
 alias expands to is capped.
+
+Every parser here recurses once per level of nesting, so a file nested 500 deep would end
+in ``RecursionError``. Nesting is capped at :data:`MAX_DEPTH` containers *while parsing*:
+YAML's composer (in Python, over libyaml's events where PyYAML has libyaml) counts its
+depth; JSON and TOML are pre-scanned for bracket depth outside strings and comments
+(skipped when the file has too few brackets to reach the cap); TOML's dotted keys, which
+nest without brackets, are measured after. The file is read through one descriptor that
+must be a regular file (a FIFO or a device, whose ``stat()`` size is 0, is refused before
+any read) and the read itself stops at :data:`MAX_FILE_BYTES` + 1 bytes.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import re
+import stat
 import sys
 from dataclasses import dataclass, field
+from itertools import accumulate
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +37,11 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["LoadedFile", "load_file", "load_text"]
+__all__ = ["LoadedFile", "load_file", "load_text", "read_regular_file"]
 
 MAX_FILE_BYTES = 4 * 1024 * 1024
 MAX_VALUES = 200_000  # values after alias expansion
-MAX_DEPTH = 64
+MAX_DEPTH = 64  # containers nested in one another, the top-level mapping included
 
 _SCALAR_TAGS = {
     "tag:yaml.org,2002:str",
@@ -67,6 +80,77 @@ def join_path(parent: str, key: str | int) -> str:
     return f"{parent}.{key}" if parent else str(key)
 
 
+def _too_deep_message() -> str:
+    return (f"nesting deeper than {MAX_DEPTH} levels: experiment files are shallow; "
+            "is this the right file?")
+
+
+class _TooDeep(Exception):
+    """Raised by the composer at the first node nested deeper than :data:`MAX_DEPTH`."""
+
+    def __init__(self, line: int) -> None:
+        super().__init__(line)
+        self.line = line
+
+
+class _BoundedComposer(yaml.composer.Composer):
+    """PyYAML's composer stopping at :data:`MAX_DEPTH`: the scanner and the parser keep
+    explicit stacks; only composing recurses, once a level."""
+
+    _depth = 0
+
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
+        self._depth += 1
+        try:
+            # The node about to be composed has _depth - 1 containers around it.
+            events: Any = self  # the parser's methods, from the class this is mixed into
+            if self._depth > MAX_DEPTH and (
+                events.check_event(yaml.SequenceStartEvent)
+                or events.check_event(yaml.MappingStartEvent)
+            ):
+                raise _TooDeep(events.peek_event().start_mark.line + 1)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+if getattr(yaml, "__with_libyaml__", False):
+    from yaml._yaml import CParser
+
+    class _BoundedLoader(
+        CParser, _BoundedComposer, yaml.constructor.SafeConstructor, yaml.resolver.Resolver
+    ):
+        """libyaml's events (ten times faster than PyYAML's scanner and parser) composed
+        in Python, so that the depth is counted: libyaml's own composer recurses in C."""
+
+        # CParser composes in C; these are the Python composer's.
+        check_node = _BoundedComposer.check_node
+        get_node = _BoundedComposer.get_node
+        get_single_node = _BoundedComposer.get_single_node
+
+        def __init__(self, stream: str) -> None:
+            CParser.__init__(self, stream)
+            _BoundedComposer.__init__(self)
+            yaml.constructor.SafeConstructor.__init__(self)
+            yaml.resolver.Resolver.__init__(self)
+
+else:  # pragma: no cover - PyYAML built without libyaml
+
+    class _BoundedLoader(  # type: ignore[no-redef]
+        yaml.reader.Reader, yaml.scanner.Scanner, yaml.parser.Parser, _BoundedComposer,
+        yaml.constructor.SafeConstructor, yaml.resolver.Resolver,
+    ):
+        """PyYAML's safe loader with the bounded composer."""
+
+        def __init__(self, stream: str) -> None:
+            yaml.reader.Reader.__init__(self, stream)
+            yaml.scanner.Scanner.__init__(self)
+            yaml.parser.Parser.__init__(self)
+            _BoundedComposer.__init__(self)
+            yaml.constructor.SafeConstructor.__init__(self)
+            yaml.resolver.Resolver.__init__(self)
+
+
 class _YamlConverter:
     def __init__(self, file: str) -> None:
         self.file = file
@@ -82,8 +166,10 @@ class _YamlConverter:
         if self.count > MAX_VALUES:
             raise self.fail(node, f"the document expands to more than {MAX_VALUES} values "
                                   "(an alias bomb?)")
-        if depth > MAX_DEPTH:
-            raise self.fail(node, f"nesting deeper than {MAX_DEPTH} levels")
+        # The composer caps the file's nesting; aliases can nest deeper (an anchor inside
+        # itself), so the cap holds here too. A container at ``depth`` is level depth + 1.
+        if depth >= MAX_DEPTH and isinstance(node, (yaml.SequenceNode, yaml.MappingNode)):
+            raise self.fail(node, _too_deep_message())
         if path not in self.lines:
             self.lines[path] = node.start_mark.line + 1
         if isinstance(node, yaml.ScalarNode):
@@ -123,14 +209,18 @@ class _YamlConverter:
 
 def _yaml_lines(text: str, file: str) -> tuple[Any, dict[str, int]]:
     try:
-        loader = yaml.SafeLoader(text)
+        loader = _BoundedLoader(text)
         try:
             node = loader.get_single_node()
         finally:
             loader.dispose()
+    except _TooDeep as exc:
+        raise ExperimentError(file, [Issue("", _too_deep_message(), exc.line)]) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else None
+        if "maximum nesting depth" in str(exc.problem):  # libyaml's own cap (1000 levels)
+            raise ExperimentError(file, [Issue("", _too_deep_message(), line)]) from None
         message = " ".join(str(part) for part in (exc.context, exc.problem) if part)
         raise ExperimentError(file, [Issue("", f"YAML syntax error: {message}", line)]) from None
     except yaml.YAMLError as exc:
@@ -142,10 +232,73 @@ def _yaml_lines(text: str, file: str) -> tuple[Any, dict[str, int]]:
     return data, converter.lines
 
 
+# Strings and comments, whose brackets are not structure. Each pattern matches whatever
+# follows its opening quote (an unclosed string runs to the end of its line, where the
+# parser stops anyway), so the scans never backtrack: they are linear in the text.
+_JSON_SKIP = r'"[^"\\\n]*(?:\\[^\n]?[^"\\\n]*)*"?'  # a string
+_TOML_SKIP = (
+    r'"""[^"\\]*(?:(?:\\[\s\S]?|"(?!""))[^"\\]*)*(?:"{3,5})?'  # multi-line basic string
+    r"|'''[^']*(?:'(?!'')[^']*)*(?:'{3,5})?"  # multi-line literal string
+    r'|"[^"\\\n]*(?:\\[^\n]?[^"\\\n]*)*"?'  # basic string
+    r"|'[^'\n]*'?"  # literal string
+    r"|#[^\n]*"  # comment
+)
+_SKIP = {".json": re.compile(_JSON_SKIP), ".toml": re.compile(_TOML_SKIP)}
+_TOKENS = {suffix: re.compile(rf"{pattern}|[\[\]{{}}]")
+           for suffix, pattern in ((".json", _JSON_SKIP), (".toml", _TOML_SKIP))}
+_NOT_BRACKETS = re.compile(r"[^\[\]{}]+")
+_DEPTH_STEP = {"[": 1, "{": 1, "]": -1, "}": -1}
+
+
+def _check_bracket_depth(text: str, suffix: str, file: str, implicit: int) -> None:
+    """Refuse ``text`` if its brackets nest deeper than :data:`MAX_DEPTH` (before parsing).
+
+    ``implicit`` counts the containers without brackets around everything (TOML's top-level
+    table). The parsers stop at the first unbalanced closing bracket, so the running sum of
+    openings minus closings up to there is the depth they would reach.
+    """
+    limit = MAX_DEPTH - implicit
+    if text.count("[") + text.count("{") <= limit:
+        return  # too few brackets to nest too deep: no scan
+    skeleton = _NOT_BRACKETS.sub("", _SKIP[suffix].sub("", text))
+    if max(accumulate(map(_DEPTH_STEP.__getitem__, skeleton)), default=0) <= limit:
+        return
+    depth = 0
+    for match in _TOKENS[suffix].finditer(text):  # too deep: find the line where
+        token = match.group()
+        if token in ("[", "{"):
+            depth += 1
+            if depth > limit:
+                line = text.count("\n", 0, match.start()) + 1
+                raise ExperimentError(file, [Issue("", _too_deep_message(), line)])
+        elif token in ("]", "}"):
+            depth -= 1
+
+
+def _check_data_depth(data: Any, file: str) -> None:
+    """Refuse parsed data nested deeper than :data:`MAX_DEPTH`; iterative.
+
+    TOML's dotted keys and table headers nest without brackets, and tomllib builds them
+    without recursing, but what reads the data afterwards would.
+    """
+    stack: list[tuple[Any, str, int]] = [(data, "", 1)]
+    while stack:
+        value, path, depth = stack.pop()
+        items = (value.items() if isinstance(value, dict)
+                 else enumerate(value) if isinstance(value, list) else ())
+        for key, child in items:
+            if isinstance(child, (dict, list)):
+                child_path = join_path(path, key)
+                if depth >= MAX_DEPTH:
+                    raise ExperimentError(file, [Issue(child_path, _too_deep_message())])
+                stack.append((child, child_path, depth + 1))
+
+
 def load_text(text: str, file: str, suffix: str) -> LoadedFile:
     """Parse ``text`` by the file suffix (``.yaml``/``.yml``, ``.json``, ``.toml``)."""
     suffix = suffix.lower()
     if suffix == ".json":
+        _check_bracket_depth(text, suffix, file, implicit=0)
         try:
             data = json.loads(text, object_pairs_hook=_no_duplicate_pairs)
         except json.JSONDecodeError as exc:
@@ -160,10 +313,12 @@ def load_text(text: str, file: str, suffix: str) -> LoadedFile:
             lines = {}
         return LoadedFile(file, data, lines)
     if suffix == ".toml":
+        _check_bracket_depth(text, suffix, file, implicit=1)
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ExperimentError(file, [Issue("", f"TOML syntax error: {exc}")]) from None
+        _check_data_depth(data, file)
         return LoadedFile(file, data, {})
     if suffix in (".yaml", ".yml"):
         data, lines = _yaml_lines(text, file)
@@ -182,23 +337,77 @@ def _no_duplicate_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
+_NOT_REGULAR = (
+    (stat.S_ISDIR, "is a directory, not an experiment file"),
+    (stat.S_ISFIFO, "is a FIFO (named pipe), not a regular file: give the path of a file"),
+    (stat.S_ISCHR, "is a character device, not a regular file: give the path of a file"),
+    (stat.S_ISBLK, "is a block device, not a regular file: give the path of a file"),
+    (stat.S_ISSOCK, "is a socket, not a regular file: give the path of a file"),
+)
+# Opening a FIFO for reading blocks until a writer comes; without blocking it opens at
+# once and fstat() tells what it is. The flag changes nothing for a regular file.
+_OPEN_FLAGS = (os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+               | getattr(os, "O_BINARY", 0))
+_CHUNK = 1 << 20
+
+
+def read_regular_file(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes.
+
+    The file is opened once (a symbolic link is followed) and checked through that
+    descriptor, so what is checked is what is read: a directory, FIFO, device or socket is
+    refused before any read, and the read stops at ``limit`` + 1 bytes whatever ``stat()``
+    said (a file that grows while read is refused too).
+
+    Raises
+    ------
+    ExperimentError
+        The path is missing, unreadable, not a regular file or larger than ``limit``; the
+        one issue names the file and says why.
+    """
+    file = str(path)
+
+    def refuse(message: str) -> ExperimentError:
+        return ExperimentError(file, [Issue("", message)])
+
+    try:
+        fd = os.open(path, _OPEN_FLAGS)
+    except FileNotFoundError:
+        raise refuse("no such file") from None
+    except IsADirectoryError:  # Windows opens no directories
+        raise refuse(_NOT_REGULAR[0][1]) from None
+    except OSError as exc:
+        raise refuse(f"cannot read: {exc.strerror or exc}") from None
+    try:
+        mode = os.fstat(fd)
+        if not stat.S_ISREG(mode.st_mode):
+            reason = next((why for test, why in _NOT_REGULAR if test(mode.st_mode)),
+                          "is not a regular file: give the path of a file")
+            raise refuse(reason)
+        if mode.st_size > limit:
+            raise refuse(f"file is {mode.st_size} bytes; the limit is {limit}")
+        chunks: list[bytes] = []
+        size = 0
+        while size <= limit:
+            chunk = os.read(fd, min(_CHUNK, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise refuse(f"cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if size > limit:
+        raise refuse(f"file is more than {limit} bytes (it grew while read); the limit is {limit}")
+    return b"".join(chunks)
+
+
 def load_file(path: str | Path) -> LoadedFile:
     """Read and parse an experiment file, raising :class:`ExperimentError` when it is unusable."""
     p = Path(path)
     file = str(path)
-    try:
-        size = p.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise ExperimentError(
-                file, [Issue("", f"file is {size} bytes; the limit is {MAX_FILE_BYTES}")]
-            )
-        raw = p.read_bytes()
-    except FileNotFoundError:
-        raise ExperimentError(file, [Issue("", "no such file")]) from None
-    except IsADirectoryError:
-        raise ExperimentError(file, [Issue("", "is a directory, not an experiment file")]) from None
-    except OSError as exc:
-        raise ExperimentError(file, [Issue("", f"cannot read: {exc.strerror}")]) from None
+    raw = read_regular_file(p)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
