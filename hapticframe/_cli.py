@@ -79,13 +79,14 @@ def _plugin_module(text: str) -> str:
     return text
 
 
-def _validate(args: argparse.Namespace, file: str) -> Any:
-    """Validate ``file`` against the command's plugins (see :func:`_manager`)."""
+def _validate(args: argparse.Namespace, file: str, command: str = "run") -> Any:
+    """Validate ``file`` for ``command`` (``run`` or ``train``) against the command's plugins
+    (see :func:`_manager`)."""
     from ._config import load_file, validate_data
 
     loaded = load_file(file)
     experiment = validate_data(loaded, strict=args.strict,
-                               plugin_manager=_manager(args, args.strict))
+                               plugin_manager=_manager(args, args.strict), command=command)
     _print_warnings(experiment)
     return experiment
 
@@ -294,7 +295,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
-    experiment = _validate(args, args.file)
+    experiment = _validate(args, args.file, command="train")
     record = train_experiment(experiment, args.out, overwrite=args.overwrite,
                               echo=_progress_line, min_free_bytes=_min_free(args))
     _out(f"trained {', '.join(record['trained']) or 'nothing'}; artifacts in {args.out}")

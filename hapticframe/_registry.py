@@ -137,7 +137,9 @@ class Registry:
 
     def unknown_message(self, kind: Kind, name: str) -> str:
         """Why ``name`` is not a usable plugin of ``kind`` and what is close to it."""
-        parts = [f"unknown {kind} type {name!r}"]
+        from ._errors import shown
+
+        parts = [f"unknown {kind} type {shown(name)}"]
         for broken in self.broken:
             if broken.name == name:
                 parts.append(
@@ -145,8 +147,12 @@ class Registry:
                 )
         other_kinds = [str(r.spec.kind) for r in self.find(name)]
         if other_kinds:
-            parts.append(f"{name!r} is a {', '.join(other_kinds)} plugin, not a {kind} plugin")
-        close = difflib.get_close_matches(name, self.names(kind), n=3, cutoff=0.5)
+            parts.append(
+                f"{shown(name)} is a {', '.join(other_kinds)} plugin, not a {kind} plugin"
+            )
+        # A name far longer than any plugin's matches none (and difflib is quadratic).
+        close = ([] if len(name) > 100
+                 else difflib.get_close_matches(name, self.names(kind), n=3, cutoff=0.5))
         if close:
             parts.append("did you mean " + " or ".join(repr(c) for c in close))
         installed = self.names(kind)

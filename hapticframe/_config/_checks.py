@@ -95,9 +95,13 @@ class ValidationContext:
 
 
 def run_validators(
-    entries: Iterable[ComponentEntry], model: Any, loaded: LoadedFile
+    entries: Iterable[ComponentEntry], model: Any, loaded: LoadedFile, command: str = "run"
 ) -> tuple[list[Issue], list[Issue]]:
-    """Call every component's validator; returns ``(errors, warnings)`` as located issues."""
+    """Call every component's validator; returns ``(errors, warnings)`` as located issues.
+
+    ``command`` (``"run"`` or ``"train"``) reaches the validators as
+    ``context.extra["command"]``: a file for ``hapticframe train`` may hold the untrained
+    components it is about to fit."""
     entries = list(entries)
     views = {
         e.id: ComponentView(e.id, e.kind, e.type, e.config, tuple(e.inputs)) for e in entries
@@ -119,6 +123,7 @@ def run_validators(
             components=views,
             scene=getattr(model, "scene", None),
             run=getattr(model, "run", None),
+            extra={"command": command},
         )
         for finding in validator(entry.config, context) or ():
             if not isinstance(finding, Finding):

@@ -79,16 +79,18 @@ def validate_file(
     strict: bool = False,
     plugin_modules: Sequence[str] = (),
     plugin_dir: str | Path | None = None,
+    command: str = "run",
 ) -> Experiment:
     """Load and validate an experiment file; raise :class:`ExperimentError` if it is invalid.
 
     ``plugin_modules`` names lab-local plugin modules to import first (trusted code chosen by
     the caller, like ``hapticframe run --plugin-module``), searched first in ``plugin_dir``.
-    Experiment files themselves never name code to import.
+    Experiment files themselves never name code to import. ``command`` is what the file is
+    validated for, ``"run"`` or ``"train"`` (a file to train may hold untrained components).
     """
     loaded = load_file(path)
     return validate_data(loaded, strict=strict, plugin_modules=plugin_modules,
-                         plugin_dir=plugin_dir)
+                         plugin_dir=plugin_dir, command=command)
 
 
 def validate_mapping(
@@ -98,10 +100,11 @@ def validate_mapping(
     strict: bool = False,
     plugin_modules: Sequence[str] = (),
     plugin_dir: str | Path | None = None,
+    command: str = "run",
 ) -> Experiment:
     """Validate an experiment given as a mapping (built in code rather than read from a file)."""
     return validate_data(LoadedFile(source, dict(data), {}), strict=strict,
-                         plugin_modules=plugin_modules, plugin_dir=plugin_dir)
+                         plugin_modules=plugin_modules, plugin_dir=plugin_dir, command=command)
 
 
 #: The experiment-file key that once named plugin modules; kept to say what to do instead.
@@ -122,6 +125,7 @@ def _plugin_manager(
 def validate_data(
     loaded: LoadedFile, *, strict: bool = False, plugin_manager: PluginManager | None = None,
     plugin_modules: Sequence[str] = (), plugin_dir: str | Path | None = None,
+    command: str = "run",
 ) -> Experiment:
     """Validate parsed experiment data (see :func:`validate_file`).
 
@@ -165,7 +169,7 @@ def validate_data(
         if not issues:
             # The core's checks and the plugins' validators together: every error at once.
             errors, warnings = core_checks(entries, model, loaded)
-            plugin_errors, plugin_warnings = run_validators(entries, model, loaded)
+            plugin_errors, plugin_warnings = run_validators(entries, model, loaded, command)
             issues.extend(errors + plugin_errors)
             warnings.extend(plugin_warnings)
         if not issues:

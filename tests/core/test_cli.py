@@ -54,14 +54,19 @@ def test_run_refuses_to_overwrite_a_previous_run(lab_dir, capsys):
 
 def test_failure_while_running_exits_1_and_records_it(lab_dir, capsys):
     path = lab_dir / "lab-open-loop.yaml"
-    # A sensor model without a classifier input builds, but cannot run.
-    text = path.read_text().replace("inputs: [contact]}", "inputs: []}")
+    # Valid, and it builds; but the extractor's gain overflows the forces to infinity,
+    # which the classifier refuses only once samples flow.
+    text = path.read_text().replace(
+        "classifiers:\n",
+        "feature_extractors:\n  - {id: gain, type: lab-scale, inputs: [sweep], "
+        "config: {factor: 1.0e+308}}\nclassifiers:\n",
+    ).replace("    inputs: [sweep]\nsensor_models", "    inputs: [gain]\nsensor_models")
     broken = lab_dir / "norun.yaml"
     broken.write_text(text)
     out = lab_dir / "run"
     assert lab_main(["run", str(broken), "--out", str(out)]) == 1
     err = capsys.readouterr().err
-    assert "needs exactly one classifier" in err and "Traceback" not in err
+    assert "must be finite" in err and "Traceback" not in err
     assert json.loads((out / "run.json").read_text())["status"] == "failed"
 
 

@@ -88,8 +88,10 @@ def test_run_evaluation_map_must_name_a_map(lab_dir, capsys, chosen, said):
     path = lab_dir / "lab-open-loop.yaml"
     setting = f"seed: 3\nrun: {{evaluation_map: {chosen}}}"
     path.write_text(path.read_text().replace("seed: 3", setting))
-    assert lab_main(["run", str(path), "--out", str(lab_dir / "run"), "--quiet"]) == 1
+    # Refused at validate (exit 2), before anything is built or written.
+    assert lab_main(["run", str(path), "--out", str(lab_dir / "run"), "--quiet"]) == 2
     assert f"run.evaluation_map {chosen!r} names {said}, not a map" in capsys.readouterr().err
+    assert not (lab_dir / "run").exists()
 
 
 def test_build_context_finds_an_input_channel_of_a_sensor_or_an_extractor():

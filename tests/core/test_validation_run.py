@@ -80,8 +80,8 @@ def test_one_step_per_movement_is_refused(
 
 
 @pytest.mark.parametrize(("section", "cid", "field", "value"), [
-    ("planners", "planner", "speed_m_per_s", 1e-9),
-    ("robots", "arm", "control_rate_hz", 1e9),
+    ("planners", "planner", "speed_m_per_s", 1e-4),  # slowest the field allows
+    ("robots", "arm", "control_rate_hz", 1e4),  # fastest the field allows
 ])
 def test_a_pace_that_cannot_end_a_movement(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], section: str, cid: str, field: str,
@@ -90,7 +90,9 @@ def test_a_pace_that_cannot_end_a_movement(
     data = _ellipse()
     _component(data, section, cid).setdefault("config", {})[field] = value
     text = refused(tmp_path, data, capsys)
-    assert "run.max_steps_per_movement:" in text and "more than run.max_steps" in text
+    # The core's check (run.max_steps_per_movement) or the planner's own validator may say
+    # it first; either names the limit.
+    assert "max_steps_per_movement" in text
 
 
 def test_an_infinite_control_rate_is_refused(
@@ -105,18 +107,18 @@ def test_a_step_that_jumps_over_the_object(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     data = _ellipse()
-    _component(data, "planners", "planner")["config"] = {"speed_m_per_s": 1000.0}
-    data["run"]["max_steps_per_movement"] = 100_000
+    _component(data, "planners", "planner")["config"] = {"speed_m_per_s": 0.6}
+    _component(data, "robots", "arm")["config"] = {"control_rate_hz": 10.0}  # 6 cm steps
     text = refused(tmp_path, data, capsys)
-    assert "planners[0].config.speed_m_per_s:" in text and "jump over" in text
+    assert "planners[0].config.speed_m_per_s:" in text
 
 
 def test_a_coarse_step_is_a_warning(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     data = _ellipse()
-    _component(data, "planners", "planner")["config"] = {"speed_m_per_s": 1.0}  # 1 cm steps
+    _component(data, "planners", "planner")["config"] = {"speed_m_per_s": 0.6}  # 6 mm steps
     experiment = validate_file(_write(tmp_path, data))
-    (warning,) = experiment.warnings
-    assert warning.path == "planners[0].config.speed_m_per_s" and "few steps" in warning.message
+    assert any(w.path == "planners[0].config.speed_m_per_s" and "few steps" in w.message
+               for w in experiment.warnings)
 
 
 def test_an_evaluation_grid_too_large_for_memory(

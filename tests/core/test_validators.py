@@ -47,6 +47,9 @@ def _experiment(tmp_path: Path, speed: float) -> Path:
             type: checked
             config:
               speed_m_per_s: {speed}
+        planners:
+          - id: planner
+            type: coverage
         """), encoding="utf-8")
     return path
 
