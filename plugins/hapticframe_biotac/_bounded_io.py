@@ -78,14 +78,14 @@ def open_regular(path: str | os.PathLike[str]) -> IO[bytes]:
     except FileNotFoundError:
         raise
     except IsADirectoryError:
-        raise BoundedReadError("is a directory, not a file") from None
+        raise BoundedReadError("the path is a directory, not a file") from None
     except OSError as exc:
         raise BoundedReadError(f"cannot be opened ({exc.strerror})") from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
             raise BoundedReadError(
-                f"is {_kind(mode)}, not a regular file; recordings are read from files only"
+                f"the path is {_kind(mode)}, not a regular file; recordings are read from files only"
             )
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
@@ -132,16 +132,16 @@ def read_npz(
     file.seek(0)
     if start.startswith(_NPY_MAGIC):
         raise BoundedReadError(
-            "is a single .npy array, not an .npz archive; save recordings with numpy.savez "
+            "the file is a single .npy array, not an .npz archive; save recordings with numpy.savez "
             "(or give the file its .npy name)"
         )
     if not start.startswith(_ZIP_MAGIC):
-        raise BoundedReadError("is not an .npz archive (no zip signature)")
+        raise BoundedReadError("the file is not an .npz archive (no zip signature)")
     try:
         archive = zipfile.ZipFile(file)
     except (zipfile.BadZipFile, OSError, EOFError) as exc:
         raise BoundedReadError(
-            f"is truncated or not a valid .npz archive ({exc}); write it again"
+            f"the file is truncated or not a valid .npz archive ({exc}); write it again"
         ) from None
     with archive:
         members = [
@@ -157,8 +157,9 @@ def read_npz(
                 shape, dtype = _declared(member, name)
             if dtype.hasobject:
                 raise BoundedReadError(
-                    f"array {name!r} holds Python objects ({dtype}), which would need a "
-                    "pickle to load; recordings hold numbers and strings only"
+                    f"array {name!r} holds Python objects ({dtype}): loading it would "
+                    "unpickle, which recordings never do (allow_pickle=False); save numbers "
+                    "and strings only"
                 )
             total += math.prod(shape) * dtype.itemsize
             declared.append((info, name, shape, dtype))
@@ -169,7 +170,7 @@ def read_npz(
                 for _, name, shape, dtype in largest
             )
             raise BoundedReadError(
-                f"declares arrays of {format_bytes(total)} ({shown}); the limit for one "
+                f"the file declares arrays of {format_bytes(total)} ({shown}); the limit for one "
                 f"recording is {format_bytes(max_bytes)}: split the recording into several "
                 "files"
             )

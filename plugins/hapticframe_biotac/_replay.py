@@ -28,12 +28,13 @@ before anything is decompressed.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import itertools
 import json
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -352,6 +353,11 @@ def _slow_block(
     return table, [line for line, _ in rows]
 
 
+def _block_lines(block: list[str], first_line: int, layout: _CsvLayout) -> list[int]:
+    """The line of each row of a block (parsed again, only to locate a fault)."""
+    return _slow_block(block, first_line, layout)[1]
+
+
 def _check_block(
     table: NDArray[np.float64],
     lines: Callable[[], list[int]],
@@ -454,10 +460,11 @@ def _read_csv(
         table = _fast_block(block, layout)
         if table is None:
             table, rows_at = _slow_block(block, first_line, layout)
-            _check_block(table, lambda: rows_at, layout, previous_time)
+            _check_block(table, functools.partial(list, rows_at), layout, previous_time)
         else:
             _check_block(
-                table, lambda: _slow_block(block, first_line, layout)[1], layout, previous_time
+                table, functools.partial(_block_lines, block, first_line, layout), layout,
+                previous_time,
             )
         if not len(table):
             continue
@@ -489,7 +496,7 @@ def _assemble(
     frame_layout: FrameLayout,
     variant: str,
     time_name: str | None,
-    truth_names: list[str],
+    truth_names: Sequence[str],
 ) -> Recording:
     """The frames from the blocks' tables, each block freed once copied (no second copy of
     the whole recording at any time)."""
