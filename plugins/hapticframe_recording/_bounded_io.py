@@ -80,12 +80,13 @@ def open_regular(path: str | os.PathLike[str]) -> IO[bytes]:
     except IsADirectoryError:
         raise BoundedReadError("the path is a directory, not a file") from None
     except OSError as exc:
-        raise BoundedReadError(f"cannot be opened ({exc.strerror})") from None
+        raise BoundedReadError(f"the file cannot be opened ({exc.strerror})") from None
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
             raise BoundedReadError(
-                f"the path is {_kind(mode)}, not a regular file; recordings are read from files only"
+                f"the path is {_kind(mode)}, not a regular file; recordings are read from "
+                "files only"
             )
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
@@ -132,8 +133,8 @@ def read_npz(
     file.seek(0)
     if start.startswith(_NPY_MAGIC):
         raise BoundedReadError(
-            "the file is a single .npy array, not an .npz archive; save recordings with numpy.savez "
-            "(or give the file its .npy name)"
+            "the file is a single .npy array, not an .npz archive; save recordings with "
+            "numpy.savez (or give the file its .npy name)"
         )
     if not start.startswith(_ZIP_MAGIC):
         raise BoundedReadError("the file is not an .npz archive (no zip signature)")
@@ -170,9 +171,9 @@ def read_npz(
                 for _, name, shape, dtype in largest
             )
             raise BoundedReadError(
-                f"the file declares arrays of {format_bytes(total)} ({shown}); the limit for one "
-                f"recording is {format_bytes(max_bytes)}: split the recording into several "
-                "files"
+                f"the file declares arrays of {format_bytes(total)} ({shown}); the limit for "
+                f"one recording is {format_bytes(max_bytes)}: split the recording into "
+                "several files"
             )
         arrays: dict[str, NDArray[Any]] = {}
         for info, name, _, _ in declared:
