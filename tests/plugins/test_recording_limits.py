@@ -44,11 +44,14 @@ def csv_text(
 
 def frames(n: int = 12) -> BioTacFrames:
     rng = np.random.default_rng(3)
+
+    def counts(*shape: int) -> np.ndarray:
+        return rng.integers(0, 4096, shape).astype(np.float64)
+
     return BioTacFrames(
-        layout_for("biotac"), 0.01 * np.arange(1, n + 1), rng.integers(0, 4096, (n, 22)),
-        rng.integers(0, 4096, n), rng.integers(0, 4096, n), rng.integers(0, 4096, n),
-        rng.integers(0, 4096, (n, 19)), position_m=rng.random((n, 2)),
-        contact=(np.arange(n) % 2).astype(float),
+        layout_for("biotac"), np.arange(1, n + 1, dtype=np.float64) * 0.01, counts(n, 22),
+        counts(n), counts(n), counts(n), counts(n, 19), position_m=rng.random((n, 2)),
+        contact=(np.arange(n) % 2).astype(np.float64),
     )
 
 
@@ -56,7 +59,7 @@ def resave(path: Path, **changes: np.ndarray) -> Path:
     with np.load(path, allow_pickle=False) as archive:
         arrays = {key: archive[key] for key in archive.files}
     arrays.update(changes)
-    np.savez(path, **arrays)  # type: ignore[arg-type]
+    np.savez(path, **arrays)
     return path
 
 
@@ -265,7 +268,7 @@ def trace(n: int = 8) -> dict[str, np.ndarray]:
 def test_trace_complex_channels_and_non_class_labels_are_refused(tmp_path):
     arrays = trace()
     arrays["sensor/wrist/force_n"] = arrays["sensor/wrist/force_n"] + 2j
-    np.savez(tmp_path / "trace.npz", **arrays)  # type: ignore[arg-type]
+    np.savez(tmp_path / "trace.npz", **arrays)
     with pytest.raises(RecordingError, match=r"'sensor/wrist/force_n' is complex"):
         load_recording(tmp_path)
     for label in (7.5, -1.0, np.inf):
