@@ -14,7 +14,6 @@ holds ``timestamps_s`` (k,) and one label array (k,). Files are read with
 
 from __future__ import annotations
 
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe.bounded_io import MAX_RECORDING_BYTES, BoundedReadError, open_regular, read_npz
 from hapticframe.kinds import ChannelInfo, SampleBatch
 
 __all__ = [
@@ -96,24 +96,33 @@ def _resolve(path: str | Path, default_name: str, what: str) -> Path:
     target = Path(path).expanduser()
     if target.is_dir():
         target = target / default_name
-        if not target.is_file():
+        if not target.exists():
             raise RecordingError(f"{what}: the directory {path} holds no {default_name}")
-    elif not target.is_file():
+    elif not target.exists():
         raise RecordingError(f"{what}: no such file: {target}")
     return target
 
 
-def _read_npz(path: Path, what: str, wanted: Sequence[str] | None = None) -> dict[str, Any]:
+def _read_npz(
+    path: Path,
+    what: str,
+    wanted: Sequence[str] | None = None,
+    max_bytes: int = MAX_RECORDING_BYTES,
+) -> dict[str, Any]:
     """The arrays of an ``.npz`` (those whose names start with one of ``wanted``, when
-    given), read without pickles; every failure as a located :class:`RecordingError`."""
+    given), read without pickles from a regular file, their declared sizes checked against
+    ``max_bytes`` before decompressing; every failure as a located :class:`RecordingError`."""
     try:
-        with np.load(path, allow_pickle=False) as archive:
-            names = [k for k in archive.files
-                     if wanted is None or any(k.startswith(w) for w in wanted)]
-            return {name: archive[name] for name in names}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        # ValueError also covers an object array, which would need a pickle to load.
-        raise RecordingError(f"{what}: cannot read {path}: {exc}") from exc
+        with open_regular(path) as handle:
+            return read_npz(
+                handle,
+                keep=None if wanted is None else (lambda k: k.startswith(tuple(wanted))),
+                max_bytes=max_bytes,
+            )
+    except FileNotFoundError:
+        raise RecordingError(f"{what}: no such file: {path}") from None
+    except (BoundedReadError, OSError) as exc:
+        raise RecordingError(f"{what}: cannot read {path}: {exc}") from None
 
 
 def _ids(arrays: Mapping[str, Any], kind: str) -> list[str]:
@@ -143,16 +152,23 @@ def _pick(given: str | None, available: list[str], kind: str, source: str) -> st
 
 def _timestamps(value: Any, key: str, source: str, *, strict: bool = True) -> NDArray[np.float64]:
     t = np.asarray(value)
-    if t.ndim != 1 or not np.issubdtype(t.dtype, np.number):
+    if t.ndim != 1 or t.dtype.kind not in "biuf":
         raise RecordingError(f"{source}: {key!r} must be a 1-D numeric array, got {t.dtype} "
                              f"of shape {t.shape}")
     t = t.astype(np.float64)
-    if not np.isfinite(t).all():
-        raise RecordingError(f"{source}: {key!r} holds NaN or infinite times")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise RecordingError(
+            f"{source}: {key!r} row {int(bad[0])} is {t[bad[0]]:g}; times must be finite"
+        )
     steps = np.diff(t)
-    if (steps <= 0).any() if strict else (steps < 0).any():
+    back = np.flatnonzero(steps <= 0 if strict else steps < 0)
+    if back.size:
         order = "strictly increasing" if strict else "in time order"
-        raise RecordingError(f"{source}: {key!r} is not {order}")
+        row = int(back[0]) + 1
+        raise RecordingError(
+            f"{source}: {key!r} is not {order}: row {row} is {t[row]:g} after {t[row - 1]:g}"
+        )
     return t
 
 
@@ -162,8 +178,11 @@ def _channel(arrays: Mapping[str, Any], key: str, n: int, source: str) -> NDArra
         raise RecordingError(
             f"{source}: {key!r} has shape {value.shape}, expected {n} rows (one per timestamp)"
         )
-    if not (np.issubdtype(value.dtype, np.number) or value.dtype == np.bool_):
-        raise RecordingError(f"{source}: {key!r} is not numeric ({value.dtype})")
+    if value.dtype.kind not in "biuf":
+        what = "complex" if value.dtype.kind == "c" else "not numeric"
+        raise RecordingError(
+            f"{source}: {key!r} is {what} ({value.dtype}); a recording holds real numbers"
+        )
     return value.astype(np.float64)
 
 
@@ -204,9 +223,19 @@ def load_labels(
             f"labels: {source}: {key!r} has shape {values.shape}, expected {t.shape} "
             "(one label per timestamp)"
         )
-    if not (np.issubdtype(values.dtype, np.number) or values.dtype == np.bool_):
-        raise RecordingError(f"labels: {source}: {key!r} is not numeric ({values.dtype})")
-    return t, values.astype(np.float64)
+    if values.dtype.kind not in "biuf":
+        what = "complex" if values.dtype.kind == "c" else "not numeric"
+        raise RecordingError(f"labels: {source}: {key!r} is {what} ({values.dtype})")
+    labels = values.astype(np.float64)
+    # Labels are class indices (the sandbox: 0 free, 1 jamming, 2 contact).
+    bad = np.flatnonzero(~np.isfinite(labels) | (labels < 0) | (labels != np.round(labels)))
+    if bad.size:
+        row = int(bad[0])
+        raise RecordingError(
+            f"labels: {source}: {key!r} row {row} is {labels[row]:g}; labels are class "
+            "indices (whole numbers from 0)"
+        )
+    return t, labels
 
 
 def recording_from_arrays(
