@@ -258,11 +258,13 @@ def test_the_whole_emulated_rig_halts_at_the_force_limit_within_one_sample(
     tmp_path: Path,
 ) -> None:
     data = _quick(ROOT / "examples" / "search-ellipse-dynamixel.yaml")
-    data["run"].update({"max_movements": 1, "force_limit_n": 12.0})
+    # Above the free drag at 4.4 cm (15 N, or every movement would halt at once: refused),
+    # below the jamming surge ahead of the ellipse.
+    data["run"].update({"max_movements": 1, "force_limit_n": 20.0})
     metrics = run_experiment(validate_mapping(data, source="example"), tmp_path / "run")
     assert metrics["halt_latency_samples_max"] is not None
     assert metrics["halt_latency_samples_max"] <= 1
     run = json.loads((tmp_path / "run" / "run.json").read_text(encoding="utf-8"))
     (halt,) = run["details"]["safety_halts"]
     assert halt["reason"] == "force_limit" and halt["robot"] == "gantry"
-    assert halt["force_n"] > 12.0 and halt["latency_samples"] <= 1
+    assert halt["force_n"] > 20.0 and halt["latency_samples"] <= 1

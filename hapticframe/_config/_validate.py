@@ -167,11 +167,15 @@ def validate_data(
         issues.extend(_check_graph(entries, loaded))
         issues.extend(_check_train_from(model.run.train_from, entries, loaded))
         if not issues:
-            # The core's checks and the plugins' validators together: every error at once.
+            # The core's checks first; the plugins' validators read a consistent experiment
+            # (and do not repeat, in their words, what the core has already refused).
             errors, warnings = core_checks(entries, model, loaded)
-            plugin_errors, plugin_warnings = run_validators(entries, model, loaded, command)
-            issues.extend(errors + plugin_errors)
-            warnings.extend(plugin_warnings)
+            issues.extend(errors)
+            if not errors:
+                plugin_errors, plugin_warnings = run_validators(entries, model, loaded, command)
+                issues.extend(plugin_errors)
+                warnings.extend(w for w in plugin_warnings if w.path not in
+                                {c.path for c in warnings})
         if not issues:
             return Experiment(file, model, tuple(_build_order(entries)), registry, pm,
                               tuple(warnings))

@@ -177,6 +177,9 @@ def _calibration_experiment(seed: int) -> dict[str, Any]:
         "sensors": _device_sensors("none"),
         "feature_extractors": [{"id": "observer", "type": "force-observer",
                                 "inputs": ["wrist", "imu"], "config": _observer_config()}],
+        # The calibration drives the robot itself (_calibration_moves); a closed loop's file
+        # still names a planner, which is built and never asked.
+        "planners": [{"id": "planner", "type": "coverage"}],
     }
 
 

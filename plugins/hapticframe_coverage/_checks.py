@@ -17,8 +17,6 @@ __all__ = ["check"]
 
 #: The thesis's 75 x 50 cm search area: the region when neither config, map nor scene gives one.
 _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
-#: A step longer than this (m) is legal but coarse: a contact is detected that late.
-_COARSE_STEP_M = 0.005
 #: Most map samples the two-phase planner's centroid grid and line scores may take.
 _MAX_GRID_POINTS = 10_000_000
 _MAX_LINE_POINTS = 1_000_000
@@ -122,12 +120,6 @@ def _speed(config: Any, context: ValidationContext, diagonal: float) -> Iterator
                 f"{where}, longer than the {zone * 1e3:.3g} mm failure zone ahead of the "
                 "fingertip: jamming cannot be seen before the plate passes it; lower the speed",
                 field="speed_m_per_s",
-            )
-        elif step > _COARSE_STEP_M:
-            yield Finding(
-                f"{where} (more than {_COARSE_STEP_M * 1e3:g} mm): contact is seen that coarsely",
-                field="speed_m_per_s",
-                severity="warning",
             )
 
 
