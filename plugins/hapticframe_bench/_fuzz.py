@@ -10,8 +10,9 @@ generator, out of the bundled examples in these categories:
   or naming nothing, a component removed;
 * ``text``: a name or type 100,000 characters long, or holding a NUL.
 
-Each mutant is validated in this process; one that is refused must be refused with exit 2
-and every issue located (a dotted path or a line). One that is accepted is run in a child
+Each mutant is written as a YAML file and validated in this process; one that is refused
+must be refused with exit 2 and every issue located (a line, and a dotted path below the top
+level). One that is accepted is run in a child
 process (``hapticframe run``, movements capped, a time limit and an address-space limit):
 it must end with exit 0 and real metrics, or with a clear error (exit 1 or 2, no "internal
 error"); a run that exits 2 was refused only when building, which counts as a failure (the
@@ -42,7 +43,7 @@ from hapticframe import (
     ExperimentError,
     HapticframeError,
     atomic_write,
-    validate_mapping,
+    validate_file,
 )
 
 __all__ = [
@@ -56,7 +57,9 @@ __all__ = [
 
 CATEGORIES = ("number", "type", "structure", "text")
 #: Examples whose mutants are also run (the others need recordings or trained models).
-RUNNABLE = ("search-ellipse.yaml", "search-circle-baseline.yaml", "search-two-arms.yaml")
+RUNNABLE = ("search-ellipse.yaml", "search-circle-baseline.yaml", "search-two-arms.yaml",
+            "search-ellipse-ft300.yaml", "search-ellipse-dynamixel.yaml",
+            "free-motion-ft300.yaml")
 #: Numeric extremes a field is set to.
 EXTREMES: tuple[Any, ...] = (0, -1, 1e308, -1e308, math.nan, math.inf, -math.inf, 1e-308,
                              10**12, True)
@@ -221,10 +224,14 @@ def _limit_memory() -> None:  # runs in the child before exec
 def check_mutant(mutant: Mutant, workdir: Path, *, run: bool = True) -> Outcome:
     """Validate ``mutant`` here; run it in a child process when accepted (and ``run``)."""
     started = time.perf_counter()
+    workdir.mkdir(parents=True, exist_ok=True)
+    experiment = workdir / "experiment.yaml"
+    # Validated as the file a user would write, so that every issue can name its line.
+    experiment.write_text(yaml.safe_dump(mutant.data, allow_unicode=True), encoding="utf-8")
     try:
-        validate_mapping(copy.deepcopy(mutant.data), source=f"<{mutant.example}>")
+        validate_file(experiment)
     except ExperimentError as exc:
-        unlocated = [i for i in exc.issues if not i.path and i.line is None]
+        unlocated = [i for i in exc.issues if i.line is None]
         long = [i for i in exc.issues if len(i.message) > 2000]
         ok = not unlocated and not long and exc.exit_code == 2
         detail = "" if ok else (f"{len(unlocated)} unlocated issue(s)" if unlocated
@@ -248,8 +255,7 @@ def _run_child(mutant: Mutant, workdir: Path, started: float) -> Outcome:
     data.setdefault("run", {})
     if isinstance(data["run"], dict):
         data["run"].update({"max_movements": MAX_MOVEMENTS, "figures": False})
-    workdir.mkdir(parents=True, exist_ok=True)
-    experiment = workdir / "experiment.yaml"
+    experiment = workdir / "run-experiment.yaml"
     experiment.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
     out = workdir / "run"
     command = [sys.executable, "-m", "hapticframe", "run", str(experiment), "--out", str(out),
@@ -271,9 +277,14 @@ def _run_child(mutant: Mutant, workdir: Path, started: float) -> Outcome:
         if not metrics_path.exists():
             return Outcome(mutant, "no_metrics", False, "exit 0 without metrics.json", seconds)
         metrics = json.loads(metrics_path.read_text(encoding="utf-8"))
-        if not isinstance(metrics.get("object_found"), bool):
-            return Outcome(mutant, "null_metrics", False, "exit 0, object_found not a bool",
+        if not isinstance(metrics.get("movements"), int):
+            return Outcome(mutant, "null_metrics", False, "exit 0 without a movement count",
                            seconds)
+        scene = data.get("scene") if isinstance(data, dict) else None
+        has_objects = isinstance(scene, dict) and bool(scene.get("objects"))
+        if has_objects and not isinstance(metrics.get("object_found"), bool):
+            return Outcome(mutant, "null_metrics", False,
+                           "exit 0 with buried objects, object_found not a bool", seconds)
         return Outcome(mutant, "ran", True, "", seconds)
     if done.returncode == 2:
         return Outcome(mutant, "refused_at_run", False, last[:300], seconds)
