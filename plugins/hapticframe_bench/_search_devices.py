@@ -462,7 +462,6 @@ def _ms(value: Any) -> str:
 
 def render_markdown(summary: Mapping[str, Any]) -> str:
     """``search-devices.md``: calibration, accuracy per chain, costs, health, verdicts."""
-    shapes = summary["shapes"]
     cal = summary["calibration"]
     lines = [
         "# Haptic search through emulated devices (issue 14)", "",
@@ -488,11 +487,19 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
     ]
     if cal["warnings"]:
         lines += ["", "Fit warnings: " + "; ".join(cal["warnings"])]
-    lines += ["", "## Accuracy and cost per chain", "",
-              "| chain | " + " | ".join(f"{s} found | {s} RMSE (cm) | {s} Hausdorff (cm)"
+    lines += ["", "## Accuracy and cost per chain", "", *chain_table(summary),
+              "", "## Targets", "", *targets_markdown_from(summary["targets"]),
+              *health_sections(summary)]
+    return "\n".join(lines) + "\n"
+
+
+def chain_table(summary: Mapping[str, Any]) -> list[str]:
+    """Markdown table rows: per chain, found / RMSE / Hausdorff per shape and step costs."""
+    shapes = summary["shapes"]
+    lines = ["| chain | " + " | ".join(f"{s} found | {s} RMSE (cm) | {s} Hausdorff (cm)"
                                        for s in shapes)
-              + " | steps | wall / step (ms) | CPU / step (ms) |",
-              "|---" * (1 + 3 * len(shapes) + 3) + "|"]
+             + " | steps | wall / step (ms) | CPU / step (ms) |",
+             "|---" * (1 + 3 * len(shapes) + 3) + "|"]
     for chain, record in summary["chains"].items():
         cells = []
         for shape in shapes:
@@ -501,14 +508,19 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
                       _cm(s["hausdorff_mean_m"])]
         lines.append(f"| {chain} | " + " | ".join(cells) + f" | {record['steps']} | "
                      f"{_ms(record['wall_per_step_ms'])} | {_ms(record['cpu_per_step_ms'])} |")
-    lines += ["", "## Targets", "", *targets_markdown_from(summary["targets"])]
+    return lines
+
+
+def health_sections(summary: Mapping[str, Any]) -> list[str]:
+    """Markdown sections of each chain's summed device health (non-zero counters)."""
+    lines: list[str] = []
     for chain, record in summary["chains"].items():
         if record["health"]:
             lines += ["", f"## Device health, {chain} (summed over {record['runs']} runs)", ""]
             for device, counters in record["health"].items():
                 shown = ", ".join(f"{k} {v}" for k, v in counters.items() if v)
                 lines.append(f"- {device}: {shown or 'all zero'}")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def targets_markdown_from(targets: Mapping[str, Mapping[str, Any]]) -> list[str]:

@@ -36,13 +36,13 @@ from ._search_devices import (
     DEFAULT_TRIALS,
     QUICK_TRIALS,
     _chain_record,
-    _cm,
     _cpu_s,
     _faults_wanted,
     _json_ready,
-    _ms,
     chain_experiment,
+    chain_table,
     device_targets,
+    health_sections,
     targets_markdown_from,
 )
 from ._targets import check_lines, load_average
@@ -95,33 +95,16 @@ def dynamixel_experiment(
 
 def render_markdown(summary: Mapping[str, Any]) -> str:
     """``search-dynamixel.md``: accuracy and cost per chain, health, verdicts."""
-    shapes = summary["shapes"]
     lines = [
         "# Haptic search on an emulated Dynamixel rig (issue 15)", "",
         f"Command: `{summary['command']}`  ",
         f"Trials per shape: {summary['trials']}, seed {summary['seed']}, planner "
         f"`{SEARCH_PLANNER}`; load average at start {summary['load_average']}.", "",
-        "| chain | " + " | ".join(f"{s} found | {s} RMSE (cm) | {s} Hausdorff (cm)"
-                                 for s in shapes)
-        + " | steps | wall / step (ms) | CPU / step (ms) |",
-        "|---" * (1 + 3 * len(shapes) + 3) + "|",
+        *chain_table(summary),
+        "", "## Targets (the `dynamixel` chain against `simulation`)", "",
+        *targets_markdown_from(summary["targets"]),
+        *health_sections(summary),
     ]
-    for chain, record in summary["chains"].items():
-        cells = []
-        for shape in shapes:
-            s = record[shape]
-            cells += [f"{s['found']}/{s['completed']}", _cm(s["centroid_rmse_m"]),
-                      _cm(s["hausdorff_mean_m"])]
-        lines.append(f"| {chain} | " + " | ".join(cells) + f" | {record['steps']} | "
-                     f"{_ms(record['wall_per_step_ms'])} | {_ms(record['cpu_per_step_ms'])} |")
-    lines += ["", "## Targets (the `dynamixel` chain against `simulation`)", "",
-              *targets_markdown_from(summary["targets"])]
-    for chain, record in summary["chains"].items():
-        if record["health"]:
-            lines += ["", f"## Device health, {chain} (summed over {record['runs']} runs)", ""]
-            for device, counters in record["health"].items():
-                shown = ", ".join(f"{k} {v}" for k, v in counters.items() if v)
-                lines.append(f"- {device}: {shown or 'all zero'}")
     return "\n".join(lines) + "\n"
 
 
