@@ -222,6 +222,11 @@ def save_outputs(session: Session, metrics: Mapping[str, Any]) -> None:
     write_json(session.out_dir / "metrics.json", metrics)
 
 
+#: What a finished run of an earlier version (no ``files`` in its record) wrote at its
+#: directory's top level, and ``--overwrite`` may therefore delete.
+_LEGACY_SUFFIXES = frozenset({".png", ".npz", ".json", ".md", ".pt"})
+
+
 # --- atomic files ----------------------------------------------------------------------------
 
 
@@ -481,6 +486,11 @@ class OutputDir:
             if isinstance(listed, list):
                 ours |= {n for n in listed
                          if isinstance(n, str) and n in entries and _plain_name(n)}
+            elif record.get("status") in FINISHED and "versions" in record:
+                # A finished run of a version that did not list its files: what such runs
+                # wrote, at the top level (figures, arrays, metrics), is theirs.
+                ours |= {n for n in entries if _plain_name(n) and (self.path / n).is_file()
+                         and Path(n).suffix in _LEGACY_SUFFIXES}
         # Hidden files (.DS_Store, .git) are no results: left alone, never deleted.
         unknown = [n for n in entries if n not in ours and not n.startswith(".")]
         status = record.get("status") if record is not None else None

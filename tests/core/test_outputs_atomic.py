@@ -450,3 +450,17 @@ def test_train_whose_save_fails_keeps_no_artifacts_and_records_the_error(experim
     assert "saving contact" in err and "No space left" in err
     data = assert_finished(out, "failed", name="train.json")
     assert data["files"] == [] and "No space left" in data["error"]
+
+
+def test_overwrite_clears_a_finished_run_of_an_earlier_version(experiment, capsys):
+    out = experiment.parent / "old"
+    assert run(experiment, out) == 0
+    # An earlier version's record: finished, but without the list of its files.
+    legacy = {k: v for k, v in record(out).items() if k != "files"}
+    (out / "run.json").write_text(json.dumps(legacy), encoding="utf-8")
+    (out / "notes.txt").write_text("mine", encoding="utf-8")
+    assert run(experiment, out, "--overwrite") == 2  # a file it did not write: refused
+    assert "notes.txt" in capsys.readouterr().err and (out / "notes.txt").exists()
+    (out / "notes.txt").unlink()
+    assert run(experiment, out, "--overwrite") == 0
+    assert_finished(out)
