@@ -71,11 +71,12 @@ class TraceRecordingConfig(PluginConfig):
         "marked invalid, 'drop' leaves them out of the replay.",
     )
     samples_per_read: int = Field(
-        10, ge=1, description="Recorded samples each streaming read() delivers."
+        10, ge=1, le=1_000_000, description="Recorded samples each streaming read() delivers."
     )
     rate_hz: float | None = Field(
         None,
         gt=0,
+        le=1e6,
         allow_inf_nan=False,
         description="Channel rate to declare; None takes it from the recorded timestamps "
         "(one over the median sample period).",

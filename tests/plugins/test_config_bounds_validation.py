@@ -15,7 +15,7 @@ from hapticframe import get_registry
 #: Fields whose numbers are not quantities: identifiers and booleans-as-ints.
 _NOT_QUANTITIES = frozenset({"seed", "raking_finger"})
 #: Bounds that the plugin's owner adds in the same issue (the recording loaders' part).
-_PENDING = frozenset({"trace-recording.rate_hz", "trace-recording.samples_per_read"})
+_PENDING: frozenset[str] = frozenset()  # fields still to bound (none)
 
 
 def _scalar_type(annotation: Any) -> type | None:
