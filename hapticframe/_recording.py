@@ -10,19 +10,19 @@ indexed ``DIR/run.mcap`` (and lists it in ``run.json``).
 Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``; no Foxglove
 well-known schema yet) hold arrays per block of samples, never one message per sample:
 
-=============================  ==========================  =======================================
-topic                          schema                      content
-=============================  ==========================  =======================================
-``/sensor/ID``                 ``hapticframe.SampleBatch``  timestamps, channels, validity, units
-``/feature_extractor/ID``      ``hapticframe.SampleBatch``  the extractor's output
-``/classifier/ID``             ``hapticframe.ClassProbabilities``  timestamps, classes, probabilities
-``/sensor_model/ID/located``   ``hapticframe.LocatedMeasurement``  where each classified sample was
-``/sensor_model/ID/observations``  ``hapticframe.Observations``  points, targets, weights (map input)
-``/robot/ID/state``            ``hapticframe.RobotStates``  timestamps, positions, headings, depths
-``/movement``                  ``hapticframe.MovementResult``  one per exploratory movement (halts)
-``/safety_halt``               ``hapticframe.SafetyHalt``   one per halt of the loop's safety checks
-``/device/ID/health``          ``hapticframe.DeviceHealth``  the device's counters
-=============================  ==========================  =======================================
+=================================  ==================================  ===========================
+topic                              schema (``hapticframe.``)           content
+=================================  ==================================  ===========================
+``/sensor/ID``                     ``SampleBatch``                     timestamps, channels, units
+``/feature_extractor/ID``          ``SampleBatch``                     the extractor's output
+``/classifier/ID``                 ``ClassProbabilities``              classes, probabilities
+``/sensor_model/ID/located``       ``LocatedMeasurement``              where each sample was
+``/sensor_model/ID/observations``  ``Observations``                    the maps' input
+``/robot/ID/state``                ``RobotStates``                     poses, movement index
+``/movement``                      ``MovementResult``                  one per movement (halts)
+``/safety_halt``                   ``SafetyHalt``                      a safety check's halt
+``/device/ID/health``              ``DeviceHealth``                    the device's counters
+=================================  ==================================  ===========================
 
 Timing: a message's log time is the run's model time (the samples' own clock, in ns) of
 its last sample. Samples of one channel gather into one message until the model time has
@@ -198,7 +198,7 @@ class RunRecording:
 
         self.path = Path(path)
         try:
-            self._file: BinaryIO = open(self.path, "wb")  # noqa: SIM115 - closed by close()
+            self._file: BinaryIO = open(self.path, "wb")  # closed by close()
         except OSError as exc:
             raise output_error(self.path, exc) from exc
         self._writer = Writer(self._file, chunk_size=CHUNK_BYTES,
@@ -365,7 +365,7 @@ class RunRecording:
                     data=json.dumps(SCHEMAS[schema]).encode())
             channel = self._channels[topic] = self._writer.register_channel(
                 topic=topic, message_encoding="json", schema_id=schema_id)
-        stamp = int(round(max(t_s, 0.0) * 1e9))
+        stamp = round(max(t_s, 0.0) * 1e9)
         payload = json.dumps(data, separators=(",", ":"), allow_nan=False).encode()
         self._sequence += 1
         self._guard(lambda: self._writer.add_message(
@@ -378,7 +378,7 @@ class RunRecording:
         self.flush_blocks()
 
         def flush() -> None:
-            self._writer.flush()
+            self._writer.flush()  # type: ignore[no-untyped-call]
             os.fsync(self._file.fileno())
 
         self._guard(flush)
@@ -444,7 +444,7 @@ def _records(path: Path, stop: list[str]) -> Iterator[Any]:
             yield from reader.records
         except Exception as exc:  # a cut record: EndOfFile, a short chunk, a bad CRC
             where = stream.tell()
-            stop.append(f"stopped at byte {where} of {path.stat().st_size} "
+            stop.append(f"the file ends inside a record, at byte {where} "
                         f"({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})")
 
 
@@ -510,7 +510,7 @@ def recover(source: Path, target: Path) -> Recovery:
                 counts[channel.topic] = counts.get(channel.topic, 0) + 1
                 start_ns = record.log_time if start_ns is None else min(start_ns, record.log_time)
                 end_ns = max(end_ns, record.log_time)
-        writer.finish()
+        writer.finish()  # type: ignore[no-untyped-call]
         out.flush()
     first = (start_ns or 0) / 1e9
     return Recovery(source, target, counts, first, end_ns / 1e9 if counts else first,
@@ -531,7 +531,8 @@ def recover_run(target: Path, out: Path | None = None) -> Recovery:
         except (OSError, ValueError):
             record = None
         if isinstance(record, dict):
-            files = record.get("files") if isinstance(record.get("files"), list) else []
+            listed = record.get("files")
+            files: list[Any] = listed if isinstance(listed, list) else []
             if RECORDING not in files:
                 try:
                     write_json(record_path, {**record, "files": sorted([*files, RECORDING])})
