@@ -292,6 +292,19 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_recover(args: argparse.Namespace) -> int:
+    from ._recording import recover_run
+
+    recovery = recover_run(Path(args.target), Path(args.out) if args.out else None)
+    how = f"cut short: {recovery.cut}" if recovery.cut else "complete"
+    _out(f"read {recovery.source} ({how})")
+    for topic, count in sorted(recovery.counts.items()):
+        _out(f"  {topic}: {count} messages")
+    _out(f"wrote {recovery.target}: {recovery.messages} messages on {len(recovery.counts)} "
+         f"channels, t = {recovery.start_s:.3f} ... {recovery.end_s:.3f} s")
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
@@ -394,6 +407,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("recover", help="rewrite a killed run's recording as a complete one")
+    p.add_argument("target", metavar="DIR",
+                   help="a run's --out directory (its run.mcap, or the one a killed run left "
+                   "in .hapticframe-partial/) or an .mcap file")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="where to write it (default: DIR/run.mcap, or the file itself)")
+    p.set_defaults(func=cmd_recover)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")

@@ -414,6 +414,9 @@ class Dataflow:
     ) -> None:
         self.components = components
         self.recorder = recorder
+        #: The run's ``run.mcap`` (:class:`~hapticframe._recording.RunRecording`), fed the
+        #: same data as ``recorder`` as it happens; None when the run records none.
+        self.recording: Any = None
         self.entries: dict[str, ComponentEntry] = {e.id: e for e in experiment.components}
         order = [e.id for e in experiment.components]
         self.sensors = [
@@ -501,6 +504,8 @@ class Dataflow:
         add_row(keys[2], state.heading_rad)
         add_row(keys[3], state.depth_m)
         add_row(keys[4], movement_index)
+        if self.recording is not None:
+            self.recording.robot_state(robot_id, state, movement_index)
 
     def _inputs(self, consumer: str, outputs: Mapping[str, SampleBatch]) -> SampleBatch:
         names = [i for i in self.entries[consumer].inputs if i in outputs]
@@ -561,6 +566,8 @@ class Dataflow:
                 self.latest[clf_id] = probs
                 self.recorder.add(f"classifier/{clf_id}/timestamps_s", probs.timestamps_s)
                 self.recorder.add(f"classifier/{clf_id}/probabilities", probs.probabilities)
+                if self.recording is not None:
+                    self.recording.probabilities(clf_id, probs)
                 if self._recorded_classes.get(clf_id) != probs.classes:
                     self._recorded_classes[clf_id] = probs.classes
                     self.recorder.set(f"classifier/{clf_id}/classes", np.array(probs.classes))
@@ -612,10 +619,14 @@ class Dataflow:
             # probs passed its checks when the classifier made it; the poses are built here.
             located = LocatedMeasurement._from_checked(probs, positions, headings, depths)
             obs = self.components.sensor_models[sm_id].observe(located)
+            if self.recording is not None:
+                self.recording.located(sm_id, located)
             if len(obs):
                 self.recorder.add(f"sensor_model/{sm_id}/points_m", obs.points_m)
                 self.recorder.add(f"sensor_model/{sm_id}/targets", obs.targets)
                 self.recorder.add(f"sensor_model/{sm_id}/weights", obs.weights)
+                if self.recording is not None:
+                    self.recording.observations(sm_id, obs, float(probs.timestamps_s[-1]))
                 for map_id in self.maps:
                     if sm_id in self.entries[map_id].inputs:
                         self.pending[map_id].append(obs)
@@ -634,6 +645,11 @@ class Dataflow:
         self.recorder.add(f"{kind}/{cid}/timestamps_s", batch.timestamps_s)
         for name, array in batch.channels.items():
             self.recorder.add(f"{kind}/{cid}/{name}", array)
+        if self.recording is not None:
+            units = None
+            if kind == "sensor":
+                units = {n: i.unit for n, i in self.components.sensors[cid].channels.items()}
+            self.recording.samples(kind, cid, batch, units)
 
     def _track_force(self, sensor: Sensor, batch: SampleBatch) -> None:
         """The largest finite force magnitude (``force_max_n``), and for safety the valid

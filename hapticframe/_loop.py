@@ -86,6 +86,7 @@ def run_loop(session: Session) -> None:
     robots = list(session.components.robots.values())
     flow = Dataflow(session.experiment, session.components, session.recorder,
                     session.training_sensors)
+    flow.recording = session.recording
     if planners or robots:
         if len(planners) != 1 or not robots:
             raise RunError(
@@ -183,6 +184,7 @@ def _closed_loop(
             },
         )
         session.movements.append(result)
+        _record_movement(session, result, devices)
         _note_force(session, flow.force_max_n)
         _progress(session, result, steps, devices, team.path_label(used))
         for component in session.components.values():
@@ -216,6 +218,7 @@ def _refuse_outside_workspace(
         "reason": OUTSIDE_WORKSPACE, "robots": [r.id for r in robots], "movement": index,
         "detail": why,
     })
+    _record_movement(session, result, devices)
     _progress(session, result, 0, devices)
     for component in session.components.values():
         component.on_movement_end(result)
@@ -326,6 +329,21 @@ def _open_loop(session: Session, flow: Dataflow) -> None:
     faults = device_faults(devices)
     if faults:  # the open loop has no per-movement line: the devices' faults at its end
         session.echo(f"{reads} sensor reads{faults}")
+
+
+def _record_movement(session: Session, result: MovementResult,
+                     devices: Mapping[str, Device]) -> None:
+    """Into ``run.mcap``: the movement's result, the safety halts since the last one and
+    the devices' health counters."""
+    recording = session.recording
+    if recording is None:
+        return
+    recording.movement(result)
+    for halt in session.safety_halts[recording.halts_recorded:]:
+        recording.event("/safety_halt", "hapticframe.SafetyHalt", halt)
+    recording.halts_recorded = len(session.safety_halts)
+    if devices:
+        recording.health({cid: d.health.as_dict() for cid, d in devices.items()})
 
 
 def _note_force(session: Session, force_n: float) -> None:

@@ -176,6 +176,38 @@ def _finish(directory: OutputDir, record: dict[str, Any], primary: BaseException
         _log.error("%s; %s still says the run is unfinished", exc, directory.record)
 
 
+def _open_recording(directory: OutputDir, experiment: Experiment, started_utc: str) -> Any:
+    """``run.mcap`` in the staging folder: it moves into ``--out`` with the other files, or
+    stays there, readable up to its last sync, when the run is killed."""
+    from ._recording import RECORDING, RunRecording
+
+    return RunRecording(directory.staging / RECORDING, {
+        "name": experiment.model.name, "seed": str(experiment.seed),
+        "experiment_file": str(experiment.file), "started_utc": started_utc,
+    })
+
+
+def _close_recording(session: Session) -> OutputError | None:
+    """Write the devices' last counters and the recording's summary; the error when the
+    file cannot be written."""
+    recording = session.recording
+    if recording is None or recording.closed:
+        return None
+    try:
+        try:
+            health = _device_health(session.components)
+        except Exception:  # a broken device's counters never stop the recording's close
+            health = {}
+        try:
+            if health:
+                recording.health(health)
+        finally:
+            recording.close()
+    except OutputError as exc:
+        return exc
+    return None
+
+
 def run_experiment(
     experiment: Experiment,
     out_dir: str | Path,
@@ -229,6 +261,7 @@ def run_experiment(
     signal_name: str | None = None
     metrics: dict[str, Any] = {}
     primary: BaseException | None = None
+    recording_error: OutputError | None = None
     try:
         with _sigterm_as_interrupt(), ExitStack() as stack:
             components = _assembly.build_components(
@@ -238,6 +271,8 @@ def run_experiment(
             session = Session(experiment, directory.staging, components, say,
                               results_dir=out)
             session.started_utc = started_utc
+            if session.settings.record:
+                session.recording = _open_recording(directory, experiment, started_utc)
             try:
                 session.hook.hapticframe_session_start(session=session.view())
                 _fit_before_run(session)
@@ -301,8 +336,16 @@ def run_experiment(
                 session.status, error = "failed", "; ".join(close_errors)
             elif close_errors:
                 session.details["close_errors"] = close_errors
+            recording_error = _close_recording(session)
+            if recording_error is not None:
+                if session.status == "ok":
+                    session.status, error = "failed", str(recording_error)
+                else:  # the run is already failing: its first error stays the error
+                    session.details["recording_error"] = str(recording_error)
             wall = time.perf_counter() - session.started
             _finish(directory, run_record(session, wall, error, signal_name), primary)
+    if recording_error is not None and primary is None:
+        raise recording_error
     if close_errors:
         raise RunError("; ".join(close_errors))
     summary = RunSummary(metrics)

@@ -36,6 +36,9 @@ class Session:
     results_dir: Path | None = None
     movements: list[MovementResult] = field(default_factory=list)
     recorder: TraceRecorder = field(default_factory=TraceRecorder)
+    #: The run's ``run.mcap`` writer (:class:`~hapticframe._recording.RunRecording`), or
+    #: None when ``run.record`` is off.
+    recording: Any = None
     #: Entries for ``run.json``'s ``details`` (training, sensor reads, ...).
     details: dict[str, Any] = field(default_factory=dict)
     started: float = field(default_factory=time.perf_counter)

@@ -123,6 +123,13 @@ class RunSettings(BaseModel):
         "continues the line from where it stopped once the stall check passes again, the "
         "parts one movement; then it ends halted. 0: never resume.",
     )
+    record: bool = Field(
+        True,
+        description="Record the run as it happens into run.mcap (every sensor batch, "
+        "classifier output, observation, robot state, movement, halt and device health), "
+        "synced to disk about once a second so that a killed run keeps all but its last "
+        "second (`hapticframe recover`).",
+    )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,
         description="With a live device (real hardware), the shortest wall-clock time between "

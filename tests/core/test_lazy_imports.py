@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-HEAVY = ["torch", "sklearn", "serial", "can", "dynamixel_sdk", "matplotlib"]
+HEAVY = ["torch", "sklearn", "serial", "can", "dynamixel_sdk", "matplotlib", "mcap"]
 ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """

@@ -159,7 +159,7 @@ def test_run_json_says_running_before_anything_is_built(experiment, monkeypatch)
     assert run(experiment, out) == 0
     assert seen[0]["status"] == "running" and seen[0]["pid"] == os.getpid()
     data = assert_finished(out)
-    assert data["files"] == ["metrics.json", "trace.npz"]
+    assert data["files"] == ["metrics.json", "run.mcap", "trace.npz"]
     assert not (out / STAGING).exists()
 
 
@@ -202,7 +202,7 @@ def test_kill_9_leaves_an_unfinished_run_that_is_refused_then_cleared(experiment
         if (out / name).is_file():
             assert (out / name).stat().st_size > 0
     if point == "move":
-        assert data["files"] == ["metrics.json", "trace.npz"]
+        assert data["files"] == ["metrics.json", "run.mcap", "trace.npz"]
     capsys.readouterr()
     assert run(experiment, out) == 2
     err = capsys.readouterr().err
@@ -246,7 +246,7 @@ def test_overwrite_deletes_the_previous_runs_files_and_only_those(experiment, ca
     assert run(experiment, out, "--overwrite") == 0
     assert not (out / "logodds_phase3.png").exists() and (out / ".keep").exists()
     assert experiment.exists()
-    assert record(out)["files"] == ["metrics.json", "trace.npz"]
+    assert record(out)["files"] == ["metrics.json", "run.mcap", "trace.npz"]
 
     (out / "notes.txt").write_text("mine")
     metrics = (out / "metrics.json").read_bytes()
@@ -374,7 +374,7 @@ def test_a_full_disk_while_writing_metrics_is_located_and_recorded(experiment, m
     assert "metrics.json: No space left on device (ENOSPC)" in err
     assert "internal error" not in err
     data = assert_finished(out, "failed")
-    assert "metrics.json" in data["error"] and data["files"] == ["trace.npz"]
+    assert "metrics.json" in data["error"] and data["files"] == ["run.mcap", "trace.npz"]
 
 
 @needs_proc
@@ -458,6 +458,7 @@ def test_overwrite_clears_a_finished_run_of_an_earlier_version(experiment, capsy
     # An earlier version's record: finished, but without the list of its files.
     legacy = {k: v for k, v in record(out).items() if k != "files"}
     (out / "run.json").write_text(json.dumps(legacy), encoding="utf-8")
+    (out / "run.mcap").unlink()  # earlier versions recorded no run.mcap
     (out / "notes.txt").write_text("mine", encoding="utf-8")
     assert run(experiment, out, "--overwrite") == 2  # a file it did not write: refused
     assert "notes.txt" in capsys.readouterr().err and (out / "notes.txt").exists()
