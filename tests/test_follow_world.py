@@ -216,6 +216,7 @@ def test_samples_from_before_a_movement_are_not_located() -> None:
     flow = Dataflow.__new__(Dataflow)
     flow.sensor_models = []  # no sensor model: _observe returns after the filter
     flow.movement_start_s = -math.inf
+    flow.recording = None
     flow.locate_from(2.0)
     probs = ClassProbabilities(np.array([1.0, 1.5]), np.array([[1.0, 0.0]] * 2), ("a", "b"))
     flow._observe("clf", probs)  # everything before the start: nothing located
