@@ -456,8 +456,8 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
             if self.host is not None:
                 try:
                     self.host.set_group(int(Group.HAND), HAND_NODES, "MODE", int(Mode.IDLE))
-                except BarrettError:
-                    pass
+                except BarrettError:  # the bus is down: the pucks hold or idle on their own,
+                    self.health.timeouts += 1  # and deactivation must go on to the carrier
 
     def on_cleanup(self) -> None:
         self._active = False

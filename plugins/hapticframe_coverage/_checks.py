@@ -1,8 +1,9 @@
 """Checks of the coverage planners that ``validate`` runs (import-light: no numpy).
 
-Across components: the speed over each robot's control period (steps per line, the step's
-length against the smallest object and the failure zone ahead of the fingertip) and the
-search region against the line spacing and the map-sampling grids.
+Across components: the step over each robot's control period against the failure zone
+ahead of the fingertip (the core checks the steps per line and the step against the
+smallest object for every planner), and the search region against the line spacing and the
+map-sampling grids.
 """
 
 from __future__ import annotations
@@ -41,25 +42,6 @@ def _region(config: Any, context: ValidationContext) -> tuple[float, float, floa
     return _DEFAULT_REGION
 
 
-def _smallest_object(scene: Any) -> tuple[float, int] | None:
-    """The smallest extent (m) over the scene's objects and the object's index."""
-    best: tuple[float, int] | None = None
-    for index, obj in enumerate(getattr(scene, "objects", None) or ()):
-        if getattr(obj, "radius_m", None) is not None:
-            size = 2.0 * obj.radius_m
-        elif getattr(obj, "semi_axes_m", None) is not None:
-            size = 2.0 * min(obj.semi_axes_m)
-        elif getattr(obj, "vertices_m", None):
-            xs = [v[0] for v in obj.vertices_m]
-            ys = [v[1] for v in obj.vertices_m]
-            size = min(max(xs) - min(xs), max(ys) - min(ys))
-        else:
-            continue
-        if math.isfinite(size) and size > 0 and (best is None or size < best[0]):
-            best = (size, index)
-    return best
-
-
 def _shear_band_angle_rad(robot: Any, scene: Any) -> float:
     """β: the robot's, else the Arthur angle π/4 − (φ + ψ)/4 of the scene's material."""
     beta = getattr(robot, "shear_band_angle_deg", None)
@@ -91,34 +73,20 @@ def _robots(context: ValidationContext) -> list[tuple[str, Any, float]]:
     return robots
 
 
-def _speed(config: Any, context: ValidationContext, diagonal: float) -> Iterator[Finding]:
+def _speed(config: Any, context: ValidationContext) -> Iterator[Finding]:
+    """A step no longer than the failure zone ahead of the fingertip. (That a line ends
+    within the step limit and a step cannot jump over an object, the core checks for every
+    planner with a speed.)"""
     speed = config.speed_m_per_s
-    smallest = _smallest_object(context.scene)
-    max_steps = getattr(context.run, "max_steps_per_movement", None)
     for robot_id, robot, rate in _robots(context):
         step = speed / rate
-        where = (f"{speed:g} m/s with robot {robot_id!r} at {rate:g} Hz moves "
-                 f"{step * 1e3:.3g} mm per control step")
-        if max_steps is not None and diagonal / step > max_steps:
-            yield Finding(
-                f"{where}: a line across the {diagonal:.3g} m region takes up to "
-                f"{diagonal / step:.3g} steps, beyond run.max_steps_per_movement ({max_steps}); "
-                "raise the speed or lower the control rate",
-                field="speed_m_per_s",
-            )
-            continue
-        if smallest is not None and step >= smallest[0]:
-            yield Finding(
-                f"{where}, as long as scene object {smallest[1]} ({smallest[0] * 1e3:.3g} mm "
-                "across): one step jumps over it; lower the speed",
-                field="speed_m_per_s",
-            )
-            continue
         zone = _failure_zone_m(config, robot, context.scene)
         if zone > 0 and step >= zone:
             yield Finding(
-                f"{where}, longer than the {zone * 1e3:.3g} mm failure zone ahead of the "
-                "fingertip: jamming cannot be seen before the plate passes it; lower the speed",
+                f"{speed:g} m/s with robot {robot_id!r} at {rate:g} Hz moves "
+                f"{step * 1e3:.3g} mm per control step, longer than the {zone * 1e3:.3g} mm "
+                "failure zone ahead of the fingertip: jamming cannot be seen before the plate "
+                "passes it; lower the speed",
                 field="speed_m_per_s",
             )
 
@@ -134,7 +102,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
             f"spacing ({spacing:g} m): lower line_spacing_m or enlarge the region",
             field="line_spacing_m",
         )
-    yield from _speed(config, context, math.hypot(width, height))
+    yield from _speed(config, context)
     map_id = getattr(config, "map_id", None)
     if map_id is not None and map_id not in context.inputs:
         yield Finding(

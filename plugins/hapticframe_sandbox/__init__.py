@@ -23,8 +23,8 @@ __all__ = [
 ]
 
 _LAZY = {
-    "GroundTruthLog": "._robot",
-    "MovementTruth": "._robot",
+    "GroundTruthLog": "._truth",
+    "MovementTruth": "._truth",
     "SandboxRobot": "._robot",
     "SandboxForceSensor": "._sensor",
     "approach_movement": "._scenarios",

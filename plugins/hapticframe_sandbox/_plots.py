@@ -12,7 +12,7 @@ import numpy as np
 
 from hapticframe import plotting
 
-from ._robot import GroundTruthLog, MovementTruth
+from ._truth import GroundTruthLog, MovementTruth
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -30,7 +30,6 @@ import dataclasses
 import math
 from bisect import bisect_right
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +39,6 @@ from numpy.typing import NDArray
 from hapticframe import save_npz
 from hapticframe.kinds import (
     BuildContext,
-    Device,
     EnvironmentCoupled,
     ExploratoryMovement,
     MovementResult,
@@ -56,6 +54,8 @@ from hapticframe_granular import arthur_angle, rupture_distance, side_crescent_a
 
 from . import _functional as F
 from ._config import SandboxRobotConfig
+from ._truth import CONTACT, FREE, JAMMING, STATE_NAMES, GroundTruthLog, MovementTruth
+from ._world import _followed_robot, _Sandbox
 
 __all__ = [
     "CONTACT",
@@ -67,67 +67,8 @@ __all__ = [
     "SandboxRobot",
 ]
 
-FREE, JAMMING, CONTACT = 0, 1, 2
 #: How far past its workspace a movement may reach (rounding of a cut at the boundary).
 WORKSPACE_SLACK_M = 1e-6
-#: Names of the ground-truth states, indexed by state number.
-STATE_NAMES = ("free", "jamming", "contact")
-
-
-@dataclass(frozen=True)
-class GroundTruthLog:
-    """The simulator's per-step truth, one row per robot step (all movements, in order).
-
-    Attributes
-    ----------
-    timestamps_s : (n,) float64
-    positions_m : (n, 2) float64
-    states : (n,) int64
-        0 free movement, 1 granular jamming, 2 direct contact.
-    forces_n : (n, 2) float64
-        True interaction force on the fingertip.
-    movement_index : (n,) int64
-        0-based exploratory movement each step belongs to.
-    depth_m : (n,) float64
-        Raking depth of the step's movement.
-    """
-
-    timestamps_s: NDArray[np.float64]
-    positions_m: NDArray[np.float64]
-    states: NDArray[np.int64]
-    forces_n: NDArray[np.float64]
-    movement_index: NDArray[np.int64]
-    depth_m: NDArray[np.float64]
-
-    @property
-    def force_magnitude_n(self) -> NDArray[np.float64]:
-        return np.hypot(self.forces_n[:, 0], self.forces_n[:, 1])
-
-    def __len__(self) -> int:
-        return int(self.timestamps_s.size)
-
-
-@dataclass(frozen=True)
-class MovementTruth:
-    """What really happened during one exploratory movement."""
-
-    index: int
-    depth_m: float
-    rupture_distance_m: float
-    side_crescent_angle_deg: float
-    start_time_s: float
-    end_time_s: float
-    jamming_onset_s: float
-    contact_onset_s: float
-    max_state: int
-    max_force_n: float
-    halt_reason: str
-
-    @property
-    def interacted(self) -> bool:
-        """True when the failure zone or the plate reached an object."""
-        return self.max_state >= JAMMING
-
 
 class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
     """Simulated robot that rakes a rigid plate through a sandbox at constant depth and speed.
@@ -778,168 +719,3 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         )
         self._movements.append(truth)
         self._world.part_closed(truth.interacted)
-
-
-
-def _followed_robot(own_id: str, followed_id: str, inputs: Mapping[str, Any]) -> Robot:
-    """The robot a sandbox follows: in its inputs, not a sandbox, and emulated."""
-    robot = inputs.get(followed_id)
-    if robot is None:
-        raise ValueError(
-            f"robot {own_id!r} follows {followed_id!r}: name it in the sandbox's inputs"
-        )
-    others = sorted(set(inputs) - {followed_id})
-    if others:
-        raise ValueError(
-            f"robot {own_id!r} follows {followed_id!r} and takes no other inputs "
-            f"(found {', '.join(repr(o) for o in others)})"
-        )
-    if isinstance(robot, SandboxRobot) or not isinstance(robot, Robot):
-        raise ValueError(
-            f"robot {own_id!r} follows {followed_id!r}, which is not a robot the sandbox can "
-            "follow (an emulated robot: a sandbox robot shares the sandbox instead, without "
-            "'follows')"
-        )
-    if isinstance(robot, Device) and robot.live:
-        raise ValueError(
-            f"robot {own_id!r} follows {followed_id!r}, which drives real hardware: a simulated "
-            "sandbox can only surround an emulated robot (set its port to 'emulated')"
-        )
-    return robot
-
-
-#: Config fields every robot of one sandbox must share: its clock and depth schedule.
-_SHARED_FIELDS = (
-    "control_rate_hz", "depth_m", "depth_reduction_m", "depth_reduction_ratio", "min_depth_m",
-)
-
-
-class _Sandbox:
-    """What the sandbox robots of one scene share: the clock and the depth schedule.
-
-    A sandbox robot that names other sandbox robots in its ``inputs`` joins their sandbox
-    (the scene's objects and material are the same for all); each robot keeps its own
-    ground-truth log. Time is the sandbox's step count over all its robots, so steps are
-    strictly ordered across robots. The schedule changes once per exploratory movement,
-    when every robot's part of it has ended (:meth:`movement_ended`, or a robot's next
-    ``begin`` when it runs alone).
-    """
-
-    def __init__(self, first: SandboxRobot) -> None:
-        cfg = first.config
-        self.robots: list[SandboxRobot] = [first]
-        self.schedule_depth = cfg.depth_m
-        self.next_reduction = cfg.depth_reduction_m
-        self.interactions = 0
-        #: Exploratory movements settled so far (the index the next one logs).
-        self.settled = 0
-        self._parts = 0
-        self._interacted = False
-
-    @classmethod
-    def join(cls, robot: SandboxRobot, inputs: Mapping[str, Any]) -> _Sandbox:
-        others = list(inputs.values())
-        if not others:
-            return cls(robot)
-        wrong = [k for k, v in inputs.items() if not isinstance(v, SandboxRobot)]
-        if wrong:
-            raise ValueError(
-                f"robot {robot.id!r} (type 'sandbox') shares a sandbox only with robots of "
-                f"type 'sandbox'; {', '.join(repr(w) for w in wrong)} is not one"
-            )
-        world: _Sandbox = others[0]._world
-        if any(o._world is not world for o in others):
-            raise ValueError(f"robot {robot.id!r}: its input robots are in different sandboxes")
-        first = world.robots[0]
-        for name in _SHARED_FIELDS:
-            if getattr(robot.config, name) != getattr(first.config, name):
-                raise ValueError(
-                    f"robot {robot.id!r} shares the sandbox of {first.id!r} and must have the "
-                    f"same {name} ({getattr(first.config, name)})"
-                )
-        world.robots.append(robot)
-        return world
-
-    @property
-    def steps(self) -> int:
-        """Steps taken by every robot of the sandbox."""
-        robots = self.robots
-        if len(robots) == 1:
-            return len(robots[0]._log_t)
-        return sum(len(r._log_t) for r in robots)
-
-    def part_closed(self, interacted: bool) -> None:
-        """One robot's part of a movement has ended; settle when it was the last open."""
-        self._parts += 1
-        self._interacted = self._interacted or interacted
-        self._settle()
-
-    def movement_ended(self, index: int) -> None:
-        """The run loop's movement ``index`` has ended (every robot hears it)."""
-        self._settle()
-        if not any(not r._closed for r in self.robots):
-            self.settled = max(self.settled, index + 1)
-
-    def _settle(self) -> None:
-        if self._parts == 0 or any(not r._closed for r in self.robots):
-            return
-        if self._interacted:
-            # Soil displaced around the object: rake shallower next time (1, 0.5, 0.25 cm ...).
-            cfg = self.robots[0].config
-            self.interactions += 1
-            self.schedule_depth = max(cfg.min_depth_m, self.schedule_depth - self.next_reduction)
-            self.next_reduction *= cfg.depth_reduction_ratio
-        self.settled += 1
-        self._parts = 0
-        self._interacted = False
-
-    def ground_truth(self) -> tuple[GroundTruthLog, NDArray[np.str_] | None]:
-        """Every robot's log in time order, and the robot of each row (None when alone)."""
-        if len(self.robots) == 1:
-            return self.robots[0].ground_truth, None
-        logs = [r.ground_truth for r in self.robots]
-        order = np.argsort(np.concatenate([g.timestamps_s for g in logs]), kind="stable")
-        ids = np.concatenate([np.full(len(g), r.id) for g, r in zip(logs, self.robots,
-                                                                     strict=True)])
-        merged = GroundTruthLog(
-            **{name: np.concatenate([getattr(g, name) for g in logs])[order]
-               for name in ("timestamps_s", "positions_m", "states", "forces_n",
-                            "movement_index", "depth_m")}
-        )
-        return merged, ids[order]
-
-    def movement_truths(self) -> list[MovementTruth]:
-        """The truth of every exploratory movement in order: the parts of a movement that
-        several robots made (the same index) joined into one."""
-        if len(self.robots) == 1:
-            return list(self.robots[0].movements)
-        parts: dict[int, list[MovementTruth]] = {}
-        for truth in sorted((m for r in self.robots for m in r.movements),
-                            key=lambda m: m.start_time_s):
-            parts.setdefault(truth.index, []).append(truth)
-        return [_joined(p) for _, p in sorted(parts.items())]
-
-
-def _joined(parts: list[MovementTruth]) -> MovementTruth:
-    """One movement's truth from its parts, in time order."""
-    if len(parts) == 1:
-        return parts[0]
-    first, last = parts[0], parts[-1]
-
-    def earliest(values: list[float]) -> float:
-        finite = [v for v in values if not math.isnan(v)]
-        return min(finite) if finite else math.nan
-
-    return MovementTruth(
-        index=first.index,
-        depth_m=first.depth_m,
-        rupture_distance_m=first.rupture_distance_m,
-        side_crescent_angle_deg=first.side_crescent_angle_deg,
-        start_time_s=first.start_time_s,
-        end_time_s=last.end_time_s,
-        jamming_onset_s=earliest([p.jamming_onset_s for p in parts]),
-        contact_onset_s=earliest([p.contact_onset_s for p in parts]),
-        max_state=max(p.max_state for p in parts),
-        max_force_n=max(p.max_force_n for p in parts),
-        halt_reason=last.halt_reason,
-    )
