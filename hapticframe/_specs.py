@@ -22,6 +22,7 @@ __all__ = [
     "BenchSpec",
     "ClassifierSpec",
     "FeatureExtractorSpec",
+    "Knob",
     "MapSpec",
     "PlannerSpec",
     "PluginConfig",
@@ -34,6 +35,7 @@ __all__ = [
 
 _NAME = re.compile(r"^[a-z][a-z0-9]*(?:[-_][a-z0-9]+)*$")
 _REFERENCE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+_FIELD_PATH = re.compile(r"^[a-z_][a-z0-9_]*(?:\.[a-z_][a-z0-9_]*)*$")
 
 
 class PluginConfig(BaseModel):
@@ -102,6 +104,72 @@ def resolve_reference(reference: str, *, what: str = "", install_hint: str = "")
 
 
 @dataclass(frozen=True)
+class Knob:
+    """A speed/accuracy knob a plugin declares (issue 18): a config field and the values
+    worth trying, for ``hapticframe sweep --declared``.
+
+    Parameters
+    ----------
+    field : str
+        Dotted path of the field inside the component's ``config`` (``"hinge_spacing_m"``,
+        ``"kernel.length_scale_m"``).
+    trades : str
+        One line: what the knob trades (``"finer hinges: sharper outline, cubic fit time"``).
+    values : tuple
+        The meaningful values, in order; or, instead, a range:
+    low, high : float
+        The range's ends (``low < high``; both positive for ``scale="log"``).
+    scale : {"linear", "log"}
+        How :meth:`sweep_values` spaces ``points`` values over the range.
+    points : int
+        How many values a range gives (at least 2).
+    integer : bool
+        Round a range's values to distinct integers (a count: atoms, layers, samples).
+    """
+
+    field: str
+    trades: str
+    values: tuple[Any, ...] = ()
+    low: float | None = None
+    high: float | None = None
+    scale: str = "linear"
+    points: int = 5
+    integer: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.field, str) or not _FIELD_PATH.match(self.field):
+            raise ValueError(f"knob field {self.field!r} must be a dotted path of field names")
+        if not isinstance(self.trades, str) or not self.trades.strip() or "\n" in self.trades:
+            raise ValueError(f"knob {self.field!r}: trades must be one non-empty line")
+        object.__setattr__(self, "values", tuple(self.values))
+        ranged = self.low is not None or self.high is not None
+        if bool(self.values) == ranged:
+            raise ValueError(f"knob {self.field!r}: give either values or low and high")
+        if ranged:
+            if self.low is None or self.high is None or not float(self.low) < float(self.high):
+                raise ValueError(f"knob {self.field!r}: needs low < high")
+            if self.scale not in ("linear", "log"):
+                raise ValueError(f"knob {self.field!r}: scale must be 'linear' or 'log'")
+            if self.scale == "log" and float(self.low) <= 0:
+                raise ValueError(f"knob {self.field!r}: a log range needs low > 0")
+            if int(self.points) < 2:
+                raise ValueError(f"knob {self.field!r}: a range needs at least 2 points")
+
+    def sweep_values(self) -> tuple[Any, ...]:
+        """The values to sweep: ``values``, or ``points`` values spread over the range."""
+        if self.values:
+            return self.values
+        import numpy as np
+
+        assert self.low is not None and self.high is not None
+        space = np.geomspace if self.scale == "log" else np.linspace
+        grid = space(float(self.low), float(self.high), int(self.points))
+        if self.integer:
+            return tuple(dict.fromkeys(int(round(v)) for v in grid))
+        return tuple(float(v) for v in grid)
+
+
+@dataclass(frozen=True)
 class PluginSpec:
     """What a plugin registers: one record per (kind, name).
 
@@ -166,6 +234,7 @@ class PluginSpec:
     check_config: dict[str, Any] | None = field(default=None, hash=False)
     check_inputs: tuple[str, ...] = ()
     validator: str = ""
+    knobs: tuple[Knob, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not _NAME.match(self.name):
@@ -196,6 +265,9 @@ class PluginSpec:
             )
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "requires", tuple(self.requires))
+        object.__setattr__(self, "knobs", tuple(self.knobs))
+        if not all(isinstance(k, Knob) for k in self.knobs):
+            raise TypeError(f"plugin {self.name!r}: knobs must be hapticframe.Knob records")
         for ref in self.check_inputs:
             kind_name, _, plugin_name = ref.partition("/")
             if kind_name not in {k.value for k in Kind} or not plugin_name:
