@@ -165,7 +165,7 @@ class Knob:
         space = np.geomspace if self.scale == "log" else np.linspace
         grid = space(float(self.low), float(self.high), int(self.points))
         if self.integer:
-            return tuple(dict.fromkeys(int(round(v)) for v in grid))
+            return tuple(dict.fromkeys(int(np.rint(v)) for v in grid))
         return tuple(float(v) for v in grid)
 
 
