@@ -106,6 +106,10 @@ def _groups(summary: Mapping[str, Any]) -> list[tuple[str, str, Mapping[str, Any
     out = []
     for shape in summary.get("shapes", ("circle", "ellipse")):
         out.append((shape, str(planners.get("search", "two-phase-coverage")), summary[shape]))
+        if "thesis_params" in summary:
+            out.append((shape,
+                        f"{planners.get('thesis-params', 'two-phase-coverage')} (Table 3.1)",
+                        summary["thesis_params"][shape]))
         out.append((shape, f"{planners.get('baseline', 'coverage')} (baseline)",
                     summary["baseline"][shape]))
     return out
@@ -122,8 +126,9 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
         "",
         f"{summary.get('trials')} trial(s) per shape and planner, seed {summary.get('seed')}; "
         "each trial buries one object at a random position and orientation inside the "
-        "75 × 50 cm region (circle: 8 cm diameter; ellipse: 9 × 5 cm) and runs both "
-        "planners on the same placement.",
+        "75 × 50 cm region (circle: 8 cm diameter; ellipse: 9 × 5 cm) and runs every "
+        "planner on the same placement (Table 3.1: the two-phase planner with the "
+        "dissertation's own parameters instead of the bundled defaults).",
         "",
         f"Total wall time: {wall:.1f} s ({wall / 60:.1f} min) on {machine.get('platform', '?')}, "
         f"{machine.get('cpu_count', '?')} CPUs, Python {machine.get('python', '?')}.",
@@ -224,8 +229,10 @@ def draw_trial_figure(summary: Mapping[str, Any]) -> Any:
     shapes = list(summary.get("shapes", ("circle", "ellipse")))
     planners = summary.get("planners", {})
     labels = {"search": planners.get("search", "two-phase"),
+              "thesis-params": f"{planners.get('thesis-params', 'two-phase')} (Table 3.1)",
               "baseline": f"{planners.get('baseline', 'coverage')} (baseline)"}
-    styles = {"search": ("tab:blue", "o"), "baseline": ("tab:orange", "s")}
+    styles = {"search": ("tab:blue", "o"), "thesis-params": ("tab:green", "D"),
+              "baseline": ("tab:orange", "s")}
     fig = Figure(figsize=(max(4.5 * len(shapes), 7.5), 6.0), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(2, len(shapes), squeeze=False)
