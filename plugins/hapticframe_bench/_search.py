@@ -187,8 +187,9 @@ def _command(options: BenchOptions, trials: int) -> str:
 
 
 def _progress(record: Mapping[str, Any], done: int, total: int, *, kept: bool = False) -> str:
+    who = "Table 3.1 params" if record.get("role") == THESIS_ROLE else record["planner"]
     head = (f"[{done:>3}/{total}] {record['shape']:<7} trial {record['index']:<3} "
-            f"{record['planner']:<19}")
+            f"{who:<19}")
     if kept:
         head += " kept from an earlier run:"
     if record["status"] != "ok":
