@@ -18,10 +18,10 @@ from hapticframe._recording import read_recording
 
 pytest.importorskip("rosbags")
 
-from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
-from rosbags.rosbag2 import StoragePlugin  # noqa: E402
-from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
 
 #: 2023-11-14T22:13:20Z, a bag's absolute start.
 EPOCH_S = 1_700_000_000
@@ -41,7 +41,7 @@ def _header(store: Any, stamp_ns: int, ros1: bool) -> Any:
                                                                           frame_id="tip")
 
 
-def _vector(store: Any, v: Sequence[float]) -> Any:
+def _vector(store: Any, v: np.ndarray) -> Any:
     return store.types["geometry_msgs/msg/Vector3"](x=v[0], y=v[1], z=v[2])
 
 
