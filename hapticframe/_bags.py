@@ -193,7 +193,7 @@ def _biotac(finger: str, topic: str) -> Converter:
             raise UsageError(
                 f"--map {topic}: its BioTac hand messages hold {len(fingers)} fingers "
                 f"(bt_position (bt_serial): {seen}); pick one with {topic}:POSITION=SENSOR_ID "
-                "or {topic}:SERIAL=SENSOR_ID, one --map per finger".replace("{topic}", topic))
+                f"or {topic}:SERIAL=SENSOR_ID, one --map per finger")
         if not fingers:
             return None
         f = fingers[0]
