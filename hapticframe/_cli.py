@@ -305,6 +305,18 @@ def cmd_recover(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_import_bag(args: argparse.Namespace) -> int:
+    from ._bags import describe, import_bag, parse_map
+
+    maps = [parse_map(text) for text in args.map or ()]
+    result = import_bag(args.bag, maps, args.out, overwrite=args.overwrite,
+                        min_free_bytes=_min_free(args))
+    _out(f"read {result.bag}")
+    for line in describe(result):
+        _out(line)
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
@@ -415,6 +427,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="FILE",
                    help="where to write it (default: DIR/run.mcap, or the file itself)")
     p.set_defaults(func=cmd_recover)
+
+    p = sub.add_parser("import-bag", help="turn a ROS 1 or ROS 2 bag's sensor topics into a "
+                       "recording the `recording` sensor source reads")
+    p.add_argument("bag", metavar="BAG",
+                   help="a ROS 1 .bag file or a ROS 2 bag directory (sqlite3 or mcap storage)")
+    p.add_argument("--map", action="append", metavar="TOPIC=SENSOR_ID",
+                   help="a topic (WrenchStamped, Imu or BioTacHand) to record as sensor "
+                   "SENSOR_ID (repeatable); TOPIC:FINGER=SENSOR_ID picks one finger of a "
+                   "BioTac hand by bt_position or bt_serial")
+    _add_out_options(p, "the recording (run.mcap) and import.json", "an earlier import")
+    p.set_defaults(func=cmd_import_bag)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")
