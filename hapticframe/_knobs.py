@@ -31,6 +31,7 @@ __all__ = [
     "describe_values",
     "knob_duplicates",
     "knob_problems",
+    "knob_record",
     "resolve_field",
 ]
 
@@ -247,3 +248,13 @@ def describe_values(knob: Knob) -> str:
     assert knob.low is not None and knob.high is not None
     kind = " integers" if knob.integer else ""
     return f"{knob.scale} {knob.low:g}..{knob.high:g} ({knob.points}{kind})"
+
+
+def knob_record(knob: Knob) -> dict[str, Any]:
+    """A knob as JSON-ready data (``hapticframe plugins --json``), its sweep values included."""
+    record: dict[str, Any] = {"field": knob.field, "trades": knob.trades,
+                              "values": list(knob.sweep_values())}
+    if knob.low is not None:
+        record.update(low=knob.low, high=knob.high, scale=knob.scale, points=knob.points,
+                      integer=knob.integer)
+    return record

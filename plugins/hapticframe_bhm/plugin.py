@@ -30,8 +30,9 @@ def hapticframe_maps() -> Iterator[MapSpec]:
                  "each one a full update", values=(1, 2, 5)),
             Knob("tolerance", "a looser stopping rule: fewer EM iterations, a looser fit",
                  low=0.005, high=0.2, scale="log", points=4),
-            Knob("std_method", "Monte-Carlo std (Eq. 3.8) against the deterministic surrogate, "
-                 "about 100 times cheaper on a large grid", values=("surrogate", "monte_carlo")),
+            Knob("std_method", "'surrogate': a deterministic std about 100 times cheaper on "
+                 "a large grid than the sampled one of Eq. 3.8",
+                 values=("surrogate", "monte_carlo")),
             Knob("monte_carlo_samples", "more weight samples (std_method monte_carlo): a "
                  "steadier std for the planner, linear in query time", values=(20, 50, 100, 400)),
         ),
