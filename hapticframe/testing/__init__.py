@@ -15,8 +15,8 @@ and batch agreeing, the config's JSON Schema round trip, lazy importing, and num
 extremes (zero, constant, huge, tiny and NaN input give finite output or a clear error).
 
 What each kind is held to, beyond the checks every plugin gets (``check_spec_record``,
-``check_config_round_trip``, ``check_lazy_import``, ``check_builds``,
-``check_deterministic``):
+``check_config_round_trip``, ``check_lazy_import``, ``check_builds``, ``check_knobs``
+(each declared knob names a config field and its values validate), ``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
   times; a ``finite`` sensor is read to its end, bounded by reads and by seconds of its
@@ -49,7 +49,8 @@ Every loop the kit drives is bounded (reads, steps, ``max_movements``), so a plu
 never ends fails a check instead of hanging it; no check is timed.
 """
 
-from . import _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
+# _knobs first: its spec-level check runs beside the other checks every plugin gets.
+from . import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
 from ._common import (
     CHECKS,
     HEAVY_MODULES,
@@ -66,6 +67,7 @@ from ._harness import (
     release_component,
     synthetic_batch,
 )
+from ._knobs import check_knobs
 from ._rewind import check_rewind
 from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
 from ._spatial import (
@@ -110,6 +112,7 @@ __all__ = [
     "check_builds",
     "check_config_round_trip",
     "check_deterministic",
+    "check_knobs",
     "check_lazy_import",
     "check_map_contract",
     "check_map_extremes",

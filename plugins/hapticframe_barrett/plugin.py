@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, RobotSpec, hookimpl
+from hapticframe import Kind, Knob, RobotSpec, hookimpl
 
 from ._hand_config import BarrettHandRobotConfig
 from ._wam_config import BarrettWamConfig
@@ -24,6 +24,12 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         factory="hapticframe_barrett._wam:BarrettWamRobot",
         capabilities=frozenset({"hardware"}),
         install_hint=_HINT,
+        knobs=(
+            Knob("control_rate_hz", "more control steps per second: finer trajectories and "
+                 "contact timing, more CAN traffic per movement", values=(50.0, 100.0, 200.0)),
+            Knob("ik_step_m", "closer IK solutions along a line: straighter fingertip lines, "
+                 "IK solves per line", values=(0.002, 0.004, 0.008, 0.016)),
+        ),
     )
     yield RobotSpec(
         name="barrett-hand",
@@ -36,4 +42,8 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         inputs=(Kind.ROBOT,),
         check_inputs=("robot/barrett-wam",),
         install_hint=_HINT,
+        knobs=(
+            Knob("poll_every_steps", "polling the hand less often: less CAN traffic per step, "
+                 "a pushed finger seen later", values=(1, 5, 10, 20)),
+        ),
     )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import MapSpec, SensorModelSpec, hookimpl
+from hapticframe import Knob, MapSpec, SensorModelSpec, hookimpl
 
 from ._config import BeliefMapConfig, ContactPointConfig
 
@@ -35,4 +35,14 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         capabilities=frozenset({"binned"}),
         requires=("sklearn",),
         install_hint="pip install scikit-learn  (figures need matplotlib)",
+        knobs=(
+            Knob("max_points", "more representatives: a finer boundary, SVC refits growing "
+                 "quadratically or worse in the points", values=(100, 200, 400, 1000)),
+            Knob("update_every", "refitting less often: fewer SVC fits, a staler map for the "
+                 "planner", values=(1, 5, 10, 25)),
+            Knob("cell_size_m", "coarser bins: fewer representatives to fit, a blurred "
+                 "boundary", values=(0.001, 0.002, 0.005, 0.01)),
+            Knob("calibration_folds", "more Platt folds: steadier probabilities, one SVC fit "
+                 "per fold", values=(2, 3, 5)),
+        ),
     )

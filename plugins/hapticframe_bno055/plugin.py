@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, SensorSpec, hookimpl
+from hapticframe import Kind, Knob, SensorSpec, hookimpl
 
 from ._config import Bno055SensorConfig
 
@@ -26,6 +26,10 @@ SPECS = (
         # The robot is optional: it drives the emulated IMU; a real port ignores it.
         inputs=(Kind.ROBOT,),
         check_config={"port": "emulated"},
+        knobs=(
+            Knob("rate_hz", "fewer polls per second: less UART traffic per step, staler "
+                 "acceleration for the force observer", values=(25.0, 50.0, 100.0)),
+        ),
     ),
 )
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import PlannerSpec, hookimpl
+from hapticframe import Knob, PlannerSpec, hookimpl
 
 from ._config import CoverageConfig, TwoPhaseCoverageConfig
 
@@ -21,6 +21,21 @@ def hapticframe_planners() -> Iterator[PlannerSpec]:
         factory="hapticframe_coverage._two_phase:TwoPhaseCoverage",
         validator="hapticframe_coverage._checks:check",
         capabilities=frozenset({"finite", "reads-map"}),
+        knobs=(
+            Knob("line_spacing_m", "wider phase-1 lines: fewer movements before the first "
+                 "contact, an object between lines missed", values=(0.06, 0.08, 0.1, 0.12)),
+            Knob("max_phase2_movements", "more phase-2 movements: a closer outline, robot time "
+                 "per movement", values=(4, 8, 12, 20)),
+            Knob("phase2_line_spacing_m", "denser phase-2 candidate lines: a better-placed next "
+                 "line, each candidate scored on the map", values=(0.01, 0.02, 0.04)),
+            Knob("score_step_m", "finer points along a candidate line (Eq. 3.9): a truer score, "
+                 "map queries per line", values=(0.005, 0.01, 0.02)),
+            Knob("grid_spacing_m", "a finer map sample for the centroid and the stop rule: "
+                 "steadier estimates, map queries growing as 1/spacing²",
+                 values=(0.005, 0.01, 0.02)),
+            Knob("gap_step_deg", "finer approach directions ('widest-gap'): a better-aimed line, "
+                 "more directions tried", values=(2.5, 5.0, 10.0)),
+        ),
     )
     yield PlannerSpec(
         name="coverage",
@@ -29,4 +44,8 @@ def hapticframe_planners() -> Iterator[PlannerSpec]:
         factory="hapticframe_coverage._coverage:BoustrophedonCoverage",
         validator="hapticframe_coverage._checks:check",
         capabilities=frozenset({"finite"}),
+        knobs=(
+            Knob("line_spacing_m", "wider lines: fewer movements, an object between lines "
+                 "missed or outlined coarsely", values=(0.02, 0.035, 0.05, 0.07)),
+        ),
     )

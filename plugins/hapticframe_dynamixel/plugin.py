@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import RobotSpec, hookimpl
+from hapticframe import Knob, RobotSpec, hookimpl
 
 from ._config import DynamixelRobotConfig
 
@@ -20,4 +20,11 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         factory="hapticframe_dynamixel._robot:DynamixelRobot",
         capabilities=frozenset({"hardware"}),
         install_hint="pip install 'hapticframe[hardware]' (dynamixel-sdk, pyserial)",
+        knobs=(
+            Knob("control_rate_hz", "more control steps per second: finer trajectories and "
+                 "contact timing, more bus transactions per movement",
+                 values=(25.0, 50.0, 100.0)),
+            Knob("tolerance_m", "a tighter end tolerance: exacter line ends, more settle steps",
+                 values=(0.0005, 0.001, 0.002, 0.005)),
+        ),
     )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import SensorModelSpec, hookimpl
+from hapticframe import Knob, SensorModelSpec, hookimpl
 
 from ._config import FailureZoneConfig
 
@@ -21,4 +21,11 @@ def hapticframe_sensor_models() -> Iterator[SensorModelSpec]:
         factory="hapticframe_failure_zone._kernel:FailureZoneKernel",
         validator="hapticframe_failure_zone._checks:check",
         capabilities=frozenset({"streaming"}),
+        knobs=(
+            Knob("observation_spacing_m", "sectors emitted every this much travel (0: every "
+                 "sample): fewer map points to fit, coarser evidence along a line",
+                 values=(0.0, 0.01, 0.02, 0.04)),
+            Knob("sector_spacing_m", "a finer polar grid per sector: a smoother kernel on the "
+                 "map, points growing as 1/spacing²", values=(0.0075, 0.015, 0.03)),
+        ),
     )

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import FeatureExtractorSpec, hookimpl
+from hapticframe import FeatureExtractorSpec, Knob, hookimpl
 
 from ._config import ForceObserverConfig
 
@@ -29,4 +29,10 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
             "imu_rotation_wxyz": [0.9238795325112867, 0.0, 0.3826834323650898, 0.0],
             "bias_n": [0.5, -0.2, 1.0],
         },
+        knobs=(
+            Knob("cutoff_hz", "a higher low-pass cutoff: the environment force sooner, more "
+                 "sensor and inertial noise in it", values=(5.0, 10.0, 20.0, 40.0)),
+            Knob("filter_order", "a higher filter order: sharper noise rejection, more group "
+                 "delay", values=(1, 2, 4)),
+        ),
     )

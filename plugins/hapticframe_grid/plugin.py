@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import MapSpec, hookimpl
+from hapticframe import Knob, MapSpec, hookimpl
 
 from ._config import OccupancyGridConfig
 
@@ -23,4 +23,8 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         capabilities=frozenset({"gridded", "exact-update"}),
         requires=("scipy",),
         install_hint="pip install hapticframe  (numpy and scipy); figures need matplotlib",
+        knobs=(
+            Knob("cell_size_m", "smaller cells: a finer outline, cells (memory and query "
+                 "time) growing as 1/size²", values=(0.005, 0.01, 0.02, 0.04)),
+        ),
     )

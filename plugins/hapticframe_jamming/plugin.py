@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, hookimpl
+from hapticframe import ClassifierSpec, Knob, hookimpl
 
 from ._config import ForceRateJammingConfig
 
@@ -21,4 +21,10 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         requires=("scipy",),
         consumes={"force_n": (2,)},
         sample_rate_hz=100.0,
+        knobs=(
+            Knob("cutoff_hz", "a higher low-pass cutoff: jamming and contact detected sooner, "
+                 "noise read as force rate", values=(1.5, 3.0, 6.0, 10.0)),
+            Knob("filter_order", "a higher filter order: sharper noise rejection, more group "
+                 "delay before a detection", values=(1, 2, 4)),
+        ),
     )

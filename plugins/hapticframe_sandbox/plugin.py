@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, RobotSpec, SensorSpec, hookimpl
+from hapticframe import Kind, Knob, RobotSpec, SensorSpec, hookimpl
 
 from ._config import SandboxForceSensorConfig, SandboxRobotConfig
 
@@ -18,6 +18,16 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         factory="hapticframe_sandbox._robot:SandboxRobot",
         validator="hapticframe_sandbox._checks:check",
         capabilities=frozenset({"simulated"}),
+        knobs=(
+            Knob("control_rate_hz", "more control steps per second: finer force and contact "
+                 "timing, more steps (classifier and safety work) per movement",
+                 values=(50.0, 100.0, 200.0)),
+            Knob("sector_radial_samples", "more samples per ray when locating objects in the "
+                 "failure zone: smoother simulated jamming, cost per step",
+                 values=(10, 20, 40, 80)),
+            Knob("sector_angular_samples", "more rays across the failure zone: objects off the "
+                 "axis met truer, cost per step", values=(7, 11, 21, 41)),
+        ),
         # Another sandbox robot in inputs: this one works in the same sandbox (clock and
         # depth schedule shared), e.g. a second arm with its own workspace.
         inputs=(Kind.ROBOT,),

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, hookimpl
+from hapticframe import ClassifierSpec, Knob, hookimpl
 
 from ._config import DEFAULT_CODE_SIZES, FusionRNNConfig, LinearSVMConfig, SFRNNConfig
 
@@ -35,6 +35,16 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         consumes=dict(_CODES),
         sample_rate_hz=100.0,
         check_config=dict(_CHECK_SFRNN),
+        knobs=(
+            Knob("gru_units", "wider GRU layers: more capacity, step time growing as "
+                 "units²", values=(16, 25, 50, 100)),
+            Knob("gru_layers", "deeper GRU: more capacity, step time linear in layers",
+                 values=(1, 2, 4)),
+            Knob("fusion_units", "a wider fusion layer: more capacity, a larger first matrix "
+                 "product per frame", values=(25, 50, 100, 200)),
+            Knob("max_epochs", "more training epochs (early stopping may end sooner): a "
+                 "better fit, training time", values=(10, 20, 40)),
+        ),
     )
     yield ClassifierSpec(
         name="fusion-rnn",
@@ -48,6 +58,14 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         consumes=dict(_CODES),
         sample_rate_hz=100.0,
         check_config=dict(_CHECK_FUSION),
+        knobs=(
+            Knob("branch_units", "wider per-modality GRUs: more capacity, step time growing "
+                 "as units²", values=(16, 25, 50, 100)),
+            Knob("branch_layers", "deeper per-modality GRUs: more capacity, step time linear "
+                 "in layers", values=(1, 2, 3)),
+            Knob("fusion_units", "a wider joining layer: more capacity, more work per frame",
+                 values=(25, 50, 100)),
+        ),
     )
     yield ClassifierSpec(
         name="linear-svm",
@@ -61,5 +79,11 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         install_hint=_LEARN_HINT,
         consumes=dict(_CODES),
         sample_rate_hz=100.0,
+        knobs=(
+            Knob("max_iter", "a lower LinearSVC iteration cap: bounded training time, an "
+                 "unconverged boundary", values=(200, 1000, 5000)),
+            Knob("calibration_folds", "more Platt folds: steadier probabilities, one SVC fit "
+                 "per fold", values=(2, 3, 5)),
+        ),
     )
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import FeatureExtractorSpec, hookimpl
+from hapticframe import FeatureExtractorSpec, Knob, hookimpl
 
 from ._config import EMDFeaturesConfig, SparseCodingConfig
 
@@ -40,6 +40,16 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         # The defaults already use the smallest windows allowed (512 and 64 samples); a
         # short delay and a lower sifting cap keep the kit's ~2,000 frames quick.
         check_config={"delay_frames": 1, "max_sifts": 10},
+        knobs=(
+            Knob("max_sifts", "more sifts per IMF: IMFs closer to a converged EMD, sifting "
+                 "time per frame", values=(2, 5, 10, 20, 50)),
+            Knob("sd_threshold", "a looser sifting stop: fewer sifts, IMFs further from a "
+                 "converged EMD (0: always max_sifts)", values=(0.0, 0.05, 0.1, 0.2, 0.3)),
+            Knob("residue_ratio", "a higher residue stop: fewer IMFs extracted (the rest zero "
+                 "rows), less sifting per frame", values=(0.0, 0.05, 0.1, 0.2)),
+            Knob("delay_frames", "more look-ahead: IMFs further from the window's end effects, "
+                 "features delay_frames frames later", values=(1, 2, 3, 5)),
+        ),
     )
     yield FeatureExtractorSpec(
         name="sparse-coding",
@@ -54,4 +64,17 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         consumes=dict(_FEATURE_TENSORS),
         sample_rate_hz=100.0,
         check_config={"pac_atoms": 40, "pdc_atoms": 20, "electrodes_atoms": 20},
+        # The atoms change the code sizes a classifier reads (its <modality>_code_size must
+        # follow) and need dictionaries trained for them.
+        knobs=(
+            Knob("pac_atoms", "a larger pac dictionary: richer codes, lasso and fit time "
+                 "growing with the atoms", values=(50, 100, 200, 400)),
+            Knob("pdc_atoms", "a larger pdc dictionary: richer codes, lasso and fit time "
+                 "growing with the atoms", values=(25, 50, 100, 200)),
+            Knob("electrodes_atoms", "a larger electrode dictionary: richer codes, lasso and "
+                 "fit time growing with the atoms", values=(25, 50, 100, 200)),
+            Knob("encode_max_iter", "a lower lasso iteration cap: bounded encode time per "
+                 "frame, codes short of the 1e-8 tolerance", low=10, high=1000, scale="log",
+                 points=5, integer=True),
+        ),
     )
