@@ -253,15 +253,15 @@ def apply_overrides(
         An override is malformed or names nothing in the file (exit status 2).
     """
     if not isinstance(loaded, LoadedFile):
-        changed, applied = apply_overrides(_as_loaded(loaded, "<experiment>"), overrides)
-        return (changed.data if applied else copy.deepcopy(dict(loaded))), applied
+        changed, records = apply_overrides(_as_loaded(loaded, "<experiment>"), overrides)
+        return (changed.data if records else copy.deepcopy(dict(loaded))), records
     parsed = parse_overrides(overrides)
     if not parsed:
         return loaded, ()
     if not isinstance(loaded.data, dict):
         raise UsageError(f"--set: {loaded.path} does not hold a mapping to set values in")
     data = copy.deepcopy(loaded.data)
-    applied = []
+    applied: list[AppliedOverride] = []
     for override in parsed:
         parts = resolve_path(data, override)
         previous, had = _assign(data, parts, copy.deepcopy(override.value),
