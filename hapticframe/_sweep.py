@@ -783,8 +783,8 @@ def _table_keys(points: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def _rows(points: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> list[str]:
     named = {"object_found": "found (share)"}
-    head = ["point", "status", "ok/trials", *[named.get(k, k) for k in keys], "wall s", "CPU s", "wall per step ms",
-            "peak RSS MB"]
+    head = ["point", "status", "ok/trials", *[named.get(k, k) for k in keys], "wall s",
+            "CPU s", "wall per step ms", "peak RSS MB"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for p in points:
         found = p["metrics"]
