@@ -29,6 +29,8 @@ _LAZY = {
     "ExperimentError": "._errors",
     "Finding": "._config",
     "OutputError": "._results",
+    "apply_overrides": "._overrides",
+    "validate_with_overrides": "._overrides",
     "atomic_path": "._results",
     "atomic_write": "._results",
     "save_npz": "._results",
@@ -113,6 +115,7 @@ __all__ = [
     "UsageError",
     "ValidationContext",
     "__version__",
+    "apply_overrides",
     "atomic_path",
     "atomic_write",
     "get_plugin_manager",
@@ -123,6 +126,7 @@ __all__ = [
     "save_npz",
     "validate_file",
     "validate_mapping",
+    "validate_with_overrides",
 ]
 
 

@@ -37,6 +37,9 @@ class BenchOptions:
         checks the name itself.
     echo : callable
         Prints a progress line.
+    overrides : tuple of str
+        ``--set PATH=VALUE`` texts a suite that runs experiments applies to each of them
+        (:func:`hapticframe.apply_overrides`); suites that run none ignore them.
     """
 
     out_dir: Path
@@ -46,6 +49,7 @@ class BenchOptions:
     workers: int | None = None
     device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
+    overrides: tuple[str, ...] = ()
 
 
 def list_benches() -> list[str]:

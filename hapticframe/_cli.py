@@ -82,11 +82,13 @@ def _plugin_module(text: str) -> str:
 def _validate(args: argparse.Namespace, file: str, command: str = "run") -> Any:
     """Validate ``file`` for ``command`` (``run`` or ``train``) against the command's plugins
     (see :func:`_manager`)."""
-    from ._config import load_file, validate_data
+    from ._config import load_file
+    from ._overrides import validate_with_overrides
 
     loaded = load_file(file)
-    experiment = validate_data(loaded, strict=args.strict,
-                               plugin_manager=_manager(args, args.strict), command=command)
+    experiment = validate_with_overrides(
+        loaded, getattr(args, "set", None) or (), strict=args.strict,
+        plugin_manager=_manager(args, args.strict), command=command)
     _print_warnings(experiment)
     return experiment
 
@@ -96,6 +98,27 @@ def _print_warnings(experiment: Any) -> None:
     on stderr (``validate``, ``run`` and ``train`` all print them)."""
     for issue in experiment.warnings:
         _err(f"warning: {issue.render(experiment.file)}")
+
+
+def _override(text: str) -> Any:
+    """A ``--set PATH=VALUE`` (see :mod:`hapticframe._overrides`), parsed when read."""
+    from ._errors import UsageError
+    from ._overrides import parse_override
+
+    try:
+        return parse_override(text)
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _add_set_option(p: argparse.ArgumentParser, what: str = "the experiment") -> None:
+    p.add_argument(
+        "--set", action="append", type=_override, default=[], metavar="PATH=VALUE",
+        help=f"change one value of {what} before validation, as if the file said it "
+        "(VALUE is YAML): maps[0].config.hinge_spacing_m=0.025, bhm.hinge_spacing_m=0.025 "
+        "(a component's config field by its id), run.max_movements=10, seed=3; repeatable, "
+        "recorded in run.json",
+    )
 
 
 def _add_plugin_module_option(p: argparse.ArgumentParser) -> None:
@@ -390,8 +413,47 @@ def cmd_bench(args: argparse.Namespace) -> int:
     options = BenchOptions(
         out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
         workers=args.workers, device=args.device, echo=_out,
+        overrides=tuple(o.text for o in args.set),
     )
     run_bench(args.name, options)
+    return 0
+
+
+def _vary(text: str) -> Any:
+    """A ``--vary PATH=V1,V2,...`` (see :mod:`hapticframe._sweep`), parsed when read."""
+    from ._errors import UsageError
+    from ._sweep import parse_vary
+
+    try:
+        return parse_vary(text)
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError("must be a finite number of seconds above 0")
+    return value
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from ._sweep import SweepOptions, run_sweep
+
+    options = SweepOptions(
+        varies=tuple(args.vary), declared=args.declared, grid=args.grid, trials=args.trials,
+        workers=args.workers, timeout_s=args.timeout_s, executor=args.executor,
+        scheduler=args.scheduler, overrides=tuple(args.set),
+        plugin_modules=tuple(args.plugin_module or ()), echo=_progress_line,
+    )
+    result = run_sweep(args.file, args.out, options)
+    failed = [p for p in result["points"] if p["status"] != "ok"]
+    front = ", ".join(result["front"]) or "none"
+    _out(f"{len(result['points'])} points, {len(failed)} failed or refused; Pareto front: "
+         f"{front}; table in {Path(args.out) / 'sweep.md'}")
     return 0
 
 
@@ -420,6 +482,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("validate", help="check experiment files without running them")
     p.add_argument("files", nargs="+", metavar="FILE")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_set_option(p)
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_validate)
 
@@ -443,6 +506,7 @@ def _parser() -> argparse.ArgumentParser:
     _add_out_options(p, "results", "the results of a run")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_set_option(p)
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_run)
 
@@ -469,6 +533,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("file", metavar="FILE")
     _add_out_options(p, "the artifacts", "the artifacts of a training run")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_set_option(p)
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_train)
 
@@ -483,7 +548,37 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu",
                    help="where a suite that trains models trains them: cpu (default) or a "
                    "torch accelerator such as cuda")
+    _add_set_option(p, "every experiment the suite runs (suites that run experiment "
+                    "files: search)")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("sweep", help="vary settings over seeded trials: accuracy against cost, "
+                       "the Pareto front")
+    p.add_argument("file", metavar="EXPERIMENT")
+    p.add_argument("--vary", action="append", type=_vary, default=[], metavar="PATH=V1,V2,...",
+                   help="a knob and its values (each YAML), e.g. bhm.hinge_spacing_m=0.025,0.05;"
+                   " repeatable")
+    p.add_argument("--declared", action="store_true",
+                   help="also vary every knob the experiment's plugins declare")
+    p.add_argument("--grid", action="store_true",
+                   help="every combination of the values (default: one knob at a time from "
+                   "the file's values, plus the file itself)")
+    p.add_argument("--trials", type=_positive_int, default=3,
+                   help="seeded trials per point: seed, seed + 1, ... (default 3)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="directory for sweep.json, sweep.md, pareto.png and the runs")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="worker processes (default: one per CPU)")
+    p.add_argument("--timeout-s", type=_seconds, default=None, metavar="T",
+                   help="a trial running longer is a 'timeout' row (default: no limit)")
+    p.add_argument("--executor", choices=("process", "dask"), default="process",
+                   help="process: a local process pool (default); dask: a Dask cluster "
+                   "(--scheduler, else a LocalCluster; needs hapticframe[distributed])")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="the Dask scheduler, e.g. tcp://head-node:8786 (--executor dask)")
+    _add_set_option(p, "every point")
+    _add_plugin_module_option(p)
+    p.set_defaults(func=cmd_sweep)
     return parser
 
 

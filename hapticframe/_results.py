@@ -208,6 +208,8 @@ def run_record(
         "plugins": plugin_records(session.experiment),
         "plugin_metadata": extra,
         "resolved_config": session.experiment.resolved_config(),
+        # What `--set` changed of the file (the resolved config holds the values).
+        "overrides": list(session.experiment.overrides),
         "details": dict(session.details),
     }
     if signal is not None:

@@ -190,6 +190,7 @@ def train_experiment(
         "started_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "pid": os.getpid(),
         "versions": environment(),
+        "overrides": list(experiment.overrides),
     }
     directory.begin(head)
     built = False

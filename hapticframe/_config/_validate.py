@@ -60,6 +60,9 @@ class Experiment:
     plugin_manager: PluginManager
     #: Legal but suspicious: what plugin validators warned about (located).
     warnings: tuple[Issue, ...] = ()
+    #: What ``--set`` changed of the file before validation: one JSON-ready record per
+    #: override (see :mod:`hapticframe._overrides`).
+    overrides: tuple[dict[str, Any], ...] = ()
 
     @property
     def seed(self) -> int:

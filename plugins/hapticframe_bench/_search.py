@@ -58,7 +58,14 @@ from typing import Any
 import numpy as np
 
 import hapticframe
-from hapticframe import BenchOptions, RunError, atomic_write, run_experiment, validate_mapping
+from hapticframe import (
+    BenchOptions,
+    RunError,
+    apply_overrides,
+    atomic_write,
+    run_experiment,
+    validate_with_overrides,
+)
 
 from ._aggregate import aggregate_trials, trial_figures
 from ._placements import SHAPES, Placement, draw_placements
@@ -183,6 +190,8 @@ def _command(options: BenchOptions, trials: int) -> str:
              str(options.seed), "--out", str(options.out_dir)]
     if options.quick:
         parts.append("--quick")
+    for override in options.overrides:
+        parts.extend(["--set", override])
     return " ".join(parts)
 
 
@@ -310,9 +319,11 @@ def _run_trial(
     trials_dir: Path,
     data: dict[str, Any],
     fingerprint: str,
+    overrides: tuple[str, ...] = (),
 ) -> TrialResult:
     name = _run_name(placement.shape, placement.index, role, planner)
-    experiment = validate_mapping(data, source=f"<bench search {name}>")
+    # The overrides (`--set`) are applied here too, so that run.json records them.
+    experiment = validate_with_overrides(data, overrides, source=f"<bench search {name}>")
     run_dir = trials_dir / name
     record: dict[str, Any] = {
         "shape": placement.shape,
@@ -578,8 +589,15 @@ def run_suite(
                 # Figures only for the first trial of each shape: drawing costs more than a
                 # fast search.
                 data.setdefault("run", {})["figures"] = index == 0
+                # A `--set` changes the trial's experiment, so its fingerprint too.
+                changed, _applied = apply_overrides(data, options.overrides)
                 jobs.append((placement, role, planner, seed, trials_dir, data,
-                             trial_fingerprint(data, role)))
+                             trial_fingerprint(changed, role), tuple(options.overrides)))
+    if options.overrides:
+        # A bad `--set` is refused before any run, as `hapticframe run` refuses it.
+        for role in planners:
+            first = next(j for j in jobs if j[1] == role)
+            validate_with_overrides(first[5], first[7], source=f"<bench search {role}>")
     kept = [_kept_trial(trials_dir / _run_name(j[0].shape, j[0].index, j[1], j[2]), j[6], j[0],
                         j[1])
             for j in jobs]
@@ -626,6 +644,7 @@ def run_suite(
             "python": platform.python_version(),
         },
         "command": _command(options, trials),
+        "overrides": list(options.overrides),
         "thesis": {shape: {k: list(v) for k, v in row.items()}
                    for shape, row in THESIS_TABLE_3_2.items()},
         "runs": records,

@@ -1,0 +1,895 @@
+"""``hapticframe sweep``: what accuracy a setting buys, and what it costs.
+
+A sweep varies config fields (``--vary bhm.hinge_spacing_m=0.025,0.05,0.1``, or every knob
+the experiment's plugins declare with ``--declared``) and runs each *point* over ``N``
+seeded trials (trial ``i`` runs with ``seed + i``). By default one knob changes at a time
+from the file's values (plus the baseline point, the file as it is); ``grid=True`` runs
+every combination. Every trial is a :func:`~hapticframe.run_experiment` in a worker, with
+figures and the recording off, into ``DIR/points/<point>/trial-<i>/``; its ``run.json``
+records the point's values as overrides (``--set``). With the process pool, one untimed
+run of the first point warms this process up before the workers fork from it, so that
+import and first-call costs fall on no point.
+
+Each trial is measured for accuracy (every scalar of ``metrics.json``: for a search the
+object found, centroid error, Hausdorff distances, movements and EMs, object interactions,
+largest force; for perception the balanced accuracies and onset errors; for a map its
+AUC and log loss, where the run reports them) and for cost (wall and CPU time of the run
+and per robot step, peak resident memory of the worker while it ran).
+
+Outputs in ``DIR``: ``sweep.json`` (every trial and point), ``sweep.md`` (a table per knob
+and the Pareto front over all points: the accuracy cost, :func:`accuracy_measure`,
+against mean wall time) and ``pareto.png`` (every point, the front highlighted).
+
+A point that fails (a value validation refuses, an exception, a non-finite metric, a
+trial past ``timeout_s``) is a row saying so, never a crash: sweeping to the extremes is
+how numerical trouble shows. Trials run through a :class:`concurrent.futures.Executor`
+from :func:`make_executor`: a local process pool, or a Dask cluster (``dask``; the
+optional ``distributed`` extra). Results do not depend on the executor: every trial has
+its own seed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import itertools
+import json
+import math
+import os
+import platform
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ._config._load import LoadedFile, load_file
+from ._errors import ExperimentError, HapticframeError, UsageError, shown
+from ._overrides import (
+    Override,
+    apply_overrides,
+    parse_overrides,
+    parse_value_list,
+    resolve_path,
+    validate_with_overrides,
+)
+
+__all__ = [
+    "EXECUTORS",
+    "Point",
+    "TrialTask",
+    "Vary",
+    "accuracy_measure",
+    "make_executor",
+    "pareto_front",
+    "parse_vary",
+    "plan_points",
+    "run_sweep",
+    "run_trial",
+]
+
+#: The executors :func:`make_executor` builds.
+EXECUTORS = ("process", "dask")
+#: Seconds a trial may overrun ``timeout_s`` before the sweep stops waiting for it (its
+#: worker's own alarm normally ends it first; this catches a hang in compiled code).
+_GRACE_S = 10.0
+
+
+# --- what to vary --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Vary:
+    """One knob of a sweep: an override path and the values to try."""
+
+    path: str
+    values: tuple[Any, ...]
+    trades: str = ""
+
+
+def parse_vary(text: str) -> Vary:
+    """``--vary PATH=V1,V2,...`` (each value YAML; a list value in brackets)."""
+    where = f"--vary {shown(text)}"
+    path, sep, values = text.partition("=")
+    if not sep or not path.strip():
+        raise UsageError(f"{where}: write PATH=V1,V2,..., e.g. bhm.hinge_spacing_m=0.025,0.05")
+    return Vary(path.strip(), tuple(parse_value_list(values, where)))
+
+
+@dataclass(frozen=True)
+class Point:
+    """One setting of a sweep: the values it changes (none for the baseline)."""
+
+    label: str
+    values: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def is_baseline(self) -> bool:
+        return not self.values
+
+
+def _flow(value: Any) -> str:
+    """A value as YAML flow text (JSON is YAML), for an override's text and labels."""
+    return json.dumps(value, separators=(",", ":"))
+
+
+def _label(values: Sequence[tuple[str, Any]]) -> str:
+    return ", ".join(f"{path}={_flow(value)}" for path, value in values) or "baseline"
+
+
+def plan_points(varies: Sequence[Vary], baseline: Mapping[str, Any], *,
+                grid: bool = False) -> list[Point]:
+    """The points of a sweep, the baseline first.
+
+    One at a time (default): each value of each knob with the others at the file's
+    values; a value equal to the file's (``baseline[path]``) is the baseline point itself.
+    ``grid``: every combination of the knobs' values (the baseline added when it is not
+    one of them).
+    """
+    points = [Point("baseline")]
+    seen: set[str] = {points[0].label}
+    if grid:
+        for combo in itertools.product(*[[(v.path, x) for x in v.values] for v in varies]):
+            if all(_same(x, baseline.get(p, _MISSING)) for p, x in combo):
+                continue  # the file's own setting: the baseline point
+            label = _label(combo)
+            if label not in seen:
+                seen.add(label)
+                points.append(Point(label, tuple(combo)))
+        return points
+    for vary in varies:
+        for value in vary.values:
+            if _same(value, baseline.get(vary.path, _MISSING)):
+                continue
+            label = _label([(vary.path, value)])
+            if label not in seen:
+                seen.add(label)
+                points.append(Point(label, ((vary.path, value),)))
+    return points
+
+
+_MISSING = object()
+
+
+def _same(a: Any, b: Any) -> bool:
+    """``a == b`` as the config sees it: 0.05 and 0.05, 2 and 2.0; never True and 1."""
+    if b is _MISSING or isinstance(a, bool) != isinstance(b, bool):
+        return False
+    try:
+        return bool(a == b)
+    except Exception:  # an exotic value: compare nothing
+        return False
+
+
+def _declared(experiment: Any) -> list[Vary]:
+    """Every knob the experiment's components (and its run loop) declare."""
+    import importlib
+
+    try:
+        pairs = importlib.import_module("._knobs", __package__).declared_knobs(experiment)
+    except ImportError:  # before the knobs module: read the specs' own declarations
+        pairs = [(entry.id, knob) for entry in experiment.components
+                 for knob in getattr(entry.registered.spec, "knobs", ())]
+    return [Vary(f"{cid}.{knob.field}", tuple(knob.sweep_values()), knob.trades)
+            for cid, knob in pairs]
+
+
+def _merged(varies: Sequence[Vary]) -> list[Vary]:
+    """One knob per path (a path given twice, or given and declared: its values joined in
+    order, the first ``trades`` kept)."""
+    merged: dict[str, Vary] = {}
+    for vary in varies:
+        known = merged.get(vary.path)
+        if known is None:
+            merged[vary.path] = vary
+            continue
+        values = list(known.values)
+        values += [v for v in vary.values if not any(_same(v, w) for w in values)]
+        merged[vary.path] = Vary(vary.path, tuple(values), known.trades or vary.trades)
+    return list(merged.values())
+
+
+def _warm_up(task: TrialTask) -> float:
+    """One untimed run of ``task`` here, before the pool forks, into a folder removed
+    after: the workers inherit its imports and warmed caches, so that a worker's first
+    trial (the baseline's, always) is not slower than the rest. Its wall time (s)."""
+    import shutil
+
+    row = run_trial(task)
+    shutil.rmtree(task.out_dir, ignore_errors=True)
+    return float(row.get("wall_time_s") or 0.0)
+
+
+def _baseline_value(experiment: Any, data: Any, path: str) -> Any:
+    """The value the validated experiment holds at an override ``path`` (its default when
+    the file says nothing), or :data:`_MISSING`."""
+    node: Any = experiment.resolved_config()
+    for part in resolve_path(data, Override(path, None, path)):
+        if isinstance(part, int) and isinstance(node, list) and part < len(node):
+            node = node[part]
+        elif isinstance(part, str) and isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            return _MISSING
+    return node
+
+
+# --- one trial, in a worker ------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TrialTask:
+    """Everything a worker needs to run one trial (picklable)."""
+
+    point: int
+    trial: int
+    seed: int
+    loaded: LoadedFile
+    overrides: tuple[Override, ...]
+    out_dir: str
+    timeout_s: float | None = None
+    plugin_modules: tuple[str, ...] = ()
+    plugin_dir: str | None = None
+
+
+class _TrialTimeout(Exception):
+    """Raised in a worker's main thread when a trial runs past its time limit."""
+
+
+def _reset_peak_rss() -> bool:
+    """Reset this process's peak resident memory (Linux: ``/proc/self/clear_refs``)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as handle:
+            handle.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def _peak_rss_bytes(reset: bool) -> int | None:
+    """The peak resident memory since the reset (else since the process started)."""
+    if reset:
+        try:
+            with open("/proc/self/status") as handle:
+                for line in handle:
+                    if line.startswith("VmHWM:"):
+                        return int(line.split()[1]) * 1024
+        except (OSError, ValueError, IndexError):
+            pass
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(peak if sys.platform == "darwin" else peak * 1024)
+
+
+def _cpu_time_s() -> float:
+    times = os.times()  # user + system of every thread of this process
+    return float(times.user + times.system)
+
+
+def _steps(out_dir: Path) -> int | None:
+    """Robot steps of a finished run (from ``trace.npz``); sensor reads of an open loop."""
+    try:
+        import numpy as np
+
+        with np.load(out_dir / "trace.npz") as trace:
+            robots = [len(trace[k]) for k in trace.files
+                      if k.startswith("robot/") and k.endswith("/timestamps_s")]
+            if robots:
+                return int(sum(robots))
+            sensors = [len(trace[k]) for k in trace.files
+                       if k.startswith("sensor/") and k.endswith("/timestamps_s")]
+            return int(max(sensors)) if sensors else None
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _scalars(metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """The scalar metrics of a run (numbers, booleans, None); NaN kept as NaN."""
+    out: dict[str, Any] = {}
+    for key, value in metrics.items():
+        if isinstance(value, bool) or value is None:
+            out[key] = value
+        elif isinstance(value, (int, float)):
+            out[key] = float(value) if isinstance(value, float) else int(value)
+        elif hasattr(value, "item") and getattr(value, "shape", None) == ():
+            out[key] = value.item()
+    return out
+
+
+@contextlib.contextmanager
+def _alarm(timeout_s: float | None) -> Iterator[dict[str, bool]]:
+    """Raise :class:`_TrialTimeout` after ``timeout_s`` while ``state["armed"]`` (main thread
+    with SIGALRM only: elsewhere the sweep's own wait is the limit); ``state["fired"]``
+    says it did."""
+    state = {"armed": True, "fired": False}
+    usable = (timeout_s is not None and hasattr(signal, "setitimer")
+              and threading.current_thread() is threading.main_thread())
+    if not usable:
+        yield state
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if state["armed"]:  # not once the trial is over: its row is already written
+            state["fired"] = True
+            raise _TrialTimeout(f"past the time limit of {timeout_s:g} s")
+
+    previous = signal.signal(signal.SIGALRM, handler)
+    signal.setitimer(signal.ITIMER_REAL, float(timeout_s or 0))
+    try:
+        yield state
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def run_trial(task: TrialTask) -> dict[str, Any]:
+    """Run one trial and measure it; never raises for a failing run (the row says why)."""
+    from ._run import run_experiment
+
+    out = Path(task.out_dir)
+    row: dict[str, Any] = {"point": task.point, "trial": task.trial, "seed": task.seed,
+                           "status": "ok", "error": None, "metrics": {},
+                           "run_dir": str(out)}
+    reset = _reset_peak_rss()
+    wall0, cpu0 = time.perf_counter(), _cpu_time_s()
+    with _alarm(task.timeout_s) as alarm:
+        try:
+            experiment = validate_with_overrides(
+                task.loaded, task.overrides, plugin_modules=task.plugin_modules,
+                plugin_dir=task.plugin_dir)
+            summary = run_experiment(experiment, out, overwrite=True, echo=lambda _t: None,
+                                     progress=False)
+            row["metrics"] = _scalars(summary)
+        except Exception as exc:  # a failing point is a row, not a crash
+            if alarm["fired"]:
+                row["status"], row["error"] = "timeout", f"past --timeout-s {task.timeout_s:g}"
+            else:
+                row["status"] = "failed"
+                row["error"] = (str(exc) if isinstance(exc, HapticframeError)
+                                else f"{type(exc).__name__}: {exc}")
+        finally:
+            alarm["armed"] = False
+    row["wall_time_s"] = time.perf_counter() - wall0
+    row["cpu_time_s"] = _cpu_time_s() - cpu0
+    row["peak_rss_bytes"] = _peak_rss_bytes(reset)
+    steps = _steps(out) if row["status"] == "ok" else None
+    row["steps"] = steps
+    row["wall_time_per_step_s"] = row["wall_time_s"] / steps if steps else None
+    row["cpu_time_per_step_s"] = row["cpu_time_s"] / steps if steps else None
+    if row["status"] == "ok":
+        bad = sorted(k for k, v in row["metrics"].items()
+                     if isinstance(v, float) and not math.isfinite(v))
+        if bad:
+            row["status"], row["error"] = "nan", f"non-finite metrics: {', '.join(bad)}"
+    return row
+
+
+# --- executors -------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def make_executor(kind: str = "process", workers: int | None = None,
+                  scheduler: str | None = None) -> Iterator[Executor]:
+    """The executor trials run on, shut down when the block ends.
+
+    Parameters
+    ----------
+    kind : {"process", "dask"}
+        ``process``: a local process pool (forked on Linux, so workers start without
+        importing again). ``dask``: a ``dask.distributed`` client's executor, on the cluster
+        at ``scheduler`` (``tcp://HOST:8786``) or, without one, on a ``LocalCluster`` of
+        ``workers`` single-threaded processes; a task lost with its worker is retried twice.
+    workers : int, optional
+        Processes of the local pool or cluster (default: one per CPU).
+    scheduler : str, optional
+        The Dask scheduler's address (``dask`` only).
+    """
+    n = max(1, int(workers or os.cpu_count() or 1))
+    if kind == "process":
+        if scheduler is not None:
+            raise UsageError("--scheduler is for --executor dask")
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        context = (multiprocessing.get_context("fork") if sys.platform.startswith("linux")
+                   else multiprocessing.get_context())
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=context)
+        try:
+            yield pool
+        finally:
+            _shutdown_pool(pool)
+        return
+    if kind == "dask":
+        try:
+            from dask.distributed import (  # type: ignore[import-not-found, unused-ignore]
+                Client,
+                LocalCluster,
+            )
+        except ImportError:
+            raise UsageError("--executor dask needs dask.distributed: "
+                             "pip install 'hapticframe[distributed]'") from None
+        with contextlib.ExitStack() as stack:
+            if scheduler is None:
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=n, threads_per_worker=1, processes=True,
+                    dashboard_address=None))
+                client = stack.enter_context(Client(cluster))
+            else:
+                client = stack.enter_context(Client(scheduler))
+            yield client.get_executor(pure=False, retries=2)
+        return
+    raise UsageError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
+
+
+def _shutdown_pool(pool: Any, patience_s: float = 5.0) -> None:
+    """Shut a process pool down without waiting for ever on a trial that hangs past its
+    limit: a worker still busy ``patience_s`` after the shutdown is terminated."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # private, guarded
+    pool.shutdown(wait=False, cancel_futures=True)
+    deadline = time.monotonic() + patience_s
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.terminate()
+    pool.shutdown(wait=True)
+
+
+def _gather(executor: Executor, tasks: Sequence[TrialTask], workers: int,
+            timeout_s: float | None,
+            on_row: Callable[[dict[str, Any], int], None]) -> list[dict[str, Any]]:
+    """Run ``tasks`` on ``executor``; a trial that outlives its limit (and the grace the
+    worker's own alarm has) is a ``timeout`` row. Rows come back in task order."""
+    futures: dict[Future[dict[str, Any]], int] = {
+        executor.submit(run_trial, task): i for i, task in enumerate(tasks)}
+    rows: list[dict[str, Any] | None] = [None] * len(tasks)
+    pending = set(futures)
+    order = sorted(futures, key=futures.__getitem__)
+    started: dict[Future[dict[str, Any]], float] = {}
+    while pending:
+        now = time.monotonic()
+        # The first `workers` unfinished tasks in submission order are the ones running.
+        for future in [f for f in order if f in pending][:workers]:
+            started.setdefault(future, now)
+        done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+        for future in done:
+            index = futures[future]
+            try:
+                row = future.result()
+            except Exception as exc:  # the worker itself died (killed, out of memory)
+                row = _lost_row(tasks[index], f"the worker failed: {type(exc).__name__}: {exc}")
+            rows[index] = row
+            on_row(row, len(pending))
+        if timeout_s is None:
+            continue
+        limit = timeout_s + max(_GRACE_S, 0.5 * timeout_s)
+        for future in [f for f in pending if time.monotonic() - started.get(f, now) > limit]:
+            future.cancel()
+            pending.discard(future)
+            index = futures[future]
+            rows[index] = _lost_row(tasks[index], f"past --timeout-s {timeout_s:g} (no answer "
+                                    "from its worker)", status="timeout")
+            on_row(rows[index] or {}, len(pending))
+    return [row for row in rows if row is not None]
+
+
+def _lost_row(task: TrialTask, error: str, status: str = "failed") -> dict[str, Any]:
+    return {"point": task.point, "trial": task.trial, "seed": task.seed, "status": status,
+            "error": error, "metrics": {}, "run_dir": task.out_dir, "wall_time_s": None,
+            "cpu_time_s": None, "peak_rss_bytes": None, "steps": None,
+            "wall_time_per_step_s": None, "cpu_time_per_step_s": None}
+
+
+# --- aggregation -----------------------------------------------------------------------------
+
+
+#: Search metrics shown in the tables, in this order, when a run reports them.
+SEARCH_KEYS = ("object_found", "centroid_error_m", "hausdorff_est_to_true_m",
+               "hausdorff_true_to_est_m", "movements", "ems_phase1", "ems_phase2",
+               "object_interactions", "max_force_n")
+COST_KEYS = ("wall_time_s", "cpu_time_s", "wall_time_per_step_s", "cpu_time_per_step_s",
+             "peak_rss_bytes")
+
+
+def accuracy_measure(keys: Sequence[str]) -> tuple[str, str, Callable[[float], float]] | None:
+    """The accuracy cost a sweep's Pareto front uses, from the metrics its runs report:
+    (metric, description, metric mean to cost; lower cost is better)."""
+    keys = list(keys)
+    if "centroid_error_m" in keys:
+        return "centroid_error_m", "mean centroid error (m)", float
+    for key in keys:
+        if key.endswith("_balanced_accuracy"):
+            return key, f"1 - mean {key}", lambda v: 1.0 - v
+    for key in keys:
+        if "log_loss" in key:
+            return key, f"mean {key}", float
+    for key in keys:
+        if key.endswith("auc") or "_auc" in key:
+            return key, f"1 - mean {key}", lambda v: 1.0 - v
+    return None
+
+
+def _mean(values: Sequence[Any]) -> float | None:
+    finite = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
+    return sum(finite) / len(finite) if finite else None
+
+
+def _std(values: Sequence[Any]) -> float | None:
+    finite = [float(v) for v in values if isinstance(v, (int, float)) and math.isfinite(v)]
+    if len(finite) < 2:
+        return None
+    m = sum(finite) / len(finite)
+    return math.sqrt(sum((v - m) ** 2 for v in finite) / (len(finite) - 1))
+
+
+def _summarise_point(point: Point, rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    ok = [r for r in rows if r["status"] == "ok"]
+    failed = [r for r in rows if r["status"] != "ok"]
+    keys = sorted({k for r in ok for k in r["metrics"]})
+    means = {k: _mean([r["metrics"].get(k) for r in ok]) for k in keys}
+    stds = {k: _std([r["metrics"].get(k) for r in ok]) for k in keys}
+    cost = {k: _mean([r.get(k) for r in ok]) for k in COST_KEYS}
+    if not rows:
+        status = "invalid"
+    elif not failed:
+        status = "ok"
+    else:
+        kinds = sorted({r["status"] for r in failed})
+        status = "/".join(kinds) if not ok else "partly " + "/".join(kinds)
+    return {"label": point.label, "values": [{"path": p, "value": v} for p, v in point.values],
+            "status": status, "trials": len(rows), "trials_ok": len(ok),
+            "errors": sorted({str(r["error"]) for r in failed}),
+            "metrics": means, "metrics_std": stds, "cost": cost}
+
+
+def pareto_front(points: Sequence[tuple[float, float]]) -> list[int]:
+    """Indices of the points no other point beats on both (time, cost), lower better;
+    sorted by time."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front: list[int] = []
+    best = math.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+# --- the sweep -------------------------------------------------------------------------------
+
+
+@dataclass
+class SweepOptions:
+    """What ``hapticframe sweep`` was asked (see :func:`run_sweep`)."""
+
+    varies: tuple[Vary, ...] = ()
+    declared: bool = False
+    grid: bool = False
+    trials: int = 1
+    workers: int | None = None
+    timeout_s: float | None = None
+    executor: str = "process"
+    scheduler: str | None = None
+    overrides: tuple[Override, ...] = ()
+    plugin_modules: tuple[str, ...] = ()
+    echo: Callable[[str], None] = field(default=print)
+
+
+def _point_dir(index: int) -> str:
+    return f"p{index:03d}"
+
+
+def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> dict[str, Any]:
+    """Run a sweep of the experiment ``file`` into ``out_dir`` (see the module's notes).
+
+    Returns
+    -------
+    dict
+        What ``sweep.json`` holds: ``points`` (label, values, status, trials, mean and
+        standard deviation of each metric, mean costs, ``front``), ``trials`` (every
+        trial's row), ``knobs``, ``accuracy`` (the front's measure), ``front`` (point
+        labels), the settings and the machine.
+
+    Raises
+    ------
+    ExperimentError, UsageError
+        The file (with the sweep's ``--set``) is invalid, nothing is varied, or a
+        ``--vary`` path names nothing: before any trial runs (exit status 2).
+    """
+    started = time.perf_counter()
+    echo = options.echo
+    if options.trials < 1:
+        raise UsageError("--trials must be at least 1")
+    if options.timeout_s is not None and not options.timeout_s > 0:
+        raise UsageError("--timeout-s must be positive")
+    loaded = load_file(file)
+    plugin_dir = str(Path.cwd()) if options.plugin_modules else None
+    base = validate_with_overrides(loaded, options.overrides,
+                                   plugin_modules=options.plugin_modules, plugin_dir=plugin_dir)
+    changed, _ = apply_overrides(loaded, options.overrides)
+    varies = list(options.varies)
+    if options.declared:
+        declared = _declared(base)
+        varies += declared
+        if not declared:
+            echo("the experiment's plugins declare no knobs")
+    varies = _merged(varies)
+    if not varies:
+        raise UsageError("nothing to vary: give --vary PATH=V1,V2,... or --declared")
+    baseline: dict[str, Any] = {}
+    for vary in varies:
+        baseline[vary.path] = _baseline_value(base, changed.data, vary.path)
+    points = plan_points(varies, baseline, grid=options.grid)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    seed = int(base.seed)
+    fixed = parse_overrides(["run.figures=false", "run.record=false"])
+    tasks: list[TrialTask] = []
+    invalid: dict[int, str] = {}
+    for index, point in enumerate(points):
+        point_overrides = (*options.overrides, *(Override(p, v, f"{p}={_flow(v)}")
+                                                 for p, v in point.values))
+        try:  # a value validation refuses is this point's row, not the sweep's end
+            validate_with_overrides(loaded, point_overrides,
+                                    plugin_modules=options.plugin_modules,
+                                    plugin_dir=plugin_dir)
+        except (ExperimentError, UsageError) as exc:
+            invalid[index] = str(exc)
+            continue
+        for trial in range(options.trials):
+            trial_seed = seed + trial
+            tasks.append(TrialTask(
+                index, trial, trial_seed, loaded,
+                (*point_overrides, *fixed, Override("seed", trial_seed, f"seed={trial_seed}")),
+                str(out / "points" / _point_dir(index) / f"trial-{trial}"),
+                options.timeout_s, options.plugin_modules, plugin_dir))
+    workers = max(1, min(int(options.workers or os.cpu_count() or 1), max(1, len(tasks))))
+    echo(f"sweep of {file}: {len(points)} points ({len(invalid)} refused) x "
+         f"{options.trials} trials = {len(tasks)} runs on {workers} "
+         f"{options.executor} worker{'s' if workers > 1 else ''}")
+    done = 0
+
+    def on_row(row: Mapping[str, Any], running: int) -> None:
+        nonlocal done
+        done += 1
+        point = points[row["point"]]
+        what = row["status"] if row["status"] != "ok" else _brief(row["metrics"])
+        wall = row.get("wall_time_s")
+        echo(f"[{done}/{len(tasks)}] {point.label} trial {row['trial']}: {what}"
+             + (f" ({wall:.2f} s)" if isinstance(wall, float) else "")
+             + (f"; {row['error']}" if row.get("error") else "")
+             + f" ({min(running, workers)} running)")
+
+    rows: list[dict[str, Any]] = []
+    warm_up_s = None
+    if tasks and options.executor == "process":
+        echo("warming up: one untimed run of the first point")
+        warm_up_s = _warm_up(dataclasses.replace(tasks[0], out_dir=str(out / "warm-up")))
+    if tasks:
+        with make_executor(options.executor, workers, options.scheduler) as executor:
+            rows = _gather(executor, tasks, workers, options.timeout_s, on_row)
+    summaries = []
+    for index, point in enumerate(points):
+        summary = _summarise_point(point, [r for r in rows if r["point"] == index])
+        if index in invalid:
+            summary["status"], summary["errors"] = "invalid", [invalid[index]]
+        summary["dir"] = str(Path("points") / _point_dir(index))
+        summaries.append(summary)
+    keys = sorted({k for s in summaries for k in s["metrics"]})
+    measure = accuracy_measure(keys)
+    _mark_front(summaries, measure)
+    result: dict[str, Any] = {
+        "experiment_file": str(file),
+        "mode": "grid" if options.grid else "one at a time",
+        "trials": options.trials,
+        "seeds": [seed + i for i in range(options.trials)],
+        "executor": options.executor,
+        "workers": workers,
+        "timeout_s": options.timeout_s,
+        "overrides": [o.text for o in options.overrides],
+        "knobs": [{"path": v.path, "values": list(v.values), "baseline":
+                   None if baseline[v.path] is _MISSING else baseline[v.path],
+                   "trades": v.trades} for v in varies],
+        "accuracy": None if measure is None else {"metric": measure[0],
+                                                   "description": measure[1]},
+        "front": [s["label"] for s in summaries if s.get("front")],
+        "points": summaries,
+        "runs": rows,
+        "warm_up_wall_time_s": warm_up_s,
+        "wall_time_s": time.perf_counter() - started,
+        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+                    "python": platform.python_version()},
+    }
+    result = _json_ready(result)
+    from ._results import atomic_write
+
+    atomic_write(out / "sweep.json", json.dumps(result, indent=2, allow_nan=False) + "\n")
+    atomic_write(out / "sweep.md", render_markdown(result))
+    if not save_pareto_figure(out / "pareto.png", result):
+        echo("pareto.png skipped: matplotlib is not installed")
+    echo(f"sweep done in {result['wall_time_s']:.1f} s: {out / 'sweep.md'}")
+    return result
+
+
+def _brief(metrics: Mapping[str, Any]) -> str:
+    parts = []
+    for key in ("object_found", "centroid_error_m"):
+        if key in metrics:
+            value = metrics[key]
+            parts.append(f"{key}={_fmt(value)}")
+    parts += [f"{k}={_fmt(v)}" for k, v in metrics.items() if k.endswith("_balanced_accuracy")]
+    return "ok " + ", ".join(parts) if parts else "ok"
+
+
+def _mark_front(summaries: list[dict[str, Any]],
+                measure: tuple[str, str, Callable[[float], float]] | None) -> None:
+    candidates: list[tuple[int, tuple[float, float]]] = []
+    for i, summary in enumerate(summaries):
+        summary["front"] = False
+        summary["accuracy_cost"] = None
+        if measure is None or summary["status"] not in ("ok",):
+            continue
+        value = summary["metrics"].get(measure[0])
+        wall = summary["cost"].get("wall_time_s")
+        if value is None or wall is None:
+            continue
+        cost = measure[2](value)
+        summary["accuracy_cost"] = cost
+        candidates.append((i, (wall, cost)))
+    for k in pareto_front([c[1] for c in candidates]):
+        summaries[candidates[k][0]]["front"] = True
+
+
+def _json_ready(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    return value
+
+
+# --- report ----------------------------------------------------------------------------------
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _table_keys(points: Sequence[Mapping[str, Any]]) -> list[str]:
+    keys = sorted({k for p in points for k in p["metrics"]})
+    shown_keys = [k for k in SEARCH_KEYS if k in keys]
+    onset = [k for k in keys if "onset" in k
+             or (k.startswith(("first_", "last_")) and k.endswith("_error_s"))]
+    shown_keys += [k for k in keys if k.endswith("_balanced_accuracy")]
+    shown_keys += onset + [k for k in keys if "auc" in k or "log_loss" in k]
+    return list(dict.fromkeys(shown_keys))
+
+
+def _rows(points: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> list[str]:
+    named = {"object_found": "found (share)"}
+    head = ["point", "status", "ok/trials", *[named.get(k, k) for k in keys], "wall s",
+            "CPU s", "wall per step ms", "peak RSS MB"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in points:
+        found = p["metrics"]
+        cost = p["cost"]
+        rss = cost.get("peak_rss_bytes")
+        per_step = cost.get("wall_time_per_step_s")
+        cells = [("**" + p["label"] + "**") if p.get("front") else p["label"], p["status"],
+                 f"{p['trials_ok']}/{p['trials']}",
+                 *[_fmt(found.get(k)) for k in keys],
+                 _fmt(cost.get("wall_time_s")), _fmt(cost.get("cpu_time_s")),
+                 _fmt(None if per_step is None else per_step * 1e3),
+                 _fmt(None if rss is None else rss / 2**20)]
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return lines
+
+
+def render_markdown(result: Mapping[str, Any]) -> str:
+    """``sweep.md``: a table per knob, the Pareto front, and the points that failed."""
+    points = result["points"]
+    keys = _table_keys(points)
+    accuracy = result.get("accuracy")
+    lines = [f"# Sweep of {result['experiment_file']}", "",
+             f"{result['mode'].capitalize()}, {result['trials']} trial(s) per point (seeds "
+             f"{', '.join(map(str, result['seeds']))}), {result['workers']} "
+             f"{result['executor']} worker(s); metrics are means over a point's finished "
+             "trials, costs per run. Bold: on the Pareto front.", ""]
+    if result.get("overrides"):
+        lines += ["Every point with: " + ", ".join(f"`--set {o}`" for o in result["overrides"]),
+                  ""]
+    baseline = points[0]
+    for knob in result["knobs"]:
+        path = knob["path"]
+        lines += [f"## {path}", ""]
+        if knob.get("trades"):
+            lines += [f"Trades: {knob['trades']}", ""]
+        lines += [f"File's value: {_fmt(knob['baseline'])}; tried: "
+                  f"{', '.join(_flow(v) for v in knob['values'])}.", ""]
+        if result["mode"] == "grid":
+            chosen = [p for p in points if any(v["path"] == path for v in p["values"])]
+        else:
+            chosen = [baseline, *[p for p in points if [v["path"] for v in p["values"]] == [path]]]
+        lines += [*_rows(chosen, keys), ""]
+    lines += ["## Pareto front", ""]
+    if accuracy is None:
+        lines += ["The runs report no accuracy metric to weigh against time.", ""]
+    else:
+        front = [p for p in points if p.get("front")]
+        lines += [f"Accuracy: {accuracy['description']} (lower is better; a mean over the "
+                  "trials that report it: a search that estimates no centroid has none, so "
+                  "read it beside object_found, the share of trials that found the object) "
+                  "against mean wall time per run; a point is on the front when no other "
+                  "point is both faster and more accurate.", "",
+                  "| point | accuracy cost | wall s |", "|---|---|---|"]
+        lines += [f"| {p['label']} | {_fmt(p['accuracy_cost'])} | "
+                  f"{_fmt(p['cost'].get('wall_time_s'))} |" for p in front]
+        lines.append("")
+    failed = [p for p in points if p["status"] != "ok"]
+    if failed:
+        lines += ["## Points that failed", ""]
+        for p in failed:
+            errors = "; ".join(e.replace("\n", " ") for e in p["errors"]) or p["status"]
+            lines.append(f"- {p['label']}: {p['status']}: {errors[:500]}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
+    """``pareto.png``: accuracy cost against mean wall time, every finished point, the
+    front highlighted; False when matplotlib is not installed."""
+    try:
+        from .plotting import new_figure, save_figure
+
+        figure = new_figure(7.0, 5.0)
+    except ImportError:
+        return False
+    ax = figure.add_subplot(1, 1, 1)
+    accuracy = result.get("accuracy")
+    plotted = [p for p in result["points"] if p.get("accuracy_cost") is not None]
+    front = sorted((p for p in plotted if p.get("front")),
+                   key=lambda p: p["cost"]["wall_time_s"])
+    others = [p for p in plotted if not p.get("front")]
+    if others:
+        ax.scatter([p["cost"]["wall_time_s"] for p in others],
+                   [p["accuracy_cost"] for p in others], color="tab:gray", marker="o",
+                   label="point")
+    if front:
+        ax.plot([p["cost"]["wall_time_s"] for p in front], [p["accuracy_cost"] for p in front],
+                color="tab:red", marker="o", linestyle="-", label="Pareto front")
+    base = result["points"][0]
+    if base.get("accuracy_cost") is not None:
+        ax.scatter([base["cost"]["wall_time_s"]], [base["accuracy_cost"]], s=160,
+                   facecolors="none", edgecolors="black", label="baseline (the file)")
+    for p in plotted:
+        ax.annotate(p["label"], (p["cost"]["wall_time_s"], p["accuracy_cost"]), fontsize=6,
+                    xytext=(3, 3), textcoords="offset points")
+    failed = sum(1 for p in result["points"] if p.get("accuracy_cost") is None)
+    ax.set_xlabel("mean wall time per run (s)")
+    ax.set_ylabel(accuracy["description"] if accuracy else "no accuracy metric")
+    ax.set_title(f"{result['experiment_file']}: {len(plotted)} points"
+                 + (f", {failed} without a finite accuracy (see sweep.md)" if failed else ""),
+                 fontsize=9)
+    if plotted:
+        ax.legend(loc="best", fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no point finished with an accuracy", ha="center",
+                transform=ax.transAxes)
+    save_figure(figure, path)
+    return True
