@@ -417,12 +417,12 @@ def make_executor(kind: str = "process", workers: int | None = None,
                              "pip install 'hapticframe[distributed]'") from None
         with contextlib.ExitStack() as stack:
             if scheduler is None:
-                cluster = stack.enter_context(LocalCluster(
+                cluster = stack.enter_context(LocalCluster(  # type: ignore[no-untyped-call, unused-ignore]
                     n_workers=n, threads_per_worker=1, processes=True,
                     dashboard_address=None))
-                client = stack.enter_context(Client(cluster))
+                client = stack.enter_context(Client(cluster))  # type: ignore[no-untyped-call, unused-ignore]
             else:
-                client = stack.enter_context(Client(scheduler))
+                client = stack.enter_context(Client(scheduler))  # type: ignore[no-untyped-call, unused-ignore]
             yield client.get_executor(pure=False, retries=2)
         return
     raise UsageError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")

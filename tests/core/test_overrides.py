@@ -230,7 +230,7 @@ def test_bench_search_applies_overrides_to_every_trial(tmp_path: Path, monkeypat
     options = BenchOptions(out_dir=tmp_path, trials=1, seed=1, workers=1, echo=lambda _l: None,
                            overrides=("bhm.hinge_spacing_m=0.07", "run.max_movements=3"))
     summary = _search.run_suite(options, shapes=("circle",))
-    assert len(seen) == 2  # the two-phase planner and the baseline
+    assert len(seen) == 3  # the two-phase planner, with Table 3.1 parameters, the baseline
     for experiment in seen:
         bhm = next(c for c in experiment.components if c.id == "bhm")
         assert bhm.config.hinge_spacing_m == 0.07
