@@ -347,11 +347,19 @@ def replay_run(
                 _Replayer(session, flow, recorded).run()
                 say(f"replayed {len(session.movements)} movements of {path}")
                 metrics = score_run(session)
-                carried = _carried(recorded, set(components), metrics)
+                # Replaced sensors count as not rebuilt: their own metrics are the run's.
+                rebuilt = {cid for cid in components
+                           if cid in training or cid not in components.sensors}
+                carried = _carried(recorded, rebuilt, metrics)
                 wall = metrics.pop("wall_time_s")
                 metrics.update(carried)
                 metrics["wall_time_s"] = wall
                 session.details["carried_metrics"] = sorted(carried)
+                if recorded.metrics is not None:
+                    # The replay's own /metrics carries them on: it replays the same.
+                    for cid, own in (recorded.metrics.get("components") or {}).items():
+                        if cid not in rebuilt:
+                            session.component_metrics[cid] = dict(own)
                 _record_metrics(session, metrics)
                 save_outputs(session, metrics)
                 session.status = "ok"
