@@ -9,7 +9,7 @@ import pytest
 
 import hapticframe_recording._mcap as mcap_sensor
 from hapticframe._recording import RECORDING, RunRecording
-from hapticframe.kinds import SampleBatch, Sensor
+from hapticframe.kinds import SampleBatch
 from hapticframe.testing import make_component, run_checks
 from hapticframe_recording.plugin import SPECS
 
@@ -40,8 +40,8 @@ def _write(directory: Path, blocks: int = 3, per_block: int = 20) -> SampleBatch
         {"force_n": np.concatenate([b.valid["force_n"] for b in batches])})
 
 
-def _sensor(**config: object) -> Sensor:
-    return make_component(SPEC, config=dict(config), interface=Sensor)
+def _sensor(**config: object) -> mcap_sensor.RecordingSensor:
+    return make_component(SPEC, config=dict(config), interface=mcap_sensor.RecordingSensor)
 
 
 @pytest.mark.slow
