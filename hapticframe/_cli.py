@@ -363,6 +363,18 @@ def cmd_import_bag(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    from ._replay import replay_run
+
+    experiment = _validate(args, args.with_file)
+    echo = (lambda _text: None) if args.quiet else _progress_line
+    metrics = replay_run(args.target, experiment, args.out, overwrite=args.overwrite,
+                         echo=echo, progress=not args.quiet, min_free_bytes=_min_free(args))
+    _out(f"replay results in {args.out} (all metrics in metrics.json): "
+         + _summary(metrics, experiment.model.run.label_channel))
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
@@ -528,6 +540,20 @@ def _parser() -> argparse.ArgumentParser:
                    "BioTac hand by bt_position or bt_serial")
     _add_out_options(p, "the recording (run.mcap) and import.json", "an earlier import")
     p.set_defaults(func=cmd_import_bag)
+
+    p = sub.add_parser("replay", help="re-run a recorded run's perception and mapping with "
+                       "an experiment's classifiers, sensor models and maps")
+    p.add_argument("target", metavar="DIR",
+                   help="a run's --out directory (its run.mcap) or a run.mcap file")
+    p.add_argument("--with", dest="with_file", required=True, metavar="EXPERIMENT",
+                   help="the experiment whose perception chain to replay (the run's own file "
+                   "reproduces its metrics.json)")
+    _add_out_options(p, "results", "the results of a replay")
+    _add_set_option(p, "the --with experiment")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    _add_plugin_module_option(p)
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")

@@ -439,6 +439,11 @@ class Dataflow:
         self.force_violation: tuple[float, float] | None = None
         self.valid_force_samples = 0
         self._robot_keys: dict[str, tuple[str, ...]] = {}
+        #: Committed sensor samples and robot states so far (``sensor/ID``, ``robot/ID``):
+        #: the ``/loop`` events carry them so that a replay cuts the streams where the run
+        #: did (contract C of issue 17).
+        self.counts: dict[str, int] = {}
+        self._now_s = 0.0  # the latest sample or state time committed
         self._recorded_classes: dict[str, tuple[str, ...]] = {}
         # One aligner per consumer whose inputs run on different clocks: it keeps their
         # recent samples from tick to tick (a stream), so a run joins them as training does.
@@ -504,6 +509,11 @@ class Dataflow:
         add_row(keys[2], state.heading_rad)
         add_row(keys[3], state.depth_m)
         add_row(keys[4], movement_index)
+        counts = self.counts
+        key = keys[0][:-len("/timestamps_s")]
+        counts[key] = counts.get(key, 0) + 1
+        if state.timestamp_s > self._now_s:
+            self._now_s = float(state.timestamp_s)
         if self.recording is not None:
             self.recording.robot_state(robot_id, state, movement_index)
 
@@ -554,6 +564,11 @@ class Dataflow:
             batch = outputs[sensor_id]
             if len(batch):
                 arrived = True
+                key = f"sensor/{sensor_id}"
+                self.counts[key] = self.counts.get(key, 0) + len(batch)
+                last = float(batch.timestamps_s[-1])
+                if last > self._now_s:
+                    self._now_s = last
                 self._record_batch("sensor", sensor_id, batch)
                 self._track_force(self.components.sensors[sensor_id], batch)
                 if sensor_id in self.poses:
@@ -631,8 +646,19 @@ class Dataflow:
                     if sm_id in self.entries[map_id].inputs:
                         self.pending[map_id].append(obs)
 
+    def loop_event(self, event: str, t_s: float | None = None, keep_force: bool = False) -> None:
+        """Record ``/loop`` (``stream_start``, ``locate_from``, ``flush_maps``) with the
+        counts committed so far; nothing without a recording."""
+        if self.recording is None:
+            return
+        when = self._now_s if t_s is None else float(t_s)
+        self.recording.later("/loop", "hapticframe.LoopEvent", {
+            "event": event, "t_s": when, "counts": dict(self.counts),
+            "keep_force": keep_force}, when)
+
     def flush_maps(self) -> None:
         """Fuse pending observations into their maps."""
+        self.loop_event("flush_maps")
         for map_id, parts in self.pending.items():
             if parts:
                 merged = Observations.concatenate(parts)
@@ -646,10 +672,12 @@ class Dataflow:
         for name, array in batch.channels.items():
             self.recorder.add(f"{kind}/{cid}/{name}", array)
         if self.recording is not None:
-            units = None
+            units = rates = None
             if kind == "sensor":
-                units = {n: i.unit for n, i in self.components.sensors[cid].channels.items()}
-            self.recording.samples(kind, cid, batch, units)
+                channels = self.components.sensors[cid].channels
+                units = {n: i.unit for n, i in channels.items()}
+                rates = {n: i.rate_hz for n, i in channels.items()}
+            self.recording.samples(kind, cid, batch, units, rates)
 
     def _track_force(self, sensor: Sensor, batch: SampleBatch) -> None:
         """The largest finite force magnitude (``force_max_n``), and for safety the valid
@@ -731,11 +759,14 @@ class Dataflow:
         order = np.argsort(t, kind="stable")
         return t[order], f[order]
 
-    def start_stream(self) -> None:
-        """A new movement starts a new stream: forget classifier and feature state."""
+    def start_stream(self, keep_force: bool = False) -> None:
+        """A new movement starts a new stream: forget classifier and feature state (and the
+        movement's largest force, unless ``keep_force``: the same movement goes on)."""
+        self.loop_event("stream_start", keep_force=keep_force)
         self.movement_start_s = -math.inf
         self.latest.clear()
-        self.force_max_n = float("nan")
+        if not keep_force:
+            self.force_max_n = float("nan")
         self.force_violation = None
         for cid in self.extractors + self.classifiers:
             self.components[cid].reset()
@@ -746,6 +777,7 @@ class Dataflow:
         """The current movement (part) began at ``start_s``: classifier outputs timestamped
         before it (read during the robot's transit to the start) reach no sensor model."""
         self.movement_start_s = float(start_s)
+        self.loop_event("locate_from", t_s=self.movement_start_s)
 
     def interaction_detected(self) -> str | None:
         """The class name if the primary classifier's latest sample is not background."""

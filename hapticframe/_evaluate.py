@@ -368,7 +368,9 @@ def score_run(session: Session) -> dict[str, Any]:
         outline_level=settings.outline_level,
     )
     for cid, component in session.components.items():
-        for key, value in dict(component.finalize(outcome)).items():
+        own = dict(component.finalize(outcome))
+        session.component_metrics[cid] = own
+        for key, value in own.items():
             if key in out:
                 raise RunError(f"metric {key!r} of {cid!r} clashes with another metric")
             out[key] = value

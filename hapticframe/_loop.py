@@ -151,9 +151,7 @@ def _closed_loop(
                 if rest is not None:
                     resumes += 1
                     flow.flush_maps()
-                    force_max_n = flow.force_max_n
-                    flow.start_stream()
-                    flow.force_max_n = force_max_n
+                    flow.start_stream(keep_force=True)
                     part, reason = rest, ""
                     continue
             if not (reason == WORKSPACE_LIMIT or (cut and not reason)):
@@ -166,9 +164,8 @@ def _closed_loop(
                 break
             reason = ""
             robot, part = following
-            force_max_n = flow.force_max_n
-            flow.start_stream()  # the next arm's sensor: a new stream for the classifier
-            flow.force_max_n = force_max_n
+            # The next arm's sensor: a new stream for the classifier, the same movement.
+            flow.start_stream(keep_force=True)
         flow.flush_maps()
         result = MovementResult(
             index=index,

@@ -22,7 +22,14 @@ topic                              schema (``hapticframe.``)           content
 ``/movement``                      ``MovementResult``                  one per movement (halts)
 ``/safety_halt``                   ``SafetyHalt``                      a safety check's halt
 ``/device/ID/health``              ``DeviceHealth``                    the device's counters
+``/loop``                          ``LoopEvent``                       stream starts, map flushes
+``/metrics``                       ``RunMetrics``                      a finished run's metrics
 =================================  ==================================  ===========================
+
+The ``/loop`` events carry the cumulative counts of committed sensor samples and robot
+states at each stream start, locate and map flush: ``hapticframe replay`` re-cuts the
+recorded streams at exactly those points, whatever the blocks' sizes. The metadata record
+``hapticframe`` holds the experiment's resolved configuration (``config``, JSON).
 
 Timing: a message's log time is the run's model time (the samples' own clock, in ns) of
 its last sample. Samples of one channel gather into one message until the model time has
@@ -100,7 +107,8 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     "hapticframe.SampleBatch": _schema(
         "Samples of a sensor or feature extractor (arrays: one row per sample)",
         {"timestamps_s": _NUMBERS, "channels": _BY_NAME, "valid": _BY_NAME,
-         "units": {"type": "object", "additionalProperties": {"type": "string"}}},
+         "units": {"type": "object", "additionalProperties": {"type": "string"}},
+         "rates_hz": {"type": "object", "additionalProperties": {"type": "number"}}},
         ["timestamps_s", "channels"]),
     "hapticframe.ClassProbabilities": _schema(
         "A classifier's output", {"timestamps_s": _NUMBERS, "probabilities": _NUMBERS,
@@ -132,6 +140,18 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     "hapticframe.SafetyHalt": _schema(
         "A halt of the run loop's safety checks (run.json: details.safety_halts)",
         {"reason": {"type": "string"}}, ["reason"]),
+    "hapticframe.LoopEvent": _schema(
+        "A point of the run loop that replay must repeat (cumulative counts so far)", {
+            "event": {"enum": ["stream_start", "locate_from", "flush_maps"]},
+            "t_s": {"type": ["number", "null"]},
+            "counts": {"type": "object", "additionalProperties": {"type": "integer"}},
+            "keep_force": {"type": "boolean"}},
+        ["event", "t_s", "counts", "keep_force"]),
+    "hapticframe.RunMetrics": _schema(
+        "A finished run's metrics.json and each component's own finalize() metrics",
+        {"metrics": {"type": "object"}, "components": {
+            "type": "object", "additionalProperties": {"type": "object"}}},
+        ["metrics", "components"]),
     "hapticframe.DeviceHealth": _schema(
         "A device's health counters", {"counters": {
             "type": "object", "additionalProperties": {"type": "integer"}}}, ["counters"]),
@@ -210,6 +230,9 @@ class RunRecording:
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._blocks: dict[str, _Block] = {}
+        # Events written with the next blocks, not now: a map flush must not cut every
+        # channel's block short (see later()).
+        self._deferred: list[tuple[str, str, float, dict[str, Any]]] = []
         self._sequence = 0
         self._now_s = 0.0  # the latest model time seen
         self._emit_after_s = math.inf  # the earliest end of an open block
@@ -225,14 +248,18 @@ class RunRecording:
     # --- what the run records ------------------------------------------------------------
 
     def samples(self, kind: str, cid: str, batch: SampleBatch,
-                units: Mapping[str, str] | None = None) -> None:
+                units: Mapping[str, str] | None = None,
+                rates_hz: Mapping[str, float] | None = None) -> None:
         """A sensor's or feature extractor's batch (``kind``: ``sensor`` or
-        ``feature_extractor``)."""
+        ``feature_extractor``); a sensor's channel units and nominal rates with it (a
+        replayed sensor declares the same rates: a filter designed on them must match)."""
         if not len(batch):
             return
         block = self._block(f"/{kind}/{cid}", "hapticframe.SampleBatch")
-        if units and not block.constant:
+        if units and "units" not in block.constant:
             block.constant["units"] = dict(units)
+        if rates_hz and "rates_hz" not in block.constant:
+            block.constant["rates_hz"] = {k: float(v) for k, v in rates_hz.items()}
         self._add(block, batch.timestamps_s, {("timestamps_s",): batch.timestamps_s,
                   **{("channels", n): a for n, a in batch.channels.items()},
                   **{("valid", n): a for n, a in batch.valid.items()}})
@@ -297,6 +324,13 @@ class RunRecording:
         self._write(topic, schema, when, _nan_to_none(dict(data)))
         self._maybe_sync()
 
+    def later(self, topic: str, schema: str, data: Mapping[str, Any], t_s: float) -> None:
+        """One message written with the next blocks (at the latest at the next sync or
+        close), so that frequent events do not cut the open blocks into small messages.
+        Its log time is ``t_s``; readers order such messages by their content, not by
+        their place in the file."""
+        self._deferred.append((topic, schema, max(float(t_s), 0.0), _nan_to_none(dict(data))))
+
     def health(self, counters: Mapping[str, Mapping[str, int]]) -> None:
         for cid, values in counters.items():
             self.event(f"/device/{cid}/health", "hapticframe.DeviceHealth",
@@ -337,6 +371,9 @@ class RunRecording:
         for topic in list(self._blocks):
             self._emit(topic)
         self._emit_after_s = math.inf
+        deferred, self._deferred = self._deferred, []
+        for topic, schema, t_s, data in deferred:
+            self._write(topic, schema, t_s, data)
 
     def _emit(self, topic: str) -> None:
         block = self._blocks.pop(topic, None)

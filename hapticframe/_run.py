@@ -179,12 +179,24 @@ def _finish(directory: OutputDir, record: dict[str, Any], primary: BaseException
 def _open_recording(directory: OutputDir, experiment: Experiment, started_utc: str) -> Any:
     """``run.mcap`` in the staging folder: it moves into ``--out`` with the other files, or
     stays there, readable up to its last sync, when the run is killed."""
+    import json
+
     from ._recording import RECORDING, RunRecording
 
     return RunRecording(directory.staging / RECORDING, {
         "name": experiment.model.name, "seed": str(experiment.seed),
         "experiment_file": str(experiment.file), "started_utc": started_utc,
+        # The scene, region and settings for report, view and replay.
+        "config": json.dumps(experiment.resolved_config()),
     })
+
+
+def _record_metrics(session: Session, metrics: dict[str, Any]) -> None:
+    """``/metrics`` in ``run.mcap``: what ``metrics.json`` says and each component's own
+    part of it (a replay carries the parts of components it does not rebuild)."""
+    if session.recording is not None:
+        session.recording.event("/metrics", "hapticframe.RunMetrics", {
+            "metrics": metrics, "components": session.component_metrics})
 
 
 def _close_recording(session: Session) -> OutputError | None:
@@ -283,6 +295,7 @@ def run_experiment(
                 health = _device_health(components)
                 if health:
                     metrics["devices"] = health
+                _record_metrics(session, metrics)
                 save_outputs(session, metrics)
                 session.status = "ok"
             except DeviceError as exc:

@@ -50,6 +50,8 @@ class Session:
     #: Every halt of the run loop's safety checks (force limit, stalled force stream,
     #: workspace refusal), in order: ``run.json``'s ``details.safety_halts``.
     safety_halts: list[dict[str, Any]] = field(default_factory=list)
+    #: Each component's own ``finalize()`` metrics, by id (``run.mcap``'s ``/metrics``).
+    component_metrics: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def settings(self) -> RunSettings:

@@ -12,9 +12,12 @@ import importlib
 from typing import Any
 
 from ._config import TraceRecordingConfig
+from ._mcap_config import McapRecordingConfig
 
 __all__ = [
     "GROUND_TRUTH_FILE",
+    "McapRecordingConfig",
+    "RecordingSensor",
     "TRACE_FILE",
     "Recording",
     "RecordingError",
@@ -38,6 +41,7 @@ _LAZY = {
     "read_trace": "._replay",
     "recording_from_arrays": "._replay",
     "TraceRecordingSensor": "._sensor",
+    "RecordingSensor": "._mcap",
 }
 
 
