@@ -107,11 +107,13 @@ class LiveServer:
     port : int
         0 picks a free port (see :attr:`port` once started).
     rate_hz : float
-        The most frames a second each page gets (a frame goes only when it changed).
+        The most frames a second each page gets (a frame goes only when it changed). 20
+        asked gives the page at least 5 while the run's thread holds the GIL most of the
+        time (measured: docs/recording.md, "Live view").
     """
 
     def __init__(self, feed: Feed, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 rate_hz: float = 10.0) -> None:
+                 rate_hz: float = 20.0) -> None:
         self.feed = feed
         self.host = host
         self.port = port

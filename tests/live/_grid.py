@@ -17,7 +17,7 @@ def grid_message(mean: np.ndarray, std: np.ndarray, origin_m: tuple[float, float
     cells[:, :, 1] = std
     sec = int(t_s)
     return {
-        "timestamp": {"sec": sec, "nsec": int(round((t_s - sec) * 1e9))},
+        "timestamp": {"sec": sec, "nsec": round((t_s - sec) * 1e9)},
         "frame_id": "map",
         "pose": {"position": {"x": origin_m[0], "y": origin_m[1], "z": 0.0},
                  "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},

@@ -23,7 +23,7 @@ from hapticframe._live import (
     TimelineFeed,
     decode_grid,
 )
-from hapticframe._live._state import END_TOPIC, WINDOW_S
+from hapticframe._live._state import WINDOW_S
 from hapticframe._recording import RunRecording, listening, read_recording
 from hapticframe.kinds import ClassProbabilities, SampleBatch
 from tests.live._grid import grid_message

@@ -2,7 +2,7 @@
 // Plain JavaScript, no library, nothing fetched from elsewhere.
 "use strict";
 
-const hf = {frames: 0, mapDraws: 0, mapVersion: null, pathPoints: 0, forceDraws: 0,
+const hf = {rate: 0, frames: 0, mapDraws: 0, mapVersion: null, pathPoints: 0, forceDraws: 0,
             forceSamples: 0, probDraws: 0, lastT: 0, mode: null, status: null};
 window.hfLive = hf;  // what a test (or a curious person) can read
 
@@ -25,6 +25,7 @@ function ramp(stops) {
 const MEAN_RAMP = ramp(VIRIDIS), STD_RAMP = ramp(MAGMA);
 
 let frame = null, selectedMap = null, socket = null, wantedT = null;
+const arrivals = [];
 
 function $(id) { return document.getElementById(id); }
 
@@ -33,6 +34,10 @@ function connect() {
   socket.onmessage = (event) => {
     frame = JSON.parse(event.data);
     hf.frames += 1;
+    arrivals.push(performance.now());
+    while (arrivals.length && arrivals[0] < arrivals[arrivals.length - 1] - 2000) arrivals.shift();
+    const span = (arrivals[arrivals.length - 1] - arrivals[0]) / 1000;
+    hf.rate = span > 0 ? (arrivals.length - 1) / span : 0;
     draw(frame);
   };
   socket.onopen = () => { if (wantedT !== null) send(wantedT); };
@@ -201,6 +206,7 @@ function draw(f) {
   $("name").textContent = f.name || "";
   $("status").textContent = f.status;
   $("time").textContent = f.t_s.toFixed(2);
+  $("rate").textContent = hf.rate.toFixed(1);
   $("phase").textContent = f.phase || "–";
   $("interaction").textContent = Object.entries(f.interaction)
     .map(([cid, s]) => `${cid}: ${s.class} (${s.probability.toFixed(2)})`).join(", ") || "–";
