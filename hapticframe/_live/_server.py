@@ -125,6 +125,7 @@ class LiveServer:
         self._started = threading.Event()
         self._error: BaseException | None = None
         self._stopping: asyncio.Event | None = None
+        self._sockets: set[web.WebSocketResponse] = set()
 
     @property
     def url(self) -> str:
@@ -223,6 +224,8 @@ class LiveServer:
                 except asyncio.TimeoutError:
                     pass
         finally:
+            for ws in list(self._sockets):  # open pages would hold the shutdown up
+                await ws.close()
             await runner.cleanup()
 
     # --- handlers ----------------------------------------------------------------------------
@@ -250,6 +253,7 @@ class LiveServer:
 
         ws = web.WebSocketResponse(heartbeat=10.0)
         await ws.prepare(request)
+        self._sockets.add(ws)
         wanted: list[float | None] = [None]
 
         async def receive() -> None:
@@ -276,6 +280,7 @@ class LiveServer:
         except (ConnectionError, RuntimeError):
             pass  # the page went away
         finally:
+            self._sockets.discard(ws)
             reader.cancel()
             await ws.close()
         return ws
