@@ -79,7 +79,7 @@ function projector(canvas, box) {
 function currentMap(f) {
   const ids = Object.keys(f.maps);
   if (!ids.length) return null;
-  if (!ids.includes(selectedMap)) selectedMap = ids[ids.length - 1];
+  if (!ids.includes(selectedMap)) selectedMap = ids[0];
   return f.maps[selectedMap];
 }
 
