@@ -380,7 +380,10 @@ class LiveState:
         current = movements == path.movement
         earlier = ~current
         step = _thin(int(earlier.sum()), MAX_PATH_POINTS)
-        return {"points": _rounded(points[earlier][step], 5),
+        # One polyline per movement: no line drawn across the travel between two movements.
+        kept, indices = points[earlier][step], movements[earlier][step]
+        cuts = np.flatnonzero(np.diff(indices)) + 1
+        return {"points": [_rounded(part, 5) for part in np.split(kept, cuts) if len(part)],
                 "current": _rounded(points[current][_thin(int(current.sum()), 2000)], 5),
                 "movement": path.movement,
                 "position_m": _rounded(points[-1], 5) if len(points) else None,

@@ -154,8 +154,15 @@ def test_the_state_folds_a_run_into_one_frame() -> None:
     radius = np.hypot((ring[:, 0] - 0.155) / 0.05, (ring[:, 1] - 0.105) / 0.04)
     np.testing.assert_allclose(radius, np.sqrt(-np.log(0.6)), atol=0.15)
     path = frame["paths"]["arm"]
-    assert path["points"] == [[0, 0.1], [0.01, 0.1]] and path["current"] == [[0.02, 0.1]]
+    assert path["points"] == [[[0, 0.1], [0.01, 0.1]]] and path["current"] == [[0.02, 0.1]]
     assert path["movement"] == 1 and path["position_m"] == [0.02, 0.1]
+    assert state.frame() is frame  # nothing changed: the same frame
+    state.fold("/robot/arm/state", 0.5, {
+        "timestamps_s": [0.4, 0.5], "positions_m": [[0.5, 0.3], [0.51, 0.3]],
+        "headings_rad": [0, 0], "depths_m": [0.04] * 2, "movement_index": [2, 2]})
+    moved = state.frame()["paths"]["arm"]
+    assert moved["points"] == [[[0, 0.1], [0.01, 0.1]], [[0.02, 0.1]]]  # one per movement
+    assert moved["current"] == [[0.5, 0.3], [0.51, 0.3]]
     force = frame["forces"]["wrist.force_n"]
     assert list(frame["forces"]) == ["wrist.force_n"]  # only channels in newtons
     assert force["t_s"][0] >= 20.0 - WINDOW_S and force["t_s"][-1] == 20.0
@@ -166,7 +173,6 @@ def test_the_state_folds_a_run_into_one_frame() -> None:
     assert frame["metrics"]["movements"] == 1 and frame["metrics"]["halted_movements"] == 1
     assert frame["metrics"]["max_force_n"] == 100.0
     assert "/sensor/broken" in frame["errors"]
-    assert state.frame() is frame  # nothing changed: the same frame
 
     state.fold("/map/bhm/grid", 0.4, grid_message(1 - mean, std, (0.0, 0.0), 0.01))
     state.end("ok", {"object_found": True, "centroid_error_m": 0.01, "devices": {}})

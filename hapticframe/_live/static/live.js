@@ -59,7 +59,7 @@ function extent(f) {
   }
   let box = null;
   for (const path of Object.values(f.paths)) {
-    for (const [x, y] of path.points.concat(path.current)) {
+    for (const [x, y] of path.points.flat().concat(path.current)) {
       box = box ? [Math.min(box[0], x), Math.min(box[1], y), Math.max(box[2], x),
                    Math.max(box[3], y)] : [x, y, x, y];
     }
@@ -128,7 +128,7 @@ function drawWorld(canvas, f, field, table, withPath) {
   if (!withPath) return;
   for (const path of Object.values(f.paths)) {
     ctx.strokeStyle = "#ff9800"; ctx.lineWidth = 1.2;
-    polyline(ctx, P, path.points, false);
+    for (const part of path.points) polyline(ctx, P, part, false);
     ctx.strokeStyle = "#e53935"; ctx.lineWidth = 3;
     polyline(ctx, P, path.current, false);
     if (path.position_m) {
@@ -222,7 +222,8 @@ function draw(f) {
   drawWorld($("map-mean"), f, "mean", MEAN_RAMP, true);
   drawWorld($("map-std"), f, "std", STD_RAMP, false);
   if (map && map.version !== hf.mapVersion) { hf.mapVersion = map.version; hf.mapDraws += 1; }
-  hf.pathPoints = paths.reduce((n, p) => n + p.points.length + p.current.length, 0);
+  hf.pathPoints = paths.reduce(
+    (n, p) => n + p.points.reduce((k, part) => k + part.length, 0) + p.current.length, 0);
 
   const forces = Object.entries(f.forces).map(([name, s]) => ({name, t: s.t_s, v: s.values}));
   drawSeries($("force"), forces, 0, $("force-legend"));
