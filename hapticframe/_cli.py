@@ -329,12 +329,79 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ._run import run_experiment
 
     experiment = _validate(args, args.file)
+    if getattr(args, "live", False):
+        return _run_live(args, experiment)
     echo = (lambda _text: None) if args.quiet else _progress_line
     metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
                              progress=not args.quiet, min_free_bytes=_min_free(args))
     label_channel = experiment.model.run.label_channel
     _out(f"results in {args.out} (all metrics in metrics.json): "
          + _summary(metrics, label_channel))
+    return 0
+
+
+def _wait_for_interrupt() -> None:
+    """Block until Ctrl-C (the live page keeps serving meanwhile)."""
+    import threading
+
+    forever = threading.Event()
+    try:
+        while not forever.wait(3600):
+            pass
+    except KeyboardInterrupt:
+        pass
+
+
+def _run_live(args: argparse.Namespace, experiment: Any) -> int:
+    """``run --live``: the run with its page; after a finished run the page stays up (the
+    final state, metrics included) until Ctrl-C."""
+    from ._errors import RunInterrupted, UsageError
+    from ._live import LiveFeed, LiveServer
+    from ._recording import listening
+    from ._run import run_experiment
+
+    if not experiment.model.run.record:
+        raise UsageError("--live shows the run's recording, which this experiment turns off "
+                         "(run.record: false); remove that line or drop --live")
+    feed = LiveFeed()
+    server = LiveServer(feed, port=_port_of(args))
+    _out(f"live view: {server.start()} (Ctrl-C stops it after the run)")
+    echo = (lambda _text: None) if args.quiet else _progress_line
+    try:
+        with listening(feed.listener):
+            metrics = run_experiment(experiment, args.out, overwrite=args.overwrite,
+                                     echo=echo, progress=not args.quiet,
+                                     min_free_bytes=_min_free(args))
+    except BaseException as exc:  # the error is the command's; the page goes with it
+        feed.end("interrupted" if isinstance(exc, (RunInterrupted, KeyboardInterrupt))
+                 else "failed")
+        server.stop()
+        raise
+    feed.end("ok", dict(metrics))
+    label_channel = experiment.model.run.label_channel
+    _out(f"results in {args.out} (all metrics in metrics.json): "
+         + _summary(metrics, label_channel))
+    _out(f"live view: the run has ended; the page stays at {server.url} until Ctrl-C")
+    _wait_for_interrupt()
+    server.stop()
+    return 0
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    from ._errors import UsageError
+    from ._live import LiveServer, RecordingTimeline, TimelineFeed
+    from ._recording import find_recording, read_recording
+
+    path = find_recording(Path(args.target))
+    timeline = RecordingTimeline.from_recording(read_recording(path))
+    if not timeline.messages:
+        raise UsageError(f"{path} holds no messages to view")
+    server = LiveServer(TimelineFeed(timeline, name=str(args.target)), port=_port_of(args))
+    url = server.start()
+    _out(f"viewing {path}: {len(timeline.messages)} messages, t = {timeline.start_s:.3f} ... "
+         f"{timeline.end_s:.3f} s, at {url} (Ctrl-C stops it)")
+    _wait_for_interrupt()
+    server.stop()
     return 0
 
 
@@ -409,6 +476,31 @@ def _add_out_options(p: argparse.ArgumentParser, what: str, replaces: str) -> No
     p.add_argument("--min-free-mb", type=_megabytes, default=None, metavar="MB",
                    help="free space DIR must have before anything runs (default: "
                    "HAPTICFRAME_MIN_FREE_MB or 50)")
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError("must be 0 (any free port) ... 65535")
+    return value
+
+
+#: The live page's port when --port is not given (kept here: the parser imports nothing).
+LIVE_PORT = 8765
+
+
+def _add_port_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--port", type=_port, default=None,
+                   help=f"the live page's port on 127.0.0.1 (default {LIVE_PORT}; 0: any "
+                   "free port; printed at start)")
+
+
+def _port_of(args: argparse.Namespace) -> int:
+    port: int | None = getattr(args, "port", None)
+    return LIVE_PORT if port is None else port
 
 
 def _short(value: float) -> str:
@@ -519,6 +611,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     _add_set_option(p)
+    p.add_argument("--live", action="store_true",
+                   help="serve a page on 127.0.0.1 that shows the run as it runs (map, path, "
+                   "force, class probabilities, metrics); it stays up after the run until "
+                   "Ctrl-C (needs hapticframe[live])")
+    _add_port_option(p)
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_run)
 
@@ -554,6 +651,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
     _add_plugin_module_option(p)
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("view", help="serve the live page for a finished or recovered run, "
+                       "with a time slider")
+    p.add_argument("target", metavar="DIR",
+                   help="a run's --out directory (its run.mcap, or the one a killed run left "
+                   "in .hapticframe-partial/) or an .mcap file")
+    _add_port_option(p)
+    p.set_defaults(func=cmd_view)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")

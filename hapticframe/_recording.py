@@ -37,6 +37,11 @@ advanced :data:`BLOCK_S` past the block's start; at least every :data:`SYNC_S` s
 wall-clock time every open block is written out, the chunk in progress is closed (chunks
 are small, :data:`CHUNK_BYTES`) and the file is ``fsync``-ed, so a ``kill -9`` loses at
 most about that second. Non-finite floats are written as JSON ``null`` (read back as NaN).
+
+Listeners (:meth:`RunRecording.add_listener`, or :func:`listening` for every recording
+opened meanwhile) see each message right after it is written, decoded: the live view
+(:mod:`hapticframe._live`) is one. A listener must return at once; one that raises is
+logged once and dropped, never failing the run.
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
@@ -75,6 +81,7 @@ __all__ = [
     "Recovery",
     "RunRecording",
     "find_recording",
+    "listening",
     "read_recording",
     "recover",
 ]
@@ -91,6 +98,23 @@ BLOCK_S = 0.1
 CHUNK_BYTES = 256 * 1024
 #: The first bytes of every MCAP file.
 MAGIC = b"\x89MCAP0\r\n"
+
+#: ``fn(topic, t_s, data)``: called with every message a recording writes (decoded).
+Listener = Callable[[str, float, Mapping[str, Any]], None]
+#: Listeners every :class:`RunRecording` gets when it opens (see :func:`listening`).
+_GLOBAL_LISTENERS: list[Listener] = []
+
+
+@contextmanager
+def listening(listener: Listener) -> Iterator[None]:
+    """Give ``listener`` to every :class:`RunRecording` opened inside the block (``hapticframe
+    run --live`` watches the run it starts without reaching into the orchestrator)."""
+    _GLOBAL_LISTENERS.append(listener)
+    try:
+        yield
+    finally:
+        _GLOBAL_LISTENERS.remove(listener)
+
 
 _ARRAY = {"type": "array"}
 _NUMBERS = {"type": "array", "items": {"type": ["number", "null", "array"]}}
@@ -237,6 +261,7 @@ class RunRecording:
         self._now_s = 0.0  # the latest model time seen
         self._emit_after_s = math.inf  # the earliest end of an open block
         self.messages = 0
+        self._listeners: list[Listener] = list(_GLOBAL_LISTENERS)
         #: How many of the session's safety halts are recorded (the loop keeps it).
         self.halts_recorded = 0
         self.closed = False
@@ -244,6 +269,27 @@ class RunRecording:
         if metadata:
             self._guard(lambda: self._writer.add_metadata("hapticframe", dict(metadata)))
         self.sync()
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call ``listener(topic, t_s, data)`` with every message written from now on, after
+        it is written (``data`` the decoded message; do not change it). It must not block:
+        the run's thread calls it. One that raises is logged once and dropped."""
+        self._listeners.append(listener)
+
+    def remove_listener(self, listener: Listener) -> None:
+        """Stop calling ``listener`` (nothing happens when it is not listening)."""
+        if listener in self._listeners:
+            self._listeners.remove(listener)
+
+    def _tell(self, topic: str, t_s: float, data: Mapping[str, Any]) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener(topic, t_s, data)
+            except Exception as exc:  # a listener never fails the run
+                _log.warning("recording listener %r failed on %s and is dropped: %s: %s",
+                             getattr(listener, "__qualname__", listener), topic,
+                             type(exc).__name__, exc)
+                self.remove_listener(listener)
 
     # --- what the run records ------------------------------------------------------------
 
@@ -409,6 +455,8 @@ class RunRecording:
             channel_id=channel, log_time=stamp, publish_time=stamp, data=payload,
             sequence=self._sequence))
         self.messages += 1
+        if self._listeners:
+            self._tell(topic, max(t_s, 0.0), data)
 
     def sync(self) -> None:
         """Write every open block, close the chunk in progress and ``fsync`` the file."""
