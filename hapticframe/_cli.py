@@ -305,6 +305,16 @@ def cmd_recover(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    from ._report import write_report
+
+    report = write_report(Path(args.target), Path(args.out) if args.out else None)
+    how = f", cut short: {report.cut}" if report.cut else ""
+    _out(f"read {report.source} ({report.messages} messages{how})")
+    _out(f"wrote {', '.join(report.files)} into {report.out}")
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
@@ -415,6 +425,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, metavar="FILE",
                    help="where to write it (default: DIR/run.mcap, or the file itself)")
     p.set_defaults(func=cmd_recover)
+
+    p = sub.add_parser("report", help="write trace.npz and figures from a run's recording")
+    p.add_argument("target", metavar="DIR",
+                   help="a run's --out directory (its run.mcap, or the one a killed run left "
+                   "in .hapticframe-partial/) or an .mcap file")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="where to write them (default: DIR, or the file's folder)")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")

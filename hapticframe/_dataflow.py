@@ -414,9 +414,11 @@ class Dataflow:
     ) -> None:
         self.components = components
         self.recorder = recorder
-        #: The run's ``run.mcap`` (:class:`~hapticframe._recording.RunRecording`), fed the
-        #: same data as ``recorder`` as it happens; None when the run records none.
-        self.recording: Any = None
+        # Map snapshots in the recording (run.snapshot_*), with the scene they lie in.
+        run = experiment.model.run
+        self._snapshots = (run.snapshot_rate_hz, run.snapshot_spacing_m, run.outline_level)
+        self.scene = experiment.model.scene
+        self.recording = None
         self.entries: dict[str, ComponentEntry] = {e.id: e for e in experiment.components}
         order = [e.id for e in experiment.components]
         self.sensors = [
@@ -457,6 +459,20 @@ class Dataflow:
             i for i in self.sensors
             if any(info.unit == "N" for info in components.sensors[i].channels.values())
         ]
+
+    @property
+    def recording(self) -> Any:
+        """The run's ``run.mcap`` (:class:`~hapticframe._recording.RunRecording`), fed the
+        same data as ``recorder`` as it happens; None when the run records none. Setting
+        one configures its map snapshots and writes the scene into it."""
+        return self._recording
+
+    @recording.setter
+    def recording(self, recording: Any) -> None:
+        self._recording = recording
+        if recording is not None:
+            recording.configure_snapshots(*self._snapshots)
+            recording.scene(self.scene)
 
     def _plan_sensor_models(self) -> None:
         """Pick each sensor model's classifier and pose source, or say what is missing."""
@@ -638,6 +654,10 @@ class Dataflow:
                 merged = Observations.concatenate(parts)
                 self.pending[map_id] = []
                 self.components.maps[map_id].update(merged)
+        recording = self._recording
+        if recording is not None and recording.snapshot_due():
+            for map_id in self.maps:
+                recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):
