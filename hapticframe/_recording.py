@@ -98,6 +98,9 @@ CHUNK_BYTES = 256 * 1024
 SNAPSHOT_RATE_HZ = 5.0
 #: The snapshots' grid spacing (metres), unless the run says.
 SNAPSHOT_SPACING_M = 0.01
+#: Model times this close count as equal when snapshots are due (steps of 0.01 s add up
+#: to a little less than their sum).
+_EPS_S = 1e-6
 #: The first bytes of every MCAP file.
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -304,7 +307,7 @@ class RunRecording:
         block.rows.append((t, position, float(state.heading_rad),
                            float(state.depth_m), movement_index))
         self._seen(block, t, t)
-        if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf):
+        if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf) - _EPS_S:
             self._next_pose_s[robot_id] = t + 1.0 / self.snapshot_rate_hz
             self.event(f"/robot/{robot_id}/pose", _foxglove.POSE_IN_FRAME,
                        _foxglove.pose_message(t, position, float(state.heading_rad),
@@ -358,7 +361,7 @@ class RunRecording:
         if self.snapshot_rate_hz <= 0:
             return False
         t = self._now_s if t_s is None else float(t_s)
-        if t < self._next_snapshot_s:
+        if t < self._next_snapshot_s - _EPS_S:
             return False
         self._next_snapshot_s = t + 1.0 / self.snapshot_rate_hz
         return True
