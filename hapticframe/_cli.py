@@ -308,7 +308,8 @@ def cmd_recover(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     from ._report import write_report
 
-    report = write_report(Path(args.target), Path(args.out) if args.out else None)
+    report = write_report(Path(args.target), Path(args.out) if args.out else None,
+                          figures=not args.no_figures)
     how = f", cut short: {report.cut}" if report.cut else ""
     _out(f"read {report.source} ({report.messages} messages{how})")
     _out(f"wrote {', '.join(report.files)} into {report.out}")
@@ -432,6 +433,7 @@ def _parser() -> argparse.ArgumentParser:
                    "in .hapticframe-partial/) or an .mcap file")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write them (default: DIR, or the file's folder)")
+    p.add_argument("--no-figures", action="store_true", help="write trace.npz only")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")

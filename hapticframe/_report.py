@@ -435,11 +435,11 @@ class Report:
     cut: str = ""
 
 
-def write_report(target: Path, out: Path | None = None,
+def write_report(target: Path, out: Path | None = None, *, figures: bool = True,
                  echo: Callable[[str], None] | None = None) -> Report:
-    """``hapticframe report``: ``trace.npz`` and the figures of the recording ``target``
-    names (a run's directory, or an ``.mcap`` file) into ``out`` (default: the run's
-    directory, or the file's folder).
+    """``hapticframe report``: ``trace.npz`` and (unless ``figures`` is False) the figures
+    of the recording ``target`` names (a run's directory, or an ``.mcap`` file) into
+    ``out`` (default: the run's directory, or the file's folder).
 
     Raises
     ------
@@ -464,13 +464,14 @@ def write_report(target: Path, out: Path | None = None,
     written = []
     save_trace(trace_arrays(recording), out / "trace.npz")
     written.append("trace.npz")
-    figures: dict[str, Figure | None] = {}
-    truth = truth_of(recording)
-    for topic in sorted(recording.topics(_foxglove.GRID)):
-        figures.update(map_figures(recording, topic.split("/")[2], truth))
-    figures["report_paths.png"] = paths_figure(recording, truth)
-    figures["report_signals.png"] = signals_figure(recording)
-    for name, figure in figures.items():
+    drawn: dict[str, Figure | None] = {}
+    if figures:
+        truth = truth_of(recording)
+        for topic in sorted(recording.topics(_foxglove.GRID)):
+            drawn.update(map_figures(recording, topic.split("/")[2], truth))
+        drawn["report_paths.png"] = paths_figure(recording, truth)
+        drawn["report_signals.png"] = signals_figure(recording)
+    for name, figure in drawn.items():
         if figure is not None:
             plotting.save_figure(figure, out / name)
             written.append(name)
