@@ -190,8 +190,8 @@ def decode_grid(message: Mapping[str, Any]) -> dict[str, NDArray[np.float64]]:
     rows = cells.shape[0]
     position = message["pose"]["position"]
     dx, dy = float(message["cell_size"]["x"]), float(message["cell_size"]["y"])
-    out["xs"] = float(position["x"]) + (np.arange(columns) + 0.5) * dx
-    out["ys"] = float(position["y"]) + (np.arange(rows) + 0.5) * dy
+    out["xs"] = (float(position["x"]) + (np.arange(columns) + 0.5) * dx).astype(np.float64)
+    out["ys"] = (float(position["y"]) + (np.arange(rows) + 0.5) * dy).astype(np.float64)
     return out
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +19,10 @@ from hapticframe._report import (
 )
 from hapticframe._results import STAGING
 from hapticframe.kinds import SampleBatch
-from tests.core.test_recording_snapshots import short_search  # noqa: F401 (a fixture)
+from tests.core import test_recording_snapshots
+
+#: The short search, run once per session (a fixture shared with the snapshot tests).
+short_search = test_recording_snapshots.short_search
 
 FIGURES = {"report_map_grid_mean.png", "report_map_grid_std.png", "report_map_bhm_mean.png",
            "report_map_bhm_std.png", "report_paths.png", "report_signals.png"}
