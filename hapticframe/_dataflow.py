@@ -404,6 +404,9 @@ class Dataflow:
     force_limit_n: float | None = None
     force_violation: tuple[float, float] | None = None
     valid_force_samples: int = 0
+    #: The run's recording (see :attr:`recording`); maps changed since the last snapshot.
+    _recording: Any = None
+    _maps_changed = False
 
     def __init__(
         self,
@@ -654,10 +657,24 @@ class Dataflow:
                 merged = Observations.concatenate(parts)
                 self.pending[map_id] = []
                 self.components.maps[map_id].update(merged)
+                self._maps_changed = True
+        self.snapshot_maps()
+
+    def snapshot_maps(self, *, final: bool = False) -> None:
+        """Write the maps into the recording when a snapshot is due (``run.snapshot_rate_hz``
+        of model time), or, ``final``, when they changed since the last one (the end of the
+        run: the last state of the maps is never left out by the rate)."""
         recording = self._recording
-        if recording is not None and recording.snapshot_due():
-            for map_id in self.maps:
-                recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
+        if recording is None:
+            return
+        if final:
+            if not self._maps_changed or recording.snapshot_rate_hz <= 0:
+                return
+        elif not recording.snapshot_due():
+            return
+        self._maps_changed = False
+        for map_id in self.maps:
+            recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import jsonschema
@@ -14,6 +15,7 @@ from mcap.reader import make_reader
 
 from hapticframe import _foxglove
 from hapticframe._cli import main
+from hapticframe._dataflow import Dataflow
 from hapticframe._recording import RECORDING, SCHEMAS, RunRecording, read_recording
 from hapticframe._scene import Scene
 from hapticframe.kinds import MapEstimate, Region, RobotState
@@ -182,3 +184,24 @@ def test_snapshot_settings_are_validated(tmp_path, capsys):
     model["run"].update({"snapshot_rate_hz": 0, "snapshot_spacing_m": 0.02})
     experiment.write_text(yaml.safe_dump(model))
     assert main(["validate", str(experiment)]) == 0
+
+
+def test_the_dataflow_snapshots_at_the_rate_and_at_the_end(tmp_path):
+    flow = object.__new__(Dataflow)  # only the maps and the recording are exercised
+    flow.maps, flow.pending = ["ramp"], {"ramp": []}
+    flow.components = SimpleNamespace(maps={"ramp": _Ramp()})
+    flow._snapshots, flow.scene = (5.0, 0.05, 0.6), None
+    recording = RunRecording(tmp_path / "a.mcap")
+    flow.recording = recording
+    flow.snapshot_maps(final=True)  # nothing changed yet: nothing written
+    for t in (1.0, 1.1, 1.25, 1.3):
+        recording.robot_state("arm", RobotState(t, np.zeros(2), 0.0, 0.0), 0)
+        flow._maps_changed = True
+        flow.flush_maps()
+    flow.snapshot_maps(final=True)  # the maps changed at 1.3 s, after the last snapshot
+    flow.snapshot_maps(final=True)
+    flow.recording = None
+    flow.flush_maps()
+    recording.close()
+    times = [t / 1e9 for t, _ in read_recording(tmp_path / "a.mcap")["/map/ramp/grid"]]
+    assert times == pytest.approx([1.0, 1.25, 1.3])
