@@ -7,8 +7,8 @@ killed outright (``kill -9``, power loss) leaves the recording in the staging fo
 complete up to its last sync; ``hapticframe recover DIR`` rewrites it as a complete,
 indexed ``DIR/run.mcap`` (and lists it in ``run.json``).
 
-Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``; no Foxglove
-well-known schema yet) hold arrays per block of samples, never one message per sample:
+Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``) hold arrays per
+block of samples, never one message per sample:
 
 =================================  ==================================  ===========================
 topic                              schema (``hapticframe.``)           content
