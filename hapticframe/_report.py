@@ -281,9 +281,11 @@ def map_figures(recording: Recording, map_id: str, truth: Truth) -> dict[str, Fi
     extent = (xs[0] - dx / 2, xs[-1] + dx / 2, ys[0] - dy / 2, ys[-1] + dy / 2)
     level = _estimate_level(recording, map_id)
     figures: dict[str, Figure] = {}
-    for field_name, title, cmap, limits in (
-            ("mean", "occupancy probability", "viridis", (0.0, 1.0)),
-            ("std", "standard deviation of the occupancy", "magma", (0.0, None))):
+    # The outline's colour stands out on each colour map (white on viridis' dark low end,
+    # black on magma's bright high end, where an uncertain map mostly lies).
+    for field_name, title, cmap, limits, line in (
+            ("mean", "occupancy probability", "viridis", (0.0, 1.0), "white"),
+            ("std", "standard deviation of the occupancy", "magma", (0.0, None), "black")):
         figure, axes, colorbar_axes = plotting.map_figure()
         values = grid[field_name]
         image = axes.imshow(values, origin="lower", extent=extent, cmap=cmap,
@@ -291,7 +293,7 @@ def map_figures(recording: Recording, map_id: str, truth: Truth) -> dict[str, Fi
         assert colorbar_axes is not None
         figure.colorbar(image, cax=colorbar_axes, label=title)
         _truth_and_region(axes, truth)
-        plotting.draw_level_outline(axes, xs, ys, grid["mean"], level,
+        plotting.draw_level_outline(axes, xs, ys, grid["mean"], level, colour=line,
                                     label=f"estimated outline (p = {level:g})")
         axes.set(xlabel="x (m)", ylabel="y (m)",
                  title=f"Map {map_id!r}: {title} at t = {log_time / 1e9:.2f} s")
