@@ -442,6 +442,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    from ._report import write_report
+
+    report = write_report(Path(args.target), Path(args.out) if args.out else None,
+                          figures=not args.no_figures)
+    how = f", cut short: {report.cut}" if report.cut else ""
+    _out(f"read {report.source} ({report.messages} messages{how})")
+    _out(f"wrote {', '.join(report.files)} into {report.out}")
+    return 0
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from ._train import train_experiment
 
@@ -659,6 +670,15 @@ def _parser() -> argparse.ArgumentParser:
                    "in .hapticframe-partial/) or an .mcap file")
     _add_port_option(p)
     p.set_defaults(func=cmd_view)
+
+    p = sub.add_parser("report", help="write trace.npz and figures from a run's recording")
+    p.add_argument("target", metavar="DIR",
+                   help="a run's --out directory (its run.mcap, or the one a killed run left "
+                   "in .hapticframe-partial/) or an .mcap file")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="where to write them (default: DIR, or the file's folder)")
+    p.add_argument("--no-figures", action="store_true", help="write trace.npz only")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("train", help="fit an experiment's trainable components on its recordings")
     p.add_argument("file", metavar="FILE")

@@ -404,6 +404,9 @@ class Dataflow:
     force_limit_n: float | None = None
     force_violation: tuple[float, float] | None = None
     valid_force_samples: int = 0
+    #: The run's recording (see :attr:`recording`); maps changed since the last snapshot.
+    _recording: Any = None
+    _maps_changed = False
 
     def __init__(
         self,
@@ -414,9 +417,11 @@ class Dataflow:
     ) -> None:
         self.components = components
         self.recorder = recorder
-        #: The run's ``run.mcap`` (:class:`~hapticframe._recording.RunRecording`), fed the
-        #: same data as ``recorder`` as it happens; None when the run records none.
-        self.recording: Any = None
+        # Map snapshots in the recording (run.snapshot_*), with the scene they lie in.
+        run = experiment.model.run
+        self._snapshots = (run.snapshot_rate_hz, run.snapshot_spacing_m, run.outline_level)
+        self.scene = experiment.model.scene
+        self.recording = None
         self.entries: dict[str, ComponentEntry] = {e.id: e for e in experiment.components}
         order = [e.id for e in experiment.components]
         self.sensors = [
@@ -462,6 +467,20 @@ class Dataflow:
             i for i in self.sensors
             if any(info.unit == "N" for info in components.sensors[i].channels.values())
         ]
+
+    @property
+    def recording(self) -> Any:
+        """The run's ``run.mcap`` (:class:`~hapticframe._recording.RunRecording`), fed the
+        same data as ``recorder`` as it happens; None when the run records none. Setting
+        one configures its map snapshots and writes the scene into it."""
+        return self._recording
+
+    @recording.setter
+    def recording(self, recording: Any) -> None:
+        self._recording = recording
+        if recording is not None:
+            recording.configure_snapshots(*self._snapshots)
+            recording.scene(self.scene)
 
     def _plan_sensor_models(self) -> None:
         """Pick each sensor model's classifier and pose source, or say what is missing."""
@@ -664,6 +683,24 @@ class Dataflow:
                 merged = Observations.concatenate(parts)
                 self.pending[map_id] = []
                 self.components.maps[map_id].update(merged)
+                self._maps_changed = True
+        self.snapshot_maps()
+
+    def snapshot_maps(self, *, final: bool = False) -> None:
+        """Write the maps into the recording when a snapshot is due (``run.snapshot_rate_hz``
+        of model time), or, ``final``, when they changed since the last one (the end of the
+        run: the last state of the maps is never left out by the rate)."""
+        recording = self._recording
+        if recording is None:
+            return
+        if final:
+            if not self._maps_changed or recording.snapshot_rate_hz <= 0:
+                return
+        elif not recording.snapshot_due():
+            return
+        self._maps_changed = False
+        for map_id in self.maps:
+            recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):

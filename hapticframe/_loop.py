@@ -96,6 +96,8 @@ def run_loop(session: Session) -> None:
         _closed_loop(session, flow, planners[0], robots)
     else:
         _open_loop(session, flow)
+    # The maps' last state, which the snapshot rate may have left out.
+    flow.snapshot_maps(final=True)
 
 
 def _closed_loop(

@@ -7,8 +7,8 @@ killed outright (``kill -9``, power loss) leaves the recording in the staging fo
 complete up to its last sync; ``hapticframe recover DIR`` rewrites it as a complete,
 indexed ``DIR/run.mcap`` (and lists it in ``run.json``).
 
-Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``; no Foxglove
-well-known schema yet) hold arrays per block of samples, never one message per sample:
+Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``) hold arrays per
+block of samples, never one message per sample:
 
 =================================  ==================================  ===========================
 topic                              schema (``hapticframe.``)           content
@@ -30,6 +30,13 @@ The ``/loop`` events carry the cumulative counts of committed sensor samples and
 states at each stream start, locate and map flush: ``hapticframe replay`` re-cuts the
 recorded streams at exactly those points, whatever the blocks' sizes. The metadata record
 ``hapticframe`` holds the experiment's resolved configuration (``config``, JSON).
+
+Foxglove's well-known schemas (:mod:`hapticframe._foxglove`), so that the file opens in
+Foxglove or Lichtblick: ``/map/ID/grid`` (``foxglove.Grid``: the map's occupancy mean and
+std on a grid, at ``run.snapshot_rate_hz`` of model time), ``/scene``
+(``foxglove.SceneUpdate``: the region and the true objects once at the start, the
+estimated outline with each snapshot) and ``/robot/ID/pose`` (``foxglove.PoseInFrame``,
+at the snapshot rate). docs/recording.md lists every channel.
 
 Timing: a message's log time is the run's model time (the samples' own clock, in ns) of
 its last sample. Samples of one channel gather into one message until the model time has
@@ -59,14 +66,17 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 
+from . import _foxglove
 from ._errors import UsageError
 from ._results import OutputError, atomic_path, output_error, write_json
 from ._version import __version__
 
 if TYPE_CHECKING:
+    from ._scene import Scene
     from .kinds import (
         ClassProbabilities,
         LocatedMeasurement,
+        Map,
         MovementResult,
         Observations,
         RobotState,
@@ -77,6 +87,8 @@ __all__ = [
     "BLOCK_S",
     "CHUNK_BYTES",
     "RECORDING",
+    "SNAPSHOT_RATE_HZ",
+    "SNAPSHOT_SPACING_M",
     "SYNC_S",
     "Recovery",
     "RunRecording",
@@ -96,6 +108,13 @@ SYNC_S = 1.0
 BLOCK_S = 0.1
 #: The size at which a chunk is closed before a sync would close it (bytes, uncompressed).
 CHUNK_BYTES = 256 * 1024
+#: Map snapshots (and fingertip poses) per second of model time, unless the run says.
+SNAPSHOT_RATE_HZ = 5.0
+#: The snapshots' grid spacing (metres), unless the run says.
+SNAPSHOT_SPACING_M = 0.01
+#: Model times this close count as equal when snapshots are due (steps of 0.01 s add up
+#: to a little less than their sum).
+_EPS_S = 1e-6
 #: The first bytes of every MCAP file.
 MAGIC = b"\x89MCAP0\r\n"
 
@@ -179,7 +198,13 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     "hapticframe.DeviceHealth": _schema(
         "A device's health counters", {"counters": {
             "type": "object", "additionalProperties": {"type": "integer"}}}, ["counters"]),
+    **_foxglove.SCHEMAS,
 }
+
+#: Colours (r, g, b, a) of the scene's lines: region, true objects, estimated outlines.
+_REGION_COLOUR = (0.5, 0.5, 0.5, 1.0)
+_TRUTH_COLOUR = (0.17, 0.63, 0.17, 1.0)  # matplotlib's tab:green, as on the figures
+_ESTIMATE_COLOUR = (1.0, 1.0, 1.0, 1.0)
 
 
 def _plain(array: np.ndarray) -> Any:
@@ -265,6 +290,13 @@ class RunRecording:
         #: How many of the session's safety halts are recorded (the loop keeps it).
         self.halts_recorded = 0
         self.closed = False
+        # Snapshots (contract B): set by configure_snapshots, the run's settings.
+        self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
+        self.snapshot_spacing_m = SNAPSHOT_SPACING_M
+        self.outline_level = 0.6
+        self._next_snapshot_s = -math.inf
+        self._next_pose_s: dict[str, float] = {}
+        self._scene_written = False
         self._guard(lambda: self._writer.start(profile="", library=f"hapticframe {__version__}"))
         if metadata:
             self._guard(lambda: self._writer.add_metadata("hapticframe", dict(metadata)))
@@ -344,9 +376,15 @@ class RunRecording:
             block.row_fields = ("timestamps_s", "positions_m", "headings_rad", "depths_m",
                                 "movement_index")
         t = float(state.timestamp_s)
-        block.rows.append((t, state.position_m.tolist(), float(state.heading_rad),
+        position = state.position_m.tolist()
+        block.rows.append((t, position, float(state.heading_rad),
                            float(state.depth_m), movement_index))
         self._seen(block, t, t)
+        if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf) - _EPS_S:
+            self._next_pose_s[robot_id] = t + 1.0 / self.snapshot_rate_hz
+            self.event(f"/robot/{robot_id}/pose", _foxglove.POSE_IN_FRAME,
+                       _foxglove.pose_message(t, position, float(state.heading_rad),
+                                              float(state.depth_m)), t)
 
     def movement(self, result: MovementResult) -> None:
         """An exploratory movement's result (written at once, with every open block)."""
@@ -381,6 +419,76 @@ class RunRecording:
         for cid, values in counters.items():
             self.event(f"/device/{cid}/health", "hapticframe.DeviceHealth",
                        {"counters": {k: int(v) for k, v in values.items()}})
+
+    # --- Foxglove: map snapshots, the scene ----------------------------------------------
+
+    @property
+    def now_s(self) -> float:
+        """The latest model time the recording has seen (seconds)."""
+        return self._now_s
+
+    def configure_snapshots(self, rate_hz: float, spacing_m: float,
+                            outline_level: float = 0.6) -> None:
+        """Snapshots and poses per second of model time (0: none), the snapshots' grid
+        spacing (metres) and the level of the estimated outline drawn with them."""
+        self.snapshot_rate_hz = float(rate_hz)
+        self.snapshot_spacing_m = float(spacing_m)
+        self.outline_level = float(outline_level)
+
+    def snapshot_due(self, t_s: float | None = None) -> bool:
+        """True when a map snapshot is due at ``t_s`` (default: now), and the next one is
+        then counted from ``t_s``."""
+        if self.snapshot_rate_hz <= 0:
+            return False
+        t = self._now_s if t_s is None else float(t_s)
+        if t < self._next_snapshot_s - _EPS_S:
+            return False
+        self._next_snapshot_s = t + 1.0 / self.snapshot_rate_hz
+        return True
+
+    def scene(self, scene: Scene | None) -> None:
+        """``/scene`` once, at model time 0: the region's rectangle and the true objects'
+        outlines (later calls write nothing)."""
+        if self._scene_written or scene is None:
+            return
+        self._scene_written = True
+        r = scene.region
+        entities = [_foxglove.line_entity(
+            "region", 0.0, [(r.x_min_m, r.y_min_m), (r.x_max_m, r.y_min_m),
+                            (r.x_max_m, r.y_max_m), (r.x_min_m, r.y_max_m)],
+            _REGION_COLOUR, thickness_m=0.002, metadata={"kind": "region"})]
+        for index, obj in enumerate(scene.objects):
+            entities.append(_foxglove.line_entity(
+                f"object/{index}", 0.0, obj.outline(128), _TRUTH_COLOUR,
+                metadata={"kind": "true object", "shape": str(obj.shape)}))
+        self.event("/scene", _foxglove.SCENE_UPDATE, _foxglove.scene_update(entities), 0.0)
+
+    def map_snapshot(self, map_id: str, the_map: Map, t_s: float) -> None:
+        """``/map/MAP_ID/grid``: the map's mean and std on a grid of
+        :attr:`snapshot_spacing_m` over its region, and on ``/scene`` its estimated outline
+        (the :attr:`outline_level` curve around the most occupied blob; removed while there
+        is none)."""
+        from .geometry import main_outline, sample_grid
+
+        region = the_map.region
+        bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+        xs, ys, points = sample_grid(bounds, self.snapshot_spacing_m)
+        estimate = the_map.query(points)
+        shape = (len(ys), len(xs))
+        mean, std = estimate.mean.reshape(shape), estimate.std.reshape(shape)
+        cell = ((bounds[1] - bounds[0]) / len(xs), (bounds[3] - bounds[2]) / len(ys))
+        self.event(f"/map/{map_id}/grid", _foxglove.GRID, _foxglove.grid_message(
+            t_s, (bounds[0], bounds[2]), cell, mean, std), t_s)
+        outline = main_outline(xs, ys, mean, self.outline_level)
+        entity_id = f"estimate/{map_id}"
+        if outline is None:
+            update = _foxglove.scene_update([], [entity_id], t_s)
+        else:
+            update = _foxglove.scene_update([_foxglove.line_entity(
+                entity_id, t_s, outline, _ESTIMATE_COLOUR, metadata={
+                    "kind": "estimated outline", "map": map_id,
+                    "level": f"{self.outline_level:g}"})])
+        self.event("/scene", _foxglove.SCENE_UPDATE, update, t_s)
 
     # --- blocks, syncs -------------------------------------------------------------------
 

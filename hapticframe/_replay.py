@@ -208,6 +208,7 @@ class _Replayer:
                 flow.locate_from(-math.inf if t_s is None else float(t_s))
             elif event == "flush_maps":
                 flow.flush_maps()
+        flow.snapshot_maps(final=True)  # as the run loop ends
         if not session.movements:  # an open loop: its force over the whole run
             _note_force(session, flow.force_max_n)
 

@@ -130,6 +130,16 @@ class RunSettings(BaseModel):
         "synced to disk about once a second so that a killed run keeps all but its last "
         "second (`hapticframe recover`).",
     )
+    snapshot_rate_hz: float = Field(
+        5.0, ge=0, le=1000,
+        description="Map snapshots in run.mcap (`/map/<id>/grid`, foxglove.Grid: occupancy "
+        "mean and std) and fingertip poses (`/robot/<id>/pose`) per second of model time; "
+        "a snapshot is taken when the maps are updated and one is due. 0: none.",
+    )
+    snapshot_spacing_m: float = Field(
+        0.01, gt=0, le=0.1,
+        description="Grid spacing of the map snapshots in run.mcap (metres).",
+    )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,
         description="With a live device (real hardware), the shortest wall-clock time between "
