@@ -191,6 +191,7 @@ def test_the_dataflow_snapshots_at_the_rate_and_at_the_end(tmp_path):
     flow.maps, flow.pending = ["ramp"], {"ramp": []}
     flow.components = SimpleNamespace(maps={"ramp": _Ramp()})
     flow._snapshots, flow.scene = (5.0, 0.05, 0.6), None
+    flow._now_s, flow.counts = 0.0, {}  # what the /loop events of flush_maps read
     recording = RunRecording(tmp_path / "a.mcap")
     flow.recording = recording
     flow.snapshot_maps(final=True)  # nothing changed yet: nothing written

@@ -74,6 +74,8 @@ def _suite(out: Path, lines: list[str] | None = None, seed: int = 0,
            **kwargs: Any) -> dict[str, Any]:
     options = BenchOptions(out_dir=out, trials=kwargs.pop("trials", 1), seed=seed, workers=1,
                            echo=(lines if lines is not None else []).append)
+    # The planner and the baseline: what resuming keeps is the same for any set of roles.
+    kwargs.setdefault("planners", {"search": "two-phase-coverage", "baseline": "coverage"})
     return run_suite(options, **kwargs)
 
 
