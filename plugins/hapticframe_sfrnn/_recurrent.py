@@ -172,7 +172,8 @@ class RecurrentClassifier(Classifier):
                     stacklevel=3,
                 )
         x = self._assemble(batch, self.fill_report)
-        return np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
+        np.divide(x, self._scale, out=x)  # in place: x is this call's own array
+        return np.clip(x, -INPUT_CLIP, INPUT_CLIP, out=x)
 
     def _assemble(self, batch: SampleBatch, report: FillReport | None = None) -> np.ndarray:
         """Unscaled inputs, one row per frame, whole modalities zero-filled where incomplete."""
