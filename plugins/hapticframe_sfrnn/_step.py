@@ -48,8 +48,10 @@ def step_backend_in_use(backend: str = "auto") -> str:
     return backend
 
 
-def _array(tensor: torch.Tensor) -> FloatArray:
-    return np.ascontiguousarray(tensor.detach().cpu().numpy(), dtype=np.float64)
+def _array(tensor: torch.Tensor | torch.nn.Module) -> FloatArray:
+    # A GRU's weights are typed Tensor | Module by torch's stubs (module attributes).
+    return np.ascontiguousarray(cast(torch.Tensor, tensor).detach().cpu().numpy(),
+                                dtype=np.float64)
 
 
 @dataclass(frozen=True)

@@ -185,7 +185,7 @@ class SparseCodingExtractor(FeatureExtractor):
         if tensors.shape[1:] != shape:
             raise ValueError(f"{name!r} tensors have shape {tensors.shape[1:]}, expected {shape}")
         rows = tensors.reshape(tensors.shape[0], dimension)
-        ok = np.isfinite(rows).all(axis=1)
+        ok: NDArray[np.bool_] = np.all(np.isfinite(rows), axis=1)
         if name in batch.valid:
             ok &= batch.valid[name]
         if ok.all():  # the usual case: nothing to zero

@@ -82,6 +82,13 @@ class RingBuffer:
             self._data[offset : offset + n - first] = values[first:]
         self._start = (self._start + n) % self.capacity
 
+    def push_one(self, value: FloatArray | float) -> None:
+        """Append one sample (what :meth:`push` does for ``n = 1``, with less bookkeeping:
+        the stream pushes one sample per channel and frame)."""
+        self._data[self._start] = value
+        self._data[self._start + self.capacity] = value
+        self._start = (self._start + 1) % self.capacity
+
     def view(self) -> FloatArray:
         """The window, oldest sample first (a read-only view)."""
         window = self._data[self._start : self._start + self.capacity]
@@ -225,16 +232,18 @@ class FeatureStream:
             self._start(frame)
         for m in self.modalities:
             held = self._held[m]
+            all_valid = bool(frame.valid[m].all())
             if m == "pac":  # hold along the sample sequence, within and across frames
                 clean = hold_invalid(frame.values[m], frame.valid[m], held)
                 self._held[m] = clean[-1:].reshape(())
                 self._pac.push(clean)
             else:
-                clean = np.where(frame.valid[m], frame.values[m], held)
+                # Copied either way: the held value must not share the caller's array.
+                clean = (frame.values[m].copy() if all_valid
+                         else np.where(frame.valid[m], frame.values[m], held))
                 self._held[m] = clean
-                buffer = self._pdc if m == "pdc" else self._electrodes
-                buffer.push(clean[np.newaxis])
-            self._frame_ok[m].push(np.array([float(frame.valid[m].all())]))
+                (self._pdc if m == "pdc" else self._electrodes).push_one(clean)
+            self._frame_ok[m].push_one(float(all_valid))
         return True
 
     def _start(self, frame: _Frame) -> None:
@@ -318,7 +327,7 @@ class FeatureStream:
                 if m in flags and not flags[m][i]:
                     ok = np.zeros_like(ok)
                 frame_ok[m] = ok
-            self._times.push(np.array([timestamps_s[i]]))
+            self._times.push_one(timestamps_s[i])
             if not self._accept(_Frame(frame_values, frame_ok)):
                 continue
             self._frames += 1

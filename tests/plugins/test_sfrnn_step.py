@@ -10,6 +10,8 @@ place are picked up at the next reset; extreme inputs stay finite.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -55,7 +57,7 @@ def _codes(rng: np.random.Generator, n: int) -> np.ndarray:
     return 3.0 * rng.standard_normal((n, width)) * (rng.random((n, width)) < 0.1)
 
 
-def _torch_stream(net: RecurrentNet, x: np.ndarray, dtype: torch.dtype) -> tuple[np.ndarray, ...]:
+def _torch_stream(net: RecurrentNet, x: np.ndarray, dtype: Any) -> tuple[np.ndarray, ...]:
     """Logits of ``net`` stepped frame by frame in ``dtype``, and the final hidden states."""
     net = net.to(dtype)
     state = tuple(h.to(dtype) for h in net.initial_state(1))
