@@ -105,6 +105,11 @@ class RecurrentClassifier(Classifier):
         self._build(config)
         if config.model_dir is not None:
             self.load(config.model_dir)
+        # One step on zeros now, so that loading (or compiling) the numba kernel happens at
+        # build time, not in a live run's first frame.
+        step = StreamingStep(self.net)
+        step.step(np.zeros(sum(self.groups.values())), step.initial_state(),
+                  np.empty(len(CLASSES)))
 
     # -- construction ------------------------------------------------------------------
 
