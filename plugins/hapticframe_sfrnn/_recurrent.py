@@ -24,10 +24,10 @@ calls; :meth:`predict_proba` (inherited) resets the state and runs the same per-
 over the whole recording, so chunked streaming equals the batch path bit for bit. Output
 timestamps are the input's: any look-ahead delay lies upstream in ``emd-features``.
 The per-frame step is not torch's: :class:`~._step.StreamingStep` runs the trained
-network's equations in float64 (compiled with numba when installed), ≈ 20× quicker than a
+network's equations in float64 (compiled with numba when installed), ≈ 10× quicker than a
 batch-1 torch call and equal to torch's float32 output to about 1e-7 (tested to 1e-6). Its
-weights are copied from the torch network at each :meth:`reset` (so at the start of every
-stream) and after :meth:`fit` and :meth:`load`. Probabilities are float64.
+weights are copied from the torch network at the first frame after each :meth:`reset`
+(so once per stream), :meth:`fit` and :meth:`load`. Probabilities are float64.
 
 Artifacts
 ---------
