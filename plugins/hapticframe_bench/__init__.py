@@ -27,6 +27,7 @@ if TYPE_CHECKING:
         compare_emd_with_pyemd,
         measure_chain_latency,
         measure_step_latency,
+        measure_torch_steps,
         run_latency_bench,
         synthetic_biotac_frames,
     )
@@ -53,6 +54,7 @@ __all__ = [
     "linear_svm_separability",
     "measure_chain_latency",
     "measure_step_latency",
+    "measure_torch_steps",
     "roc_auc",
     "run_bhm_bench",
     "run_latency_bench",
@@ -86,6 +88,7 @@ _HOMES = {
     "compare_emd_with_pyemd": "._latency",
     "measure_chain_latency": "._latency",
     "measure_step_latency": "._latency",
+    "measure_torch_steps": "._latency",
     "run_latency_bench": "._latency",
     "synthetic_biotac_frames": "._latency",
     "linear_svm_separability": "._separability",

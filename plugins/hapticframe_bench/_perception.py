@@ -86,8 +86,9 @@ PERCEPTION_TARGETS = (
            at_most=False),
     Target("table_2_4_media_sfrnn_ahead", "Table 2.4: media with the SF-RNN ahead of the "
            "(d)+Linear SVM", 5.0, digits=0, at_most=False),
-    Target("latency_ms_median", "streaming chain per frame, median", 2.0, "ms", digits=2),
-    Target("latency_ms_p99", "streaming chain per frame, p99", 4.0, "ms", digits=2),
+    # Issue 18: a third of the thesis's 2.96 ms SF-RNN step (median), twice that (p99).
+    Target("latency_ms_median", "streaming chain per frame, median", 1.0, "ms", digits=2),
+    Target("latency_ms_p99", "streaming chain per frame, p99", 2.0, "ms", digits=2),
 )
 MEDIA = ("poppy_seed", "plastic_pellets", "bbs", "pine_beads", "cottonwood_beads")
 

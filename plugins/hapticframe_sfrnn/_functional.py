@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
@@ -102,7 +103,7 @@ def assemble_inputs(
             col += size
             continue
         values = np.asarray(batch.channels[name], dtype=np.float64)
-        values = values.reshape(n, int(np.prod(values.shape[1:], dtype=np.int64)))
+        values = values.reshape(n, math.prod(values.shape[1:]))
         if values.shape[1] != size:
             raise ValueError(
                 f"channel {name!r} has {values.shape[1]} values per frame, the classifier "
@@ -111,10 +112,15 @@ def assemble_inputs(
         ok = np.isfinite(values).all(axis=1)
         if name in batch.valid:
             ok &= np.asarray(batch.valid[name], dtype=bool)
-        x[ok, col : col + size] = values[ok]
+        bad = n - int(np.count_nonzero(ok))
+        # This runs every frame of a stream: the plain copy when all is well (the usual case).
+        if bad:
+            x[ok, col : col + size] = values[ok]
+        else:
+            x[:, col : col + size] = values
         present[:, j] = ok
         if report is not None:
-            report.add(name, 0, int(n - ok.sum()))
+            report.add(name, 0, bad)
         col += size
     return x, present
 

@@ -23,7 +23,11 @@ Streaming and batch
 calls; :meth:`predict_proba` (inherited) resets the state and runs the same per-frame code
 over the whole recording, so chunked streaming equals the batch path bit for bit. Output
 timestamps are the input's: any look-ahead delay lies upstream in ``emd-features``.
-Probabilities are float64 (softmax of the float32 logits computed in float64).
+The per-frame step is not torch's: :class:`~._step.StreamingStep` runs the trained
+network's equations in float64 (compiled with numba when installed), ≈ 10× quicker than a
+batch-1 torch call and equal to torch's float32 output to about 1e-7 (tested to 1e-6). Its
+weights are copied from the torch network at the first frame after each :meth:`reset`
+(so once per stream), :meth:`fit` and :meth:`load`. Probabilities are float64.
 
 Artifacts
 ---------
@@ -74,6 +78,7 @@ from ._persist import (
     read_weights,
     validate_config,
 )
+from ._step import StreamingStep
 from ._training import train_network
 
 __all__ = ["MODEL_FORMAT", "FusionRNNClassifier", "RecurrentClassifier", "SFRNNClassifier"]
@@ -100,6 +105,11 @@ class RecurrentClassifier(Classifier):
         self._build(config)
         if config.model_dir is not None:
             self.load(config.model_dir)
+        # One step on zeros now, so that loading (or compiling) the numba kernel happens at
+        # build time, not in a live run's first frame.
+        step = StreamingStep(self.net)
+        step.step(np.zeros(sum(self.groups.values())), step.initial_state(),
+                  np.empty(len(CLASSES)))
 
     # -- construction ------------------------------------------------------------------
 
@@ -125,7 +135,9 @@ class RecurrentClassifier(Classifier):
         init_parameters(self.net, torch.Generator().manual_seed(self._init_seed))
         self.net.eval()
         self._scale = np.ones(sum(self.groups.values()))
-        self._state: tuple[torch.Tensor, ...] | None = None
+        self._state: list[np.ndarray] | None = None
+        # Built from the network's weights on first use (see update).
+        self._step: StreamingStep | None = None
 
     @staticmethod
     def _input_settings(context: BuildContext) -> dict[str, Any]:
@@ -150,6 +162,9 @@ class RecurrentClassifier(Classifier):
 
     def reset(self) -> None:
         self._state = None
+        # Weights may have been changed in place since (self.net is public): take them
+        # afresh for the next stream; a copy costs ~0.1 ms, once per stream.
+        self._step = None
 
     def _scaled(self, batch: SampleBatch) -> np.ndarray:
         for name in self.groups:
@@ -162,7 +177,8 @@ class RecurrentClassifier(Classifier):
                     stacklevel=3,
                 )
         x = self._assemble(batch, self.fill_report)
-        return np.clip(x / self._scale, -INPUT_CLIP, INPUT_CLIP)
+        np.divide(x, self._scale, out=x)  # in place: x is this call's own array
+        return np.clip(x, -INPUT_CLIP, INPUT_CLIP, out=x)
 
     def _assemble(self, batch: SampleBatch, report: FillReport | None = None) -> np.ndarray:
         """Unscaled inputs, one row per frame, whole modalities zero-filled where incomplete."""
@@ -180,14 +196,15 @@ class RecurrentClassifier(Classifier):
         return x
 
     def update(self, batch: SampleBatch) -> ClassProbabilities:
-        x = torch.from_numpy(self._scaled(batch).astype(np.float32))
+        x = self._scaled(batch)
         logits = np.empty((len(batch), len(CLASSES)))
-        state = self._state if self._state is not None else self.net.initial_state(1)
-        with torch.no_grad():
-            for i in range(len(batch)):
-                out, state = self.net(x[None, i : i + 1, :], state)
-                logits[i] = out[0, 0].numpy()
-        self._state = state
+        step = self._step
+        if step is None:
+            step = self._step = StreamingStep(self.net)
+        if self._state is None:
+            self._state = step.initial_state()
+        for i in range(len(batch)):
+            step.step(x[i], self._state, logits[i])
         return ClassProbabilities(batch.timestamps_s, softmax_rows(logits), CLASSES)
 
     def predict_sequence(self, batch: SampleBatch) -> ClassProbabilities:

@@ -41,6 +41,7 @@ from ._validation import as_count, as_real
 __all__ = [
     "AMPLITUDE_FEATURES",
     "ENCODE_TOL",
+    "TensorEncoder",
     "amplitude_features",
     "amplitude_reference",
     "encode_rows",
@@ -273,32 +274,62 @@ def encode_tensors(
     dictionary, alpha, gram, max_iter, tol, backend
         As for :func:`encode_rows` (``gram`` is required here).
     """
-    alpha = as_real("alpha", alpha)
-    max_iter = as_count("max_iter", max_iter)
-    tol = as_real("tol", tol)
-    if _use_numba(backend):
-        from ._lasso_kernel import normalise_encode_batch
+    encoder = TensorEncoder(dictionary, alpha, gram=gram, max_iter=max_iter, tol=tol,
+                            backend=backend)
+    return encoder(rows, ok)
 
+
+class TensorEncoder:
+    """:func:`encode_tensors` with its settings checked and its arrays prepared once.
+
+    A streaming coder encodes one row per modality every 10 ms; checking the settings,
+    resolving the backend and making the dictionary contiguous on every call cost more than
+    a well-converged encode, so the coder builds one of these per dictionary.
+    """
+
+    def __init__(
+        self,
+        dictionary: FloatArray,
+        alpha: float,
+        *,
+        gram: FloatArray,
+        max_iter: int = 1000,
+        tol: float = ENCODE_TOL,
+        backend: str = "auto",
+    ) -> None:
+        self.alpha = as_real("alpha", alpha)
+        self.max_iter = as_count("max_iter", max_iter)
+        self.tol = as_real("tol", tol)
+        self.backend = backend
+        self.numba = _use_numba(backend)
+        self.dictionary = np.ascontiguousarray(dictionary, dtype=np.float64)
+        self.gram = np.ascontiguousarray(gram, dtype=np.float64)
+        self._kernel: Any = None
+        if self.numba:
+            from ._lasso_kernel import normalise_encode_batch
+
+            self._kernel = normalise_encode_batch
+
+    def __call__(self, rows: FloatArray, ok: BoolArray) -> FloatArray:
+        """Codes (n, k) of ``rows`` (n, m): see :func:`encode_tensors`."""
+        if not self.numba:
+            z, flat = normalise_rows(rows)
+            return encode_rows(z, self.dictionary, self.alpha, skip=flat | ~ok,
+                               max_iter=self.max_iter, gram=self.gram, backend=self.backend)
         x = np.ascontiguousarray(rows, dtype=np.float64)
-        d = np.ascontiguousarray(dictionary, dtype=np.float64)
-        g = np.ascontiguousarray(gram, dtype=np.float64)
-        codes = np.empty((x.shape[0], d.shape[0]))
-        unconverged = normalise_encode_batch(
-            x, np.ascontiguousarray(ok, dtype=bool), d, g, alpha, max_iter, tol,
-            _FLAT_ULPS, codes,
+        codes = np.empty((x.shape[0], self.dictionary.shape[0]))
+        unconverged = self._kernel(
+            x, np.ascontiguousarray(ok, dtype=bool), self.dictionary, self.gram, self.alpha,
+            self.max_iter, self.tol, _FLAT_ULPS, codes,
         )  # fmt: skip
         if unconverged:
             warnings.warn(
                 f"lasso encoding: {unconverged} of {x.shape[0]} rows did not converge in "
-                f"{max_iter} sweeps (raise encode_max_iter)",
+                f"{self.max_iter} sweeps (raise encode_max_iter)",
                 RuntimeWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
         return codes
-    z, flat = normalise_rows(rows)
-    return encode_rows(
-        z, dictionary, alpha, skip=flat | ~ok, max_iter=max_iter, gram=gram, backend=backend
-    )
 
 
 def _use_numba(backend: str) -> bool:

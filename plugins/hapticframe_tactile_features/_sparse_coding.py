@@ -21,9 +21,9 @@ from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, Sampl
 from ._config import Modality, SparseCodingConfig, feature_channel
 from ._sparse import (
     AMPLITUDE_FEATURES,
+    TensorEncoder,
     amplitude_features,
     amplitude_reference,
-    encode_tensors,
     learn_dictionary,
     normalise_rows,
     random_dictionary,
@@ -143,6 +143,17 @@ class SparseCodingExtractor(FeatureExtractor):
         }
         self._grams = {m: d @ d.T for m, d in self._dictionaries_c.items()}
         self._penalties = {m: self.penalty(m) for m in self.modalities}
+        self._encoders = {
+            m: TensorEncoder(self._dictionaries_c[m], self._penalties[m], gram=self._grams[m],
+                             max_iter=self.config.encode_max_iter, backend=self.config.encoder)
+            for m in self.modalities
+        }
+        # Per modality: input channel, expected tensor shape and flattened length, looked
+        # up once rather than every frame.
+        self._layout = {
+            m: (feature_channel(m), self.tensor_shape(m), self.dimension(m))
+            for m in self.modalities
+        }
 
     @property
     def emits_amplitude(self) -> bool:
@@ -164,22 +175,21 @@ class SparseCodingExtractor(FeatureExtractor):
     def _rows(
         self, batch: SampleBatch, modality: Modality
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        name = feature_channel(modality)
+        name, shape, dimension = self._layout[modality]
         if name not in batch.channels:
             raise ValueError(
                 f"sparse-coding is configured for {list(self.modalities)} but the input lacks "
                 f"{name!r}; got {sorted(batch.channels)}"
             )
         tensors = batch.channels[name]
-        if tensors.shape[1:] != self.tensor_shape(modality):
-            raise ValueError(
-                f"{name!r} tensors have shape {tensors.shape[1:]}, "
-                f"expected {self.tensor_shape(modality)}"
-            )
-        rows = tensors.reshape(len(batch), self.dimension(modality))
-        ok = np.all(np.isfinite(rows), axis=1)
+        if tensors.shape[1:] != shape:
+            raise ValueError(f"{name!r} tensors have shape {tensors.shape[1:]}, expected {shape}")
+        rows = tensors.reshape(tensors.shape[0], dimension)
+        ok: NDArray[np.bool_] = np.all(np.isfinite(rows), axis=1)
         if name in batch.valid:
             ok &= batch.valid[name]
+        if ok.all():  # the usual case: nothing to zero
+            return rows, ok
         return np.where(ok[:, np.newaxis], rows, 0.0), ok
 
     def update(self, batch: SampleBatch) -> SampleBatch:
@@ -187,15 +197,7 @@ class SparseCodingExtractor(FeatureExtractor):
         valid: dict[str, NDArray[np.bool_]] = {}
         for m in self.modalities:
             rows, ok = self._rows(batch, m)
-            codes[_code_channel(m)] = encode_tensors(
-                rows,
-                ok,
-                self._dictionaries_c[m],
-                self._penalties[m],
-                gram=self._grams[m],
-                max_iter=self.config.encode_max_iter,
-                backend=self.config.encoder,
-            )
+            codes[_code_channel(m)] = self._encoders[m](rows, ok)
             valid[_code_channel(m)] = ok
             if self.emits_amplitude:
                 codes[_amplitude_channel(m)] = amplitude_features(

@@ -32,12 +32,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ._config import ELECTRODE_FRAMES, PDC_FRAMES, EMDFeaturesConfig, Modality, feature_channel
-from ._emd import EMDResult, emd
+from ._emd import MIN_SAMPLES, _use_kernel, emd
+from ._validation import as_count, as_real
 
 __all__ = ["FeatureStream", "RingBuffer", "hold_invalid"]
 
@@ -80,6 +82,13 @@ class RingBuffer:
             self._data[offset : offset + n - first] = values[first:]
         self._start = (self._start + n) % self.capacity
 
+    def push_one(self, value: FloatArray | float) -> None:
+        """Append one sample (what :meth:`push` does for ``n = 1``, with less bookkeeping:
+        the stream pushes one sample per channel and frame)."""
+        self._data[self._start] = value
+        self._data[self._start + self.capacity] = value
+        self._start = (self._start + 1) % self.capacity
+
     def view(self) -> FloatArray:
         """The window, oldest sample first (a read-only view)."""
         window = self._data[self._start : self._start + self.capacity]
@@ -107,6 +116,55 @@ def hold_invalid(values: FloatArray, valid: BoolArray, held: FloatArray) -> Floa
     return np.take_along_axis(out, source, axis=0)[1:]
 
 
+class _Decomposer:
+    """:func:`._emd.emd` of one window length with fixed settings, checked once.
+
+    Every frame decomposes the pac and pdc windows; :func:`._emd.emd` re-checks its
+    settings, re-resolves the backend and allocates its outputs on every call, and computes
+    the residue, which the stream does not use. Here the settings are checked and the
+    backend resolved at construction, and the compiled kernel writes into buffers reused
+    from frame to frame (:meth:`__call__` returns them: copy what is kept). Without the
+    kernel (numpy backend) it calls :func:`._emd.emd` itself.
+    """
+
+    def __init__(self, samples: int, max_imfs: int, config: EMDFeaturesConfig) -> None:
+        self.max_imfs = as_count("max_imfs", max_imfs)
+        self.max_sifts = as_count("max_sifts", config.max_sifts)
+        self.n_mirror = as_count("n_mirror", config.mirrored_extrema)
+        self.sd_threshold = as_real("sd_threshold", config.sd_threshold)
+        self.residue_ratio = as_real("residue_ratio", config.residue_ratio)
+        self.backend = config.emd_backend
+        self.kernel = _use_kernel(config.emd_backend) and samples >= MIN_SAMPLES
+        self._imfs = np.zeros((self.max_imfs, samples))
+        self._counts = np.zeros(self.max_imfs, dtype=np.int64)
+        self._kernel: Any = None
+        self._status: tuple[int, int] = (0, 0)
+        if self.kernel:  # imports numba, so only when the kernel will run
+            from ._emd_kernel import STATUS_CONSTANT, STATUS_OK, emd_kernel
+
+            self._kernel = emd_kernel
+            self._status = (STATUS_OK, STATUS_CONSTANT)
+
+    def __call__(self, window: FloatArray) -> tuple[FloatArray, int]:
+        """IMFs (max_imfs, samples) of ``window`` (finite: the stream holds invalid samples)
+        and how many were found (the rest are zero rows)."""
+        if not self.kernel:
+            result = emd(window, self.max_imfs, sd_threshold=self.sd_threshold,
+                         max_sifts=self.max_sifts, residue_ratio=self.residue_ratio,
+                         n_mirror=self.n_mirror, backend=self.backend)
+            return result.imfs, result.n_found
+        self._imfs.fill(0.0)
+        self._counts.fill(0)
+        found, status = self._kernel(window, self._imfs, self._counts, self.sd_threshold,
+                                   self.max_sifts, self.residue_ratio, self.n_mirror)
+        ok, constant = self._status
+        if status == constant:
+            return self._imfs, 0
+        if status != ok:
+            raise ValueError("spline system is singular; knots must differ")
+        return self._imfs, int(found)
+
+
 @dataclass(frozen=True)
 class _Frame:
     """One frame's values for each consumed modality, and whether all of them were valid."""
@@ -132,6 +190,8 @@ class FeatureStream:
         self._electrodes = RingBuffer(ELECTRODE_FRAMES + self.delay, (config.electrode_count,))
         self._times = RingBuffer(self.delay + 1)
         self._frame_ok = {m: RingBuffer(self.delay + 1) for m in self.modalities}
+        self._decompose_pac = _Decomposer(config.pac_window_samples, config.pac_imfs, config)
+        self._decompose_pdc = _Decomposer(config.pdc_window_samples, config.pdc_imfs, config)
         self.reset()
 
     @property
@@ -172,16 +232,18 @@ class FeatureStream:
             self._start(frame)
         for m in self.modalities:
             held = self._held[m]
+            all_valid = bool(frame.valid[m].all())
             if m == "pac":  # hold along the sample sequence, within and across frames
                 clean = hold_invalid(frame.values[m], frame.valid[m], held)
                 self._held[m] = clean[-1:].reshape(())
                 self._pac.push(clean)
             else:
-                clean = np.where(frame.valid[m], frame.values[m], held)
+                # Copied either way: the held value must not share the caller's array.
+                clean = (frame.values[m].copy() if all_valid
+                         else np.where(frame.valid[m], frame.values[m], held))
                 self._held[m] = clean
-                buffer = self._pdc if m == "pdc" else self._electrodes
-                buffer.push(clean[np.newaxis])
-            self._frame_ok[m].push(np.array([float(frame.valid[m].all())]))
+                (self._pdc if m == "pdc" else self._electrodes).push_one(clean)
+            self._frame_ok[m].push_one(float(all_valid))
         return True
 
     def _start(self, frame: _Frame) -> None:
@@ -203,30 +265,15 @@ class FeatureStream:
     def _features(self) -> dict[str, FloatArray]:
         cfg = self.config
         out: dict[str, FloatArray] = {}
-
-        def decompose(signal: FloatArray, max_imfs: int) -> EMDResult:
-            return emd(
-                signal,
-                max_imfs,
-                sd_threshold=cfg.sd_threshold,
-                max_sifts=cfg.max_sifts,
-                residue_ratio=cfg.residue_ratio,
-                n_mirror=cfg.mirrored_extrema,
-                backend=cfg.emd_backend,
-            )
-
+        # The decomposers reuse their buffers: each slice kept is copied.
         if "pac" in self.modalities:
-            result = decompose(self._pac.view(), cfg.pac_imfs)
-            self.imf_counts["pac"] = result.n_found
-            imfs = result.imfs
+            imfs, self.imf_counts["pac"] = self._decompose_pac(self._pac.view())
             end = cfg.pac_window_samples - cfg.pac_samples_per_frame * self.delay
-            out["pac_imfs"] = imfs[:, end - cfg.pac_samples_per_frame : end]
+            out["pac_imfs"] = imfs[:, end - cfg.pac_samples_per_frame : end].copy()
         if "pdc" in self.modalities:
-            result = decompose(self._pdc.view(), cfg.pdc_imfs)
-            self.imf_counts["pdc"] = result.n_found
-            imfs = result.imfs
+            imfs, self.imf_counts["pdc"] = self._decompose_pdc(self._pdc.view())
             end = cfg.pdc_window_samples - self.delay
-            out["pdc_imfs"] = imfs[:, end - PDC_FRAMES : end]
+            out["pdc_imfs"] = imfs[:, end - PDC_FRAMES : end].copy()
         if "electrodes" in self.modalities:
             out["electrodes_window"] = self._electrodes.view()[:ELECTRODE_FRAMES].T.copy()
         return out
@@ -280,7 +327,7 @@ class FeatureStream:
                 if m in flags and not flags[m][i]:
                     ok = np.zeros_like(ok)
                 frame_ok[m] = ok
-            self._times.push(np.array([timestamps_s[i]]))
+            self._times.push_one(timestamps_s[i])
             if not self._accept(_Frame(frame_values, frame_ok)):
                 continue
             self._frames += 1

@@ -183,6 +183,32 @@ def test_step_latency_probe_reports_its_figures() -> None:
     assert 0 < report["latency_ms_median"] <= report["latency_ms_p99"] <= report["latency_ms_max"]
 
 
+def test_latency_probe_pools_its_passes_and_lists_each() -> None:
+    report = measure_chain_latency(15, fit_frames=0, passes=3)
+    assert report["frames"] == 45 and report["passes"] == 3
+    assert len(report["pass_medians_ms"]) == len(report["pass_p99s_ms"]) == 3
+    assert all(0 < m <= p for m, p in zip(report["pass_medians_ms"], report["pass_p99s_ms"],
+                                          strict=True))
+    assert min(report["pass_medians_ms"]) <= report["latency_ms_p99"]
+    with pytest.raises(ValueError, match="passes"):
+        measure_chain_latency(5, fit_frames=0, passes=0)
+
+
+def test_torch_step_probe_times_the_network_and_a_plain_gru() -> None:
+    pytest.importorskip("torch")
+    from hapticframe.kinds import BuildContext
+    from hapticframe_bench import measure_torch_steps
+    from hapticframe_sfrnn import SFRNNClassifier, SFRNNConfig
+
+    # Not a speed test: the figures only have to exist and be consistent.
+    clf = SFRNNClassifier(SFRNNConfig(progress=False, gru_layers=2, gru_units=8),
+                          BuildContext("clf", np.random.default_rng(0)))
+    report = measure_torch_steps(clf, frames=20)
+    assert set(report) == {"network_ms_median", "network_ms_p99", "gru_ms_median", "gru_ms_p99"}
+    assert 0 < report["network_ms_median"] <= report["network_ms_p99"]
+    assert 0 < report["gru_ms_median"] <= report["gru_ms_p99"]
+
+
 def test_latency_suite_times_the_whole_chain_and_reports_its_targets(tmp_path, monkeypatch):
     pytest.importorskip("torch")
     pytest.importorskip("sklearn")
@@ -204,8 +230,13 @@ def test_latency_suite_times_the_whole_chain_and_reports_its_targets(tmp_path, m
     for record in written["targets"].values():
         verdict = "met" if record["met"] else "missed"
         assert any(line.startswith(record["label"]) and line.endswith(verdict) for line in lines)
+    assert written["targets"]["latency_ms_median"]["limit"] == 1.0
+    assert written["targets"]["latency_ms_p99"]["limit"] == 2.0
+    assert written["torch_steps"]["gru_ms_median"] > 0
+    assert chain["passes"] == 1 and len(chain["pass_medians_ms"]) == 1
     md = (tmp_path / "latency.md").read_text()
     assert "| chain per frame, median |" in md and "(100x)" in md
+    assert "plain torch GRU" in md and "load average" in md
 
 
 # --- separability of the synthetic BioTac frames -------------------------------------------------
