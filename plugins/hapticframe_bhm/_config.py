@@ -116,6 +116,24 @@ class BayesianHilbertMapConfig(PluginConfig):
         description="Weight samples K for the Monte-Carlo standard deviation.",
     )
 
+    dense_weights_max: int = Field(
+        1500,
+        ge=2,
+        le=5000,
+        description="A map with at most this many weights (hinges plus bias) keeps one dense "
+        "posterior over its region (the thesis's 75 x 50 cm: 235; 1.5 x 1 m: 760); a larger "
+        "one is split into local tiles (see hapticframe_bhm._tiled), so that memory and time "
+        "grow with the area observed, not with its square.",
+    )
+    tile_size_m: float | None = Field(
+        None,
+        gt=0,
+        le=100.0,
+        description="Side of a tile's core in a tiled map, rounded to whole hinge spacings; "
+        "each tile also holds a halo of hinges two kernel windows wide around its core. "
+        "Default: the core is as wide as both halos together (60 cm with 5 cm hinges and "
+        "the 3.3 cm length scale), which minimises the dense matrices held per square metre.",
+    )
     blas_threads: int | None = Field(
         1,
         ge=1,
@@ -127,7 +145,9 @@ class BayesianHilbertMapConfig(PluginConfig):
 
     @model_validator(mode="after")
     def _finite(self) -> BayesianHilbertMapConfig:
-        for name in ("hinge_spacing_m", "interaction_radius_m", "tolerance"):
+        for name in ("hinge_spacing_m", "interaction_radius_m", "tolerance", "tile_size_m"):
+            if getattr(self, name) is None:
+                continue
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
         return self

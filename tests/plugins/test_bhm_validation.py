@@ -37,9 +37,11 @@ def test_the_limit_follows_the_region() -> None:
         validate_mapping(_with_bhm({"hinge_spacing_m": 0.008}))
     small = {"x_min_m": 0.3, "x_max_m": 0.5, "y_min_m": 0.1, "y_max_m": 0.3}
     assert validate_mapping(_with_bhm({"hinge_spacing_m": 0.008, "region": small}))
-    with pytest.raises(ExperimentError):
-        validate_mapping(_with_bhm({"hinge_spacing_m": 0.05, "region": {
-            "x_min_m": 0.0, "x_max_m": 10.0, "y_min_m": 0.0, "y_max_m": 10.0}}))
+    # A 10 x 10 m region at 5 cm is tiled (issue 19 §5): 41,210 weights, 577 per tile.
+    large = {"x_min_m": 0.0, "x_max_m": 10.0, "y_min_m": 0.0, "y_max_m": 10.0}
+    assert validate_mapping(_with_bhm({"hinge_spacing_m": 0.05, "region": large}))
+    with pytest.raises(ExperimentError, match="tiles of 1.25e\\+04 weights"):
+        validate_mapping(_with_bhm({"hinge_spacing_m": 0.0125, "region": large}))
 
 
 def test_infinite_and_huge_fields_are_refused() -> None:
