@@ -224,9 +224,9 @@ class BayesianHilbertMap(Map):
 
     def reset(self) -> None:
         """Forget all observations: back to the prior and free-regime hinges."""
+        self.last_update_info: fn.UpdateInfo | None = None
         if self._tiled is not None:
             self._tiled.reset()
-            self.last_update_info = None
             return
         shape = (self._hinge_xs.size, self._hinge_ys.size)
         self._interaction = np.zeros(shape, dtype=bool)
@@ -234,7 +234,6 @@ class BayesianHilbertMap(Map):
         self._history: list[Observations] = []
         self._batches = 0
         self._weight_samples: FloatArray | None = None
-        self.last_update_info: fn.UpdateInfo | None = None
         self._refits = 0
 
     @property
@@ -263,7 +262,8 @@ class BayesianHilbertMap(Map):
         """``(nx, ny)`` current kernel length scale of every hinge, in metres."""
         cfg = self.config
         if self._tiled is not None:
-            return self._tiled.core_values(lambda t: t.length_scales, cfg.length_scale_free_m)
+            scales = self._tiled.core_values(lambda t: t.length_scales, cfg.length_scale_free_m)
+            return np.asarray(scales, dtype=np.float64)
         return np.where(self._interaction, cfg.length_scale_interaction_m, cfg.length_scale_free_m)
 
     @property

@@ -22,8 +22,9 @@ and variance ``v``, so the activation has mean ``m_bias`` and variance
 ``v sum_i gx_i^2 sum_j gy_j^2 + v_bias`` (the Gaussian factorises per axis).
 
 Memory is the tiles observed times ``(T + 2H)^4`` doubles (the Cholesky factor of each
-posterior; precisions and covariances are kept for the last few tiles used only), time per update the few
-tiles a batch reaches: both grow with the area observed, not with the square of the region.
+posterior; precisions and covariances are kept for the last few tiles used only), time per
+update the few tiles a batch reaches: both grow with the area observed, not with the square
+of the region.
 """
 
 from __future__ import annotations
@@ -107,13 +108,13 @@ class TileLayout:
         # A window spans at most this many tiles per axis (two unless the core is narrower
         # than the window).
         span = 2 * self.reach // self.core + 2
-        keys, rows = [], []
+        key_parts, row_parts = [], []
         for ox in range(span):
             for oy in range(span):
                 inside = np.flatnonzero((xl + ox <= xh) & (yl + oy <= yh))
-                keys.append((xl[inside] + ox) * self.tiles_y + yl[inside] + oy)
-                rows.append(inside)
-        pairs = np.unique(np.concatenate(keys) * ix.size + np.concatenate(rows))
+                key_parts.append((xl[inside] + ox) * self.tiles_y + yl[inside] + oy)
+                row_parts.append(inside)
+        pairs = np.unique(np.concatenate(key_parts) * ix.size + np.concatenate(row_parts))
         keys, rows = np.divmod(pairs, ix.size)
         for key in np.unique(keys):
             a, b = divmod(int(key), self.tiles_y)

@@ -63,7 +63,8 @@ def test_tiles_agree_with_the_dense_posterior(data) -> None:
     tiled = build(dense_weights_max=50, tile_size_m=0.2)
     assert tiled.tiled is not None and len(tiled.tiled.tiles) == 0
     for start in range(0, 2000, 500):  # sequential batches, as in a search
-        batch = Observations(train.points_m[start : start + 500], train.targets[start : start + 500])
+        rows = slice(start, start + 500)
+        batch = Observations(train.points_m[rows], train.targets[rows])
         dense.update(batch)
         tiled.update(batch)
     a, b = dense.query(test.points_m), tiled.query(test.points_m)
