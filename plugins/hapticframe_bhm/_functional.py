@@ -267,8 +267,8 @@ class GaussianWeights:
     Attributes
     ----------
     precision : (D, D) float64
-        ``Lambda = S^-1`` (a property: kept until :meth:`release`, then rebuilt from the
-        Cholesky factor when read).
+        ``Lambda = S^-1`` (a property: a belief built from its Cholesky factor alone, as a
+        tiled map rebuilds the tiles it packed, computes it when first read).
     shift : (D,) float64
         ``eta = Lambda m``.
     cholesky : (D, D) float64
@@ -288,18 +288,13 @@ class GaussianWeights:
 
     @property
     def precision(self) -> FloatArray:
-        """``Lambda = S^-1``; after :meth:`release`, ``L L^T`` (BLAS ``syrk``) again."""
+        """``Lambda = S^-1``, or ``L L^T`` (BLAS ``syrk``) when built without it."""
         cached = self._cache.get("precision")
         if cached is None:
             product = blas.dsyrk(1.0, self.cholesky, lower=1)  # L L^T, lower triangle
             cached = np.tril(product) + np.tril(product, -1).T
             self._cache["precision"] = cached
         return cached
-
-    def release(self) -> None:
-        """Drop the precision and the cached covariance: a belief that is only queried needs
-        its Cholesky factor alone (a tiled map keeps hundreds of beliefs)."""
-        self._cache.clear()
 
     @classmethod
     def from_information(cls, precision: FloatArray, shift: FloatArray) -> GaussianWeights:

@@ -159,11 +159,14 @@ class TiledBeliefs:
         self._rng = rng
         self.tiles: dict[tuple[int, int], BayesianHilbertMap] = {}
         self._covariances: OrderedDict[tuple[int, int], None] = OrderedDict()
+        self._packed: dict[tuple[int, int], tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self._tril: dict[int, tuple[IntArray, IntArray]] = {}
 
     def reset(self) -> None:
         """Drop every tile: the whole region is the prior again."""
         self.tiles.clear()
         self._covariances.clear()
+        self._packed.clear()
 
     # --- points to hinges -----------------------------------------------------------------
 
@@ -176,21 +179,41 @@ class TiledBeliefs:
         return out[0], out[1]
 
     def _tile(self, tile: tuple[int, int]) -> BayesianHilbertMap:
+        """The tile, made if new, its belief unpacked if it was evicted."""
         existing = self.tiles.get(tile)
         if existing is None:
             sx, sy = self.layout.hinge_range(tile)
             existing = self._make_tile(self.xs[sx], self.ys[sy])
             self.tiles[tile] = existing
+        packed = self._packed.pop(tile, None)
+        if packed is not None:
+            factor, shift, mean = packed
+            lower = np.zeros((mean.size, mean.size))
+            lower[self._lower_indices(mean.size)] = factor
+            existing._belief = fn.GaussianWeights(shift, lower, mean)
         return existing
 
+    def _lower_indices(self, dimension: int) -> tuple[IntArray, IntArray]:
+        indices = self._tril.get(dimension)
+        if indices is None:
+            indices = self._tril[dimension] = np.tril_indices(dimension)
+        return indices
+
     def _touched(self, tile: tuple[int, int]) -> None:
-        """Keep the covariance of the last few tiles used; drop the oldest."""
+        """Keep the beliefs of the last few tiles used whole; pack the oldest: its lower
+        Cholesky factor alone, half of one square matrix (the precision and covariance are
+        rebuilt from it when the tile is used again)."""
         self._covariances.pop(tile, None)
         self._covariances[tile] = None
         while len(self._covariances) > _COVARIANCE_CACHE_TILES:
             old, _ = self._covariances.popitem(last=False)
-            if old in self.tiles and not self.tiles[old].belief.diagonal:
-                self.tiles[old].belief.release()
+            bhm = self.tiles.get(old)
+            if bhm is None or old in self._packed or bhm._belief.diagonal:
+                continue
+            belief = bhm._belief
+            factor = belief.cholesky[self._lower_indices(belief.dimension)]
+            self._packed[old] = (factor, belief.shift, belief.mean)
+            del bhm._belief
 
     # --- updates --------------------------------------------------------------------------
 
@@ -256,10 +279,10 @@ class TiledBeliefs:
         if not self.tiles or points.shape[0] == 0:
             return mean, std
         owner = self.layout.owners(*self._nearest(points))
-        for tile, bhm in self.tiles.items():
+        for tile in list(self.tiles):
             rows = np.flatnonzero(owner == tile[0] * self.layout.tiles_y + tile[1])
             if rows.size:
-                estimate = bhm.query(points[rows])
+                estimate = self._tile(tile).query(points[rows])
                 mean[rows], std[rows] = estimate.mean, estimate.std
                 self._touched(tile)
         return mean, std
@@ -269,10 +292,11 @@ class TiledBeliefs:
         mu, var = self.prior_moments(points)
         out = fn.probit_kappa(var) * mu
         owner = self.layout.owners(*self._nearest(points))
-        for tile, bhm in self.tiles.items():
+        for tile in list(self.tiles):
             rows = np.flatnonzero(owner == tile[0] * self.layout.tiles_y + tile[1])
             if rows.size:
-                out[rows] = bhm.log_odds(points[rows])
+                out[rows] = self._tile(tile).log_odds(points[rows])
+                self._touched(tile)
         return out
 
     def grid_moments(self, qx: FloatArray, qy: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -289,12 +313,12 @@ class TiledBeliefs:
         core = self.layout.core
         column_tile = np.clip(np.rint((qx - self.xs[0]) / spacing), 0, self.xs.size - 1) // core
         row_tile = np.clip(np.rint((qy - self.ys[0]) / spacing), 0, self.ys.size - 1) // core
-        for tile, bhm in self.tiles.items():
+        for tile in list(self.tiles):
             columns = np.flatnonzero(column_tile == tile[0])
             rows = np.flatnonzero(row_tile == tile[1])
             if columns.size and rows.size:
                 # Contiguous runs: the tile's cells are a rectangle of the grid.
-                part_mean, part_std = bhm._grid_moments(qx[columns], qy[rows])
+                part_mean, part_std = self._tile(tile)._grid_moments(qx[columns], qy[rows])
                 block = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
                 mean[block], std[block] = part_mean, part_std
                 self._touched(tile)
@@ -307,11 +331,11 @@ class TiledBeliefs:
         """``(nx, ny)`` array of a per-hinge tile property, each hinge from its tile's core."""
         out = np.full((self.xs.size, self.ys.size), fill)
         core = self.layout.core
-        for tile, bhm in self.tiles.items():
+        for tile in list(self.tiles):
             sx, sy = self.layout.hinge_range(tile)
             cx = slice(tile[0] * core, min(self.xs.size, (tile[0] + 1) * core))
             cy = slice(tile[1] * core, min(self.ys.size, (tile[1] + 1) * core))
-            local = values(bhm)
+            local = values(self.tiles[tile])
             out[cx, cy] = local[cx.start - sx.start : cx.stop - sx.start,
                                 cy.start - sy.start : cy.stop - sy.start]
         return out

@@ -119,3 +119,22 @@ def test_region_dependent_smoothing_and_monte_carlo_run_per_tile(data) -> None:
     estimate = bhm.query(test.points_m[:500])
     assert np.all((estimate.std >= 0) & np.isfinite(estimate.std))
     assert window_half_width(float(bhm.length_scales.max()), 0.05) <= bhm.tiled.layout.reach
+
+
+def test_packed_tiles_answer_as_before(data, monkeypatch) -> None:
+    train, test = data
+    whole = build(dense_weights_max=50, tile_size_m=0.1)
+    whole.update(train)
+    expected = whole.query(test.points_m[:1000])
+    monkeypatch.setattr("hapticframe_bhm._tiled._COVARIANCE_CACHE_TILES", 1)
+    packed = build(dense_weights_max=50, tile_size_m=0.1)
+    packed.update(train)
+    assert packed.tiled is not None and len(packed.tiled._packed) == len(packed.tiled.tiles) - 1
+    estimate = packed.query(test.points_m[:1000])
+    np.testing.assert_allclose(estimate.mean, expected.mean, atol=1e-9)
+    np.testing.assert_allclose(estimate.std, expected.std, atol=1e-9)
+    more = Observations(test.points_m[:300], test.targets[:300])
+    whole.update(more)
+    packed.update(more)  # a packed tile's precision comes back from its factor
+    np.testing.assert_allclose(packed.query(test.points_m[1000:2000]).mean,
+                               whole.query(test.points_m[1000:2000]).mean, atol=1e-8)
