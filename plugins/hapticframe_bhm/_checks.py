@@ -26,6 +26,8 @@ def _tile_side(config: Any, hinges: float) -> float:
     scale = config.length_scale_free_m
     if config.region_dependent_smoothing:
         scale = max(scale, config.length_scale_interaction_m)
+    if config.automorphing_kernels:
+        scale *= config.automorphing_range[1]
     # window_half_width of _windowed: features beyond it are below 1e-6.
     reach = max(0, math.ceil(math.sqrt(-2.0 * math.log(1e-6)) * scale / config.hinge_spacing_m
                              - 0.5))

@@ -68,6 +68,28 @@ class BayesianHilbertMapConfig(PluginConfig):
         le=10.0, description="A hinge within this distance of an observation with target > 0.5 "
         "switches to the interaction length scale (region_dependent_smoothing only).",
     )
+    automorphing_kernels: bool = Field(
+        False,
+        description="Learn a length scale per hinge from the data (Senanayake and Ramos's "
+        "automorphing kernels; see hapticframe_bhm._automorph), starting from "
+        "length_scale_free_m. The scales are re-learned on all data whenever the observations "
+        "have doubled since the last time (each time costs automorphing_iterations + 1 fits "
+        "of all data); batches in between are fused sequentially. Not with "
+        "region_dependent_smoothing.",
+    )
+    automorphing_range: tuple[float, float] = Field(
+        (0.5, 2.0),
+        description="Smallest and largest learned length scale, as factors of "
+        "length_scale_free_m.",
+    )
+    automorphing_levels: int = Field(
+        7, ge=2, le=32,
+        description="Learned length scales are rounded to this many log-spaced values over "
+        "automorphing_range (few distinct values keep queries fast).",
+    )
+    automorphing_iterations: int = Field(
+        6, ge=1, le=100, description="Ascent steps on the length scales per learning."
+    )
     bias: bool = Field(True, description="Append a constant bias feature to the hinge features.")
     prior_variance: float = Field(
         0.45,
@@ -150,4 +172,11 @@ class BayesianHilbertMapConfig(PluginConfig):
                 continue
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
+        low, high = self.automorphing_range
+        if not (0 < low <= 1.0 <= high <= 100 and math.isfinite(high)):
+            raise ValueError("automorphing_range must be (low, high) with 0 < low <= 1 <= high "
+                             "<= 100")
+        if self.automorphing_kernels and self.region_dependent_smoothing:
+            raise ValueError("automorphing_kernels and region_dependent_smoothing exclude each "
+                             "other: choose one way of setting the length scales")
         return self

@@ -230,6 +230,8 @@ class BayesianHilbertMap(Map):
             return
         shape = (self._hinge_xs.size, self._hinge_ys.size)
         self._interaction = np.zeros(shape, dtype=bool)
+        self._learned_scales: FloatArray | None = None
+        self._learned_at = 0
         self._belief = self._prior
         self._history: list[Observations] = []
         self._batches = 0
@@ -264,6 +266,8 @@ class BayesianHilbertMap(Map):
         if self._tiled is not None:
             scales = self._tiled.core_values(lambda t: t.length_scales, cfg.length_scale_free_m)
             return np.asarray(scales, dtype=np.float64)
+        if self._learned_scales is not None:
+            return self._learned_scales.copy()
         return np.where(self._interaction, cfg.length_scale_interaction_m, cfg.length_scale_free_m)
 
     @property
@@ -314,6 +318,12 @@ class BayesianHilbertMap(Map):
             if self._tiled is not None:
                 self._tiled.update(observations)
                 return
+            if self.config.automorphing_kernels:
+                self._history.append(observations)
+                seen = sum(len(batch) for batch in self._history)
+                if self._batches == 0 or seen >= 2 * self._learned_at:
+                    self._learn_length_scales(seen)
+                    return
             if self.config.region_dependent_smoothing:
                 self._history.append(observations)
                 switched = self._switched_hinges(observations)
@@ -343,6 +353,26 @@ class BayesianHilbertMap(Map):
                 near |= (d2 <= radius * radius).any(axis=0)
             flags |= near.reshape(flags.shape)
         return flags & ~self._interaction
+
+    def _learn_length_scales(self, seen: int) -> None:
+        """Learn the hinges' length scales on all data and refit (:mod:`._automorph`)."""
+        from ._automorph import learn_length_scales, length_scale_levels
+
+        cfg = self.config
+        everything = Observations.concatenate(self._history)
+        levels = length_scale_levels(cfg.length_scale_free_m, *cfg.automorphing_range,
+                                     cfg.automorphing_levels)
+        scales, self._belief, self.last_update_info = learn_length_scales(
+            everything.points_m, everything.targets, everything.weights,
+            self._hinge_xs, self._hinge_ys, self.length_scales, cfg.length_scale_free_m,
+            levels, self._prior, bias=cfg.bias, iterations=cfg.automorphing_iterations,
+            max_iterations=cfg.max_iterations_first, tolerance=cfg.tolerance,
+        )
+        self._learned_scales = scales
+        self._learned_at = seen
+        self._batches = 1
+        self._refits += 1
+        self._weight_samples = None
 
     def _refit(self) -> None:
         everything = Observations.concatenate(self._history)
@@ -512,4 +542,9 @@ class BayesianHilbertMap(Map):
             interaction_hinges=hinges[interaction],
             outline_level=outcome.outline_level,
         )
+        if self.config.automorphing_kernels:
+            from ._plots import save_kernel_figure
+
+            save_kernel_figure(Path(outcome.out_dir) / "kernels.png", self._region, hinges,
+                               self.length_scales.ravel(), xs, ys, mean)
         return {}

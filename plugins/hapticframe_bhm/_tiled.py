@@ -148,7 +148,9 @@ class TiledBeliefs:
         spacing = config.hinge_spacing_m
         scale = max(config.length_scale_free_m,
                     config.length_scale_interaction_m if config.region_dependent_smoothing
-                    else 0.0)
+                    else 0.0,
+                    config.length_scale_free_m * config.automorphing_range[1]
+                    if config.automorphing_kernels else 0.0)
         reach = window_half_width(scale, spacing)
         if config.tile_size_m is None:
             core = max(1, 2 * (2 * reach))
