@@ -31,7 +31,10 @@ replaying searches of the ``search`` benchmark on seeds 100 and above (never see
 Speed: large batches use windowed features (:mod:`._windowed`: each point keeps the 7 x 7
 hinges whose features exceed 1e-6), the covariance comes from LAPACK ``potri`` once per
 belief and is cached, and grid-shaped queries (the core's evaluation grid) take the
-separable path of :meth:`BayesianHilbertMap.probability_grid`.
+separable path of :meth:`BayesianHilbertMap.probability_grid`. A region with more than
+``dense_weights_max`` weights is split into local tiles (:mod:`._tiled`), so that memory and
+time grow with the area observed; ``automorphing_kernels`` learns a length scale per hinge
+(:mod:`._automorph`).
 
 Region-dependent smoothing (Table 3.1)
 --------------------------------------
