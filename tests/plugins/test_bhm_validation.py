@@ -42,8 +42,10 @@ def test_the_limit_follows_the_region() -> None:
     tiled = _with_bhm({"hinge_spacing_m": 0.05, "region": large})
     tiled["run"]["evaluation_spacing_m"] = 0.01  # the core scores at most 4 M grid points
     assert validate_mapping(tiled)
+    fine = _with_bhm({"hinge_spacing_m": 0.0125, "region": large})
+    fine["run"]["evaluation_spacing_m"] = 0.01
     with pytest.raises(ExperimentError, match=r"tiles of 1.25e\+04 weights"):
-        validate_mapping(_with_bhm({"hinge_spacing_m": 0.0125, "region": large}))
+        validate_mapping(fine)
 
 
 def test_infinite_and_huge_fields_are_refused() -> None:
