@@ -31,6 +31,7 @@ __all__ = [
     "BHM_TARGETS",
     "benchmark_bhm",
     "labelled_points",
+    "log_loss",
     "roc_auc",
     "run_bhm_bench",
     "two_object_scene",
@@ -77,6 +78,12 @@ def roc_auc(labels: NDArray[np.bool_], scores: NDArray[np.float64]) -> float:
         raise ValueError("AUC needs both classes")
     ranks = rankdata(scores)
     return float((ranks[labels].sum() - positives * (positives + 1) / 2) / (positives * negatives))
+
+
+def log_loss(labels: NDArray[np.bool_], probabilities: NDArray[np.float64]) -> float:
+    """Mean negative log likelihood of 0/1 ``labels`` (probabilities clipped to 1e-9)."""
+    p = np.clip(np.asarray(probabilities, dtype=np.float64), 1e-9, 1.0 - 1e-9)
+    return float(-np.mean(np.where(np.asarray(labels, dtype=bool), np.log(p), np.log1p(-p))))
 
 
 @contextlib.contextmanager
@@ -179,6 +186,30 @@ def benchmark_bhm(rng_seed: int = 0, repeats: int = 15) -> dict[str, Any]:
                 results[f"{prefix}{name}_min_ms"] = fastest
             estimate = bhm.query(test.points_m)
             results[f"{prefix}auc"] = roc_auc(test.targets > 0.5, estimate.mean)
+            results[f"{prefix}log_loss"] = log_loss(test.targets > 0.5, estimate.mean)
+        # Automorphing kernels (issue 19 §1): learning refits all data several times, so
+        # fewer repeats; the add right after the fit is sequential (no re-learning).
+        config = BayesianHilbertMapConfig(automorphing_kernels=True)
+        bhm = _build(config, rng_seed, scene)
+        fit_train = functools.partial(bhm.fit, train)
+        few = max(1, repeats // 5)
+        for name, (median, fastest) in {
+            "fit_3000": _timed_ms(fit_train, few),
+            "update_200": _timed_ms(functools.partial(bhm.update, extra), few, setup=fit_train),
+        }.items():
+            results[f"am_{name}_ms"], results[f"am_{name}_min_ms"] = median, fastest
+        bhm.fit(train)
+        bhm.update(extra)
+        results["am_grid_15000_mean_std_ms"] = _timed_ms(
+            functools.partial(bhm.probability_grid, 0.005), few)[0]
+        estimate = bhm.query(test.points_m)
+        results["am_auc"] = roc_auc(test.targets > 0.5, estimate.mean)
+        results["am_log_loss"] = log_loss(test.targets > 0.5, estimate.mean)
+        scales = bhm.length_scales
+        results["am_length_scales_cm"] = {
+            f"{100 * value:.2f}": int(count)
+            for value, count in zip(*np.unique(scales, return_counts=True), strict=True)
+        }
     results["targets_ms"] = {t.name.removesuffix("_ms"): t.limit for t in BHM_TARGETS}
     return results
 
@@ -220,10 +251,37 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
         )
     lines += ["", f"AUC on 20,000 fresh points: {results['auc']:.4f} "
               f"(region-dependent smoothing: {results['rds_auc']:.4f})", ""]
+    if "am_auc" in results:
+        lines += _kernel_lines(results)
     atomic_write(options.out_dir / "bhm.md", "\n".join(lines))
     options.echo(f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}; "
                  f"{load_note(results['machine']['load_average_1min'])}")
     for check in checks:
         options.echo(check.line())
     options.echo(f"AUC on 20,000 fresh points: {results['auc']:.4f}")
+    if "am_auc" in results:
+        options.echo(f"automorphing kernels: fit {results['am_fit_3000_ms']:.0f} ms, "
+                     f"AUC {results['am_auc']:.4f}, log loss {results['am_log_loss']:.4f} "
+                     f"(stationary: {results['fit_3000_ms']:.0f} ms, {results['auc']:.4f}, "
+                     f"{results['log_loss']:.4f})")
     return results
+
+
+def _kernel_lines(results: dict[str, Any]) -> list[str]:
+    """The kernels table of ``bhm.md``: stationary, two-bandwidth and automorphing."""
+    lines = [
+        "## Kernels (issue 19 §1)", "",
+        "| kernel | fit 3,000 (median) | add 200 | grid 15,000 | AUC | log loss |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, prefix in (("stationary", ""), ("two-bandwidth", "rds_"),
+                          ("automorphing", "am_")):
+        lines.append(
+            f"| {label} | {results[prefix + 'fit_3000_ms']:.1f} ms "
+            f"| {results[prefix + 'update_200_ms']:.1f} ms "
+            f"| {results[prefix + 'grid_15000_mean_std_ms']:.1f} ms "
+            f"| {results[prefix + 'auc']:.4f} | {results[prefix + 'log_loss']:.4f} |"
+        )
+    lines += ["", "Learned length scales (cm: hinges): " + ", ".join(
+        f"{k}: {v}" for k, v in results["am_length_scales_cm"].items()), ""]
+    return lines

@@ -68,6 +68,28 @@ class BayesianHilbertMapConfig(PluginConfig):
         le=10.0, description="A hinge within this distance of an observation with target > 0.5 "
         "switches to the interaction length scale (region_dependent_smoothing only).",
     )
+    automorphing_kernels: bool = Field(
+        False,
+        description="Learn a length scale per hinge from the data (Senanayake and Ramos's "
+        "automorphing kernels; see hapticframe_bhm._automorph), starting from "
+        "length_scale_free_m. The scales are re-learned on all data whenever the observations "
+        "have doubled since the last time (each time costs automorphing_iterations + 1 fits "
+        "of all data); batches in between are fused sequentially. Not with "
+        "region_dependent_smoothing.",
+    )
+    automorphing_range: tuple[float, float] = Field(
+        (0.5, 2.0),
+        description="Smallest and largest learned length scale, as factors of "
+        "length_scale_free_m.",
+    )
+    automorphing_levels: int = Field(
+        7, ge=2, le=32,
+        description="Learned length scales are rounded to this many log-spaced values over "
+        "automorphing_range (few distinct values keep queries fast).",
+    )
+    automorphing_iterations: int = Field(
+        6, ge=1, le=100, description="Ascent steps on the length scales per learning."
+    )
     bias: bool = Field(True, description="Append a constant bias feature to the hinge features.")
     prior_variance: float = Field(
         0.45,
@@ -116,6 +138,24 @@ class BayesianHilbertMapConfig(PluginConfig):
         description="Weight samples K for the Monte-Carlo standard deviation.",
     )
 
+    dense_weights_max: int = Field(
+        1500,
+        ge=2,
+        le=5000,
+        description="A map with at most this many weights (hinges plus bias) keeps one dense "
+        "posterior over its region (the thesis's 75 x 50 cm: 235; 1.5 x 1 m: 760); a larger "
+        "one is split into local tiles (see hapticframe_bhm._tiled), so that memory and time "
+        "grow with the area observed, not with its square.",
+    )
+    tile_size_m: float | None = Field(
+        None,
+        gt=0,
+        le=100.0,
+        description="Side of a tile's core in a tiled map, rounded to whole hinge spacings; "
+        "each tile also holds a halo of hinges two kernel windows wide around its core. "
+        "Default: the core is as wide as both halos together (60 cm with 5 cm hinges and "
+        "the 3.3 cm length scale), which minimises the dense matrices held per square metre.",
+    )
     blas_threads: int | None = Field(
         1,
         ge=1,
@@ -127,7 +167,16 @@ class BayesianHilbertMapConfig(PluginConfig):
 
     @model_validator(mode="after")
     def _finite(self) -> BayesianHilbertMapConfig:
-        for name in ("hinge_spacing_m", "interaction_radius_m", "tolerance"):
+        for name in ("hinge_spacing_m", "interaction_radius_m", "tolerance", "tile_size_m"):
+            if getattr(self, name) is None:
+                continue
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be finite")
+        low, high = self.automorphing_range
+        if not (0 < low <= 1.0 <= high <= 100 and math.isfinite(high)):
+            raise ValueError("automorphing_range must be (low, high) with 0 < low <= 1 <= high "
+                             "<= 100")
+        if self.automorphing_kernels and self.region_dependent_smoothing:
+            raise ValueError("automorphing_kernels and region_dependent_smoothing exclude each "
+                             "other: choose one way of setting the length scales")
         return self

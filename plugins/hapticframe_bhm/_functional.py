@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import lapack
+from scipy.linalg import blas, lapack
 from scipy.special import expit
 
 from ._windowed import DenseRows, WindowedRows, all_finite
@@ -267,7 +267,8 @@ class GaussianWeights:
     Attributes
     ----------
     precision : (D, D) float64
-        ``Lambda = S^-1``.
+        ``Lambda = S^-1`` (a property: a belief built from its Cholesky factor alone, as a
+        tiled map rebuilds the tiles it packed, computes it when first read).
     shift : (D,) float64
         ``eta = Lambda m``.
     cholesky : (D, D) float64
@@ -279,12 +280,21 @@ class GaussianWeights:
         variances then skip the triangular solve.
     """
 
-    precision: FloatArray
     shift: FloatArray
     cholesky: FloatArray
     mean: FloatArray
     diagonal: bool = False
     _cache: dict[str, FloatArray] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def precision(self) -> FloatArray:
+        """``Lambda = S^-1``, or ``L L^T`` (BLAS ``syrk``) when built without it."""
+        cached = self._cache.get("precision")
+        if cached is None:
+            product = blas.dsyrk(1.0, self.cholesky, lower=1)  # L L^T, lower triangle
+            cached = np.tril(product) + np.tril(product, -1).T
+            self._cache["precision"] = cached
+        return cached
 
     @classmethod
     def from_information(cls, precision: FloatArray, shift: FloatArray) -> GaussianWeights:
@@ -293,7 +303,7 @@ class GaussianWeights:
         mean, info = lapack.dpotrs(lower, shift, lower=1)
         if info != 0:  # cannot happen for a factor potrf produced; keep the checked path
             mean = sla.cho_solve((lower, True), shift, check_finite=False)
-        return cls(precision, shift, lower, mean)
+        return cls(shift, lower, mean, _cache={"precision": precision})
 
     @classmethod
     def isotropic(
@@ -308,7 +318,7 @@ class GaussianWeights:
             raise ValueError("prior means must be finite")
         precision = np.diag(1.0 / var)
         root = np.diag(np.sqrt(1.0 / var))
-        return cls(precision, centre / var, root, centre, diagonal=True)
+        return cls(centre / var, root, centre, diagonal=True, _cache={"precision": precision})
 
     @property
     def dimension(self) -> int:

@@ -31,7 +31,10 @@ replaying searches of the ``search`` benchmark on seeds 100 and above (never see
 Speed: large batches use windowed features (:mod:`._windowed`: each point keeps the 7 x 7
 hinges whose features exceed 1e-6), the covariance comes from LAPACK ``potri`` once per
 belief and is cached, and grid-shaped queries (the core's evaluation grid) take the
-separable path of :meth:`BayesianHilbertMap.probability_grid`.
+separable path of :meth:`BayesianHilbertMap.probability_grid`. A region with more than
+``dense_weights_max`` weights is split into local tiles (:mod:`._tiled`), so that memory and
+time grow with the area observed; ``automorphing_kernels`` learns a length scale per hinge
+(:mod:`._automorph`).
 
 Region-dependent smoothing (Table 3.1)
 --------------------------------------
@@ -85,6 +88,7 @@ from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Regi
 from . import _functional as fn
 from ._config import BayesianHilbertMapConfig
 from ._separable import grid_activation_samples, grid_predictive_moments
+from ._tiled import TiledBeliefs
 from ._windowed import DenseRows, WindowedRows, window_half_width
 
 __all__ = ["BayesianHilbertMap"]
@@ -93,13 +97,15 @@ FloatArray = NDArray[np.float64]
 
 #: Targets above this count as interaction observations for region-dependent smoothing.
 _INTERACTION_TARGET = 0.5
-#: Largest weight-vector length accepted (the precision is a dense D x D matrix).
+#: Largest weight-vector length of one dense posterior (the precision is a D x D matrix).
 _MAX_WEIGHTS = 5000
 #: Smallest batch whose variational update uses windowed features (below it, dense BLAS
 #: products over all hinges are cheaper than the per-window loop).
 _WINDOWED_MIN_ROWS = 1000
-#: Query rows processed at once (bounds the (rows x K) Monte-Carlo activation block).
+#: Query rows processed at once: at most 16,384, and at most this many feature entries per
+#: chunk (2 M doubles, 16 MB), so that a chunk's (rows x D) matrices stay small when D is large.
 _QUERY_CHUNK = 16384
+_QUERY_ENTRIES = 1 << 21
 #: Default region when neither the config nor a scene gives one (thesis: 75 x 50 cm).
 _DEFAULT_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
@@ -155,25 +161,62 @@ class BayesianHilbertMap(Map):
     """Continuous occupancy map with weight uncertainty (Senanayake & Ramos's BHM).
 
     Built as ``BayesianHilbertMap(config, context)``; see the module docstring for the
-    update rule, region-dependent smoothing and the uncertainty estimate.
+    update rule, region-dependent smoothing and the uncertainty estimate. A map with more
+    than ``dense_weights_max`` weights is split into local tiles (:mod:`._tiled`), each an
+    instance of this class over a sub-grid of the hinges.
     """
 
     config: BayesianHilbertMapConfig
 
     def __init__(self, config: BayesianHilbertMapConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        self._region = _resolve_region(config, context)
+        region = _resolve_region(config, context)
         spacing = config.hinge_spacing_m
-        self._hinge_xs = fn.hinge_axis(self._region.x_min_m, self._region.x_max_m, spacing)
-        self._hinge_ys = fn.hinge_axis(self._region.y_min_m, self._region.y_max_m, spacing)
+        xs = fn.hinge_axis(region.x_min_m, region.x_max_m, spacing)
+        ys = fn.hinge_axis(region.y_min_m, region.y_max_m, spacing)
+        self._tiled: TiledBeliefs | None = None
+        if xs.size * ys.size + int(config.bias) <= config.dense_weights_max:
+            self._setup(region, xs, ys)
+            return
+        self._region, self._hinge_xs, self._hinge_ys = region, xs, ys
+        self._rng = context.rng
+        self._tile_priors: dict[int, fn.GaussianWeights] = {}
+        self._tiled = TiledBeliefs(config, xs, ys, self._make_tile, context.rng)
+        largest = self._tiled.layout.largest_tile_hinges() + int(config.bias)
+        if largest > _MAX_WEIGHTS:
+            raise ValueError(
+                f"map {context.id!r}: a tile of {largest} weights (hinge spacing {spacing} m, "
+                f"length scale {config.length_scale_free_m} m) exceeds the dense limit of "
+                f"{_MAX_WEIGHTS}; increase hinge_spacing_m or set a smaller tile_size_m"
+            )
+        self.reset()
+
+    def _make_tile(self, xs: FloatArray, ys: FloatArray) -> BayesianHilbertMap:
+        """A dense map with this map's settings over the hinge sub-grid ``xs x ys``."""
+        tile = BayesianHilbertMap.__new__(BayesianHilbertMap)
+        Map.__init__(tile, self.config, self.context)
+        tile._tiled = None
+        tile._setup(Region(float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1])), xs, ys)
+        # Tiles of one size share one prior (it is only read): its dense diagonal matrices
+        # would otherwise double the memory of the tiles.
+        shared = self._tile_priors.setdefault(tile._prior.dimension, tile._prior)
+        tile._prior = tile._belief = shared
+        return tile
+
+    def _setup(self, region: Region, xs: FloatArray, ys: FloatArray) -> None:
+        """Hinges, prior and state of one dense posterior over the hinge grid ``xs x ys``."""
+        config = self.config
+        self._region = region
+        self._hinge_xs, self._hinge_ys = xs, ys
         self._hinges = fn.hinge_points(self._hinge_xs, self._hinge_ys)
         dimension = self._hinges.shape[0] + int(config.bias)
         if dimension > _MAX_WEIGHTS:
             raise ValueError(
-                f"{dimension} weights (hinge spacing {spacing} m over {self._region}) exceed "
-                f"the dense limit of {_MAX_WEIGHTS}; increase hinge_spacing_m"
+                f"map {self.context.id!r}: {dimension} weights (hinge spacing "
+                f"{config.hinge_spacing_m} m over {region}) exceed the dense limit of "
+                f"{_MAX_WEIGHTS}; increase hinge_spacing_m or lower dense_weights_max"
             )
-        self._rng = context.rng
+        self._rng = self.context.rng
         prior_mean = np.zeros(dimension)
         if config.bias:
             prior_mean[-1] = float(np.log(config.prior_occupancy / (1.0 - config.prior_occupancy)))
@@ -184,14 +227,19 @@ class BayesianHilbertMap(Map):
 
     def reset(self) -> None:
         """Forget all observations: back to the prior and free-regime hinges."""
+        self.last_update_info: fn.UpdateInfo | None = None
+        if self._tiled is not None:
+            self._tiled.reset()
+            return
         shape = (self._hinge_xs.size, self._hinge_ys.size)
         self._interaction = np.zeros(shape, dtype=bool)
+        self._learned_scales: FloatArray | None = None
+        self._learned_at = 0
         self._belief = self._prior
         self._history: list[Observations] = []
         self._batches = 0
         self._weight_samples: FloatArray | None = None
-        self.last_update_info: fn.UpdateInfo | None = None
-        self.refits = 0
+        self._refits = 0
 
     @property
     def region(self) -> Region:
@@ -203,28 +251,60 @@ class BayesianHilbertMap(Map):
         return self._hinge_xs.copy(), self._hinge_ys.copy()
 
     @property
+    def tiled(self) -> TiledBeliefs | None:
+        """The tiles of a map split into local posteriors, or None for one dense posterior."""
+        return self._tiled
+
+    @property
     def interaction_hinges(self) -> NDArray[np.bool_]:
         """``(nx, ny)`` True where a hinge uses the interaction length scale."""
+        if self._tiled is not None:
+            return self._tiled.core_values(lambda t: t._interaction, False).astype(bool)
         return self._interaction.copy()
 
     @property
     def length_scales(self) -> FloatArray:
         """``(nx, ny)`` current kernel length scale of every hinge, in metres."""
         cfg = self.config
+        if self._tiled is not None:
+            scales = self._tiled.core_values(lambda t: t.length_scales, cfg.length_scale_free_m)
+            return np.asarray(scales, dtype=np.float64)
+        if self._learned_scales is not None:
+            return self._learned_scales.copy()
         return np.where(self._interaction, cfg.length_scale_interaction_m, cfg.length_scale_free_m)
 
     @property
     def belief(self) -> fn.GaussianWeights:
-        """The current Gaussian belief over the weights (hinges x-major, then bias)."""
+        """The current Gaussian belief over the weights (hinges x-major, then bias).
+
+        A tiled map has none: each tile has its own (:attr:`tiled`)."""
+        if self._tiled is not None:
+            raise AttributeError(
+                f"map {self.id!r} is tiled (more than dense_weights_max weights): each tile of "
+                "map.tiled.tiles has its own belief"
+            )
         return self._belief
 
     @property
     def batches_fused(self) -> int:
-        """Number of batches fused since the last reset (a refit counts as one)."""
+        """Number of batches fused since the last reset (a refit counts as one; in a tiled
+        map, the most any tile fused)."""
+        if self._tiled is not None:
+            return max((t._batches for t in self._tiled.tiles.values()), default=0)
         return self._batches
 
+    @property
+    def refits(self) -> int:
+        """Refits of all data since the last reset (region-dependent smoothing; summed over
+        the tiles of a tiled map)."""
+        if self._tiled is not None:
+            return sum(t._refits for t in self._tiled.tiles.values())
+        return self._refits
+
     def features(self, points_m: ArrayLike) -> FloatArray:
-        """Feature rows of ``points_m`` under the current length scales."""
+        """Feature rows of ``points_m`` under the current length scales (dense maps only)."""
+        if self._tiled is not None:
+            raise AttributeError(f"map {self.id!r} is tiled: features belong to its tiles")
         return fn.separable_hinge_features(
             points_m, self._hinge_xs, self._hinge_ys, self.length_scales, self.config.bias
         )
@@ -238,6 +318,15 @@ class BayesianHilbertMap(Map):
         if len(observations) == 0:
             return
         with _blas_threads(self.config.blas_threads):
+            if self._tiled is not None:
+                self._tiled.update(observations)
+                return
+            if self.config.automorphing_kernels:
+                self._history.append(observations)
+                seen = sum(len(batch) for batch in self._history)
+                if self._batches == 0 or seen >= 2 * self._learned_at:
+                    self._learn_length_scales(seen)
+                    return
             if self.config.region_dependent_smoothing:
                 self._history.append(observations)
                 switched = self._switched_hinges(observations)
@@ -268,11 +357,31 @@ class BayesianHilbertMap(Map):
             flags |= near.reshape(flags.shape)
         return flags & ~self._interaction
 
+    def _learn_length_scales(self, seen: int) -> None:
+        """Learn the hinges' length scales on all data and refit (:mod:`._automorph`)."""
+        from ._automorph import learn_length_scales, length_scale_levels
+
+        cfg = self.config
+        everything = Observations.concatenate(self._history)
+        levels = length_scale_levels(cfg.length_scale_free_m, *cfg.automorphing_range,
+                                     cfg.automorphing_levels)
+        scales, self._belief, self.last_update_info = learn_length_scales(
+            everything.points_m, everything.targets, everything.weights,
+            self._hinge_xs, self._hinge_ys, self.length_scales, cfg.length_scale_free_m,
+            levels, self._prior, bias=cfg.bias, iterations=cfg.automorphing_iterations,
+            max_iterations=cfg.max_iterations_first, tolerance=cfg.tolerance,
+        )
+        self._learned_scales = scales
+        self._learned_at = seen
+        self._batches = 1
+        self._refits += 1
+        self._weight_samples = None
+
     def _refit(self) -> None:
         everything = Observations.concatenate(self._history)
         self._belief = self._prior
         self._batches = 0
-        self.refits += 1
+        self._refits += 1
         self._fuse(everything, first=True)
 
     def _rows(self, points_m: FloatArray) -> Any:
@@ -343,11 +452,15 @@ class BayesianHilbertMap(Map):
             xs, ys = axes
             mean_grid, std_grid = self._grid_moments(xs, ys)
             return MapEstimate(mean_grid.reshape(-1), std_grid.reshape(-1))
+        if self._tiled is not None:
+            with _blas_threads(self.config.blas_threads):
+                return MapEstimate(*self._tiled.query(p))
         mean = np.empty(p.shape[0])
         std = np.empty(p.shape[0])
+        chunk = max(256, min(_QUERY_CHUNK, _QUERY_ENTRIES // self._belief.dimension))
         with _blas_threads(self.config.blas_threads):
-            for start in range(0, p.shape[0], _QUERY_CHUNK):
-                rows = slice(start, start + _QUERY_CHUNK)
+            for start in range(0, p.shape[0], chunk):
+                rows = slice(start, start + chunk)
                 phi = self.features(p[rows])
                 mu, var = fn.predictive_moments(self._belief, phi)
                 mean[rows] = fn.probit_probability(mu, var)
@@ -363,6 +476,9 @@ class BayesianHilbertMap(Map):
         p = self._points(points_m)
         if p.shape[0] == 0:
             return np.empty(0)
+        if self._tiled is not None:
+            with _blas_threads(self.config.blas_threads):
+                return self._tiled.log_odds(p)
         with _blas_threads(self.config.blas_threads):
             mu, var = fn.predictive_moments(self._belief, self.features(p))
         return fn.probit_kappa(var) * mu
@@ -388,6 +504,9 @@ class BayesianHilbertMap(Map):
 
     def _grid_moments(self, xs: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Mean and std, ``(len(ys), len(xs))``, on the grid of axes ``xs`` and ``ys``."""
+        if self._tiled is not None:
+            with _blas_threads(self.config.blas_threads):
+                return self._tiled.grid_moments(xs, ys)
         args = (xs, ys, self._hinge_xs, self._hinge_ys, self.length_scales)
         with _blas_threads(self.config.blas_threads):
             mu, var = grid_predictive_moments(*args, self._belief, self.config.bias)
@@ -407,7 +526,13 @@ class BayesianHilbertMap(Map):
             return {}
         from ._plots import save_map_figures
 
-        xs, ys, mean, std = self.probability_grid(min(0.005, self.config.hinge_spacing_m / 4))
+        # At most about a million pixels: a 10 x 10 m region at 5 mm would be 4 million.
+        r = self._region
+        area = (r.x_max_m - r.x_min_m) * (r.y_max_m - r.y_min_m)
+        spacing = max(min(0.005, self.config.hinge_spacing_m / 4), float(np.sqrt(area / 1e6)))
+        xs, ys, mean, std = self.probability_grid(spacing)
+        interaction = self.interaction_hinges.ravel()
+        hinges = fn.hinge_points(self._hinge_xs, self._hinge_ys)
         save_map_figures(
             Path(outcome.out_dir),
             self._region,
@@ -417,7 +542,12 @@ class BayesianHilbertMap(Map):
             std,
             outlines=[] if outcome.scene is None else [o.outline() for o in outcome.scene.objects],
             movements=outcome.movements,
-            interaction_hinges=self._hinges[self._interaction.ravel()],
+            interaction_hinges=hinges[interaction],
             outline_level=outcome.outline_level,
         )
+        if self.config.automorphing_kernels:
+            from ._plots import save_kernel_figure
+
+            save_kernel_figure(Path(outcome.out_dir) / "kernels.png", self._region, hinges,
+                               self.length_scales.ravel(), xs, ys, mean)
         return {}

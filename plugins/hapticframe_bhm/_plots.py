@@ -20,7 +20,7 @@ from hapticframe.kinds import MovementResult, Region
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["draw_map", "save_map_figures"]
+__all__ = ["draw_map", "save_kernel_figure", "save_map_figures"]
 
 FloatArray = NDArray[np.float64]
 
@@ -85,3 +85,32 @@ def save_map_figures(
                           label="std of p(occupied)", vmax=max(float(std.max()), 1e-12), **common)
     return [plotting.save_figure(mean_figure, out_dir / "bhm_mean.png"),
             plotting.save_figure(std_figure, out_dir / "bhm_std.png")]
+
+
+def save_kernel_figure(
+    path: Path,
+    region: Region,
+    hinges: FloatArray,
+    length_scales: FloatArray,
+    xs: FloatArray,
+    ys: FloatArray,
+    mean: FloatArray,
+    *,
+    outline_level: float = 0.6,
+) -> Path:
+    """``kernels.png``: every hinge coloured and sized by its learned length scale (as the
+    thesis's Fig. 3.5c), over the ``outline_level`` curve of the occupancy mean."""
+    figure, axes, colorbar_axes = plotting.map_figure()
+    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+    scales_cm = 100.0 * np.asarray(length_scales, dtype=np.float64)
+    sizes = 4.0 + 40.0 * (scales_cm / max(float(scales_cm.max()), 1e-12)) ** 2
+    points = axes.scatter(hinges[:, 0], hinges[:, 1], c=scales_cm, s=sizes, cmap="viridis",
+                          edgecolors="none")
+    figure.colorbar(points, cax=colorbar_axes, label="length scale (cm)")
+    plotting.draw_level_outline(axes, xs, ys, mean, outline_level,
+                                label=f"estimated outline (p = {outline_level:g})")
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.set_title("BHM automorphing kernels")
+    plotting.layout_map(figure, axes, colorbar_axes, bounds)
+    return plotting.save_figure(figure, path)

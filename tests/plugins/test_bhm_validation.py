@@ -37,9 +37,15 @@ def test_the_limit_follows_the_region() -> None:
         validate_mapping(_with_bhm({"hinge_spacing_m": 0.008}))
     small = {"x_min_m": 0.3, "x_max_m": 0.5, "y_min_m": 0.1, "y_max_m": 0.3}
     assert validate_mapping(_with_bhm({"hinge_spacing_m": 0.008, "region": small}))
-    with pytest.raises(ExperimentError):
-        validate_mapping(_with_bhm({"hinge_spacing_m": 0.05, "region": {
-            "x_min_m": 0.0, "x_max_m": 10.0, "y_min_m": 0.0, "y_max_m": 10.0}}))
+    # A 10 x 10 m region at 5 cm is tiled (issue 19 §5): 41,210 weights, 577 per tile.
+    large = {"x_min_m": 0.0, "x_max_m": 10.0, "y_min_m": 0.0, "y_max_m": 10.0}
+    tiled = _with_bhm({"hinge_spacing_m": 0.05, "region": large})
+    tiled["run"]["evaluation_spacing_m"] = 0.01  # the core scores at most 4 M grid points
+    assert validate_mapping(tiled)
+    fine = _with_bhm({"hinge_spacing_m": 0.0125, "region": large})
+    fine["run"]["evaluation_spacing_m"] = 0.01
+    with pytest.raises(ExperimentError, match=r"tiles of 1.25e\+04 weights"):
+        validate_mapping(fine)
 
 
 def test_infinite_and_huge_fields_are_refused() -> None:
