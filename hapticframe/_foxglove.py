@@ -89,6 +89,8 @@ _TEXT = _object("foxglove.TextPrimitive", {
     "pose": _POSE, "billboard": {"type": "boolean"}, "font_size": _NUMBER,
     "scale_invariant": {"type": "boolean"}, "color": _COLOR, "text": {"type": "string"},
 }, ("pose", "billboard", "font_size", "scale_invariant", "color", "text"))
+#: The scene entity's primitive lists that a run leaves empty.
+_UNUSED_PRIMITIVES = ("arrows", "cubes", "spheres", "cylinders", "triangles", "models")
 _ENTITY = _object("foxglove.SceneEntity", {
     "timestamp": _TIME, "frame_id": {"type": "string"}, "id": {"type": "string"},
     "lifetime": _DURATION, "frame_locked": {"type": "boolean"},
@@ -97,7 +99,10 @@ _ENTITY = _object("foxglove.SceneEntity", {
         ("key", "value"))},
     "lines": {"type": "array", "items": _LINE},
     "texts": {"type": "array", "items": _TEXT},
-}, ("timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata"),
+    # Primitives a run never writes: present and empty, as Foxglove's schema requires.
+    **{kind: {"type": "array", "maxItems": 0} for kind in _UNUSED_PRIMITIVES},
+}, ("timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata", "lines", "texts",
+    *_UNUSED_PRIMITIVES),
     "A visual element in a 3D scene (the primitives a run writes: lines, texts)")
 _DELETION = _object("foxglove.SceneEntityDeletion", {
     "timestamp": _TIME,
@@ -222,6 +227,7 @@ def line_entity(entity_id: str, t_s: float, points_m: ArrayLike,
             "color": {"r": r, "g": g, "b": b, "a": a}, "colors": [], "indices": [],
         }],
         "texts": [],
+        **{kind: [] for kind in _UNUSED_PRIMITIVES},
     }
 
 
