@@ -14,6 +14,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
@@ -59,10 +60,13 @@ def test_the_page_follows_a_short_run(tmp_path: Path) -> None:
         return run_experiment(experiment, tmp_path / "out", echo=lambda _t: None,
                               progress=False)
 
+    def wait() -> None:  # "until Ctrl-C": until the test has looked at the page
+        ended.set()
+        done_with_page.wait(60)
+
     def command() -> None:
         try:
-            run_live(experiment, run, port=0, say=lines.append,
-                     wait=lambda: (ended.set(), done_with_page.wait(60)))
+            run_live(experiment, run, port=0, say=lines.append, wait=wait)
         except BaseException as exc:  # reported by the test's thread
             failure.append(exc)
         finally:
@@ -123,8 +127,8 @@ def test_the_page_says_so_when_the_run_fails(tmp_path: Path) -> None:
     def run() -> Any:
         recording = RunRecording(tmp_path / "run.mcap")
         recording.samples("sensor", "wrist", SampleBatch(
-            [0.1, 0.2, 0.3], {"force_n": [[1.0, 0.0], [3.0, 0.0], [2.0, 0.0]]}),
-            {"force_n": "N"})
+            np.array([0.1, 0.2, 0.3]),
+            {"force_n": np.array([[1.0, 0.0], [3.0, 0.0], [2.0, 0.0]])}), {"force_n": "N"})
         recording.close()
         raise RunError("the robot 'arm' stopped answering for 0.5 s; check its cable")
 

@@ -9,6 +9,7 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from hapticframe._config import load_file, validate_data
@@ -52,7 +53,8 @@ def _failing_run(tmp_path: Path, error: BaseException) -> Any:
     def run() -> dict[str, Any]:  # writes a little, as a run would, then fails
         recording = RunRecording(tmp_path / "run.mcap")
         recording.samples("sensor", "wrist", SampleBatch(
-            [0.1, 0.2], {"force_n": [[1.0, 0.0], [2.0, 0.0]]}), {"force_n": "N"})
+            np.array([0.1, 0.2]), {"force_n": np.array([[1.0, 0.0], [2.0, 0.0]])}),
+            {"force_n": "N"})
         recording.close()
         raise error
     return run

@@ -8,12 +8,13 @@ import json
 import logging
 import socket
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
 import yaml
 
+from hapticframe._foxglove import grid_message
 from hapticframe._live import (
     LiveFeed,
     LiveServer,
@@ -24,7 +25,6 @@ from hapticframe._live import (
     decode_grid,
 )
 from hapticframe._live._state import WINDOW_S
-from hapticframe._foxglove import grid_message
 from hapticframe._recording import RunRecording, listening, read_recording
 from hapticframe._scene import Scene
 from hapticframe.kinds import ClassProbabilities, MapEstimate, Region, SampleBatch
@@ -203,7 +203,7 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
     recording.add_listener(state.fold)
     recording.configure_snapshots(5.0, 0.05)
     recording.scene(scene)
-    recording.map_snapshot("ramp", _Ramp(), 0.2)
+    recording.map_snapshot("ramp", cast(Any, _Ramp()), 0.2)
     frame = state.frame()
     assert frame["scene"]["region"] == [[0.0, 0.0], [0.5, 0.0], [0.5, 0.25], [0.0, 0.25]]
     [circle] = frame["scene"]["objects"]
@@ -221,7 +221,7 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
             n = len(np.asarray(points_m))
             return MapEstimate(np.full(n, 0.5), np.full(n, 0.3))
 
-    recording.map_snapshot("ramp", Empty(), 0.4)  # nothing above 0.6: the outline goes
+    recording.map_snapshot("ramp", cast(Any, Empty()), 0.4)  # nothing above 0.6: the outline goes
     recording.close()
     later = state.frame()["maps"]["ramp"]
     assert later["version"] == 2 and later["outline"] == [] and later["outline_source"] == "none"
@@ -257,7 +257,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
                   push: Any = None) -> list[dict[str, Any]]:
     import aiohttp
 
-    frames = []
+    frames: list[dict[str, Any]] = []
     async with aiohttp.ClientSession() as session:
         async with session.ws_connect(url + "ws") as ws:
             for message in send or []:
