@@ -27,8 +27,8 @@ const MEAN_RAMP = ramp(VIRIDIS), STD_RAMP = ramp(MAGMA);
 const TRUTH = "#00e676", OUTLINE = "#ffffff", REGION = "#9e9e9e";
 const STATUS_TEXT = {ok: "finished", running: "running", failed: "failed",
                      interrupted: "interrupted", disconnected: "disconnected",
-                     connecting: "connecting", recording: "recording",
-                     "recording (end)": "recording (end)"};
+                     connecting: "connecting", recording: "recorded run",
+                     "recording (end)": "recorded run (end)"};
 
 let frame = null, selectedMap = null, pickedMap = null, socket = null, wantedT = null;
 const arrivals = [];
