@@ -12,6 +12,7 @@ See docs/recording.md, "Live view", and docs/architecture.md for why aiohttp.
 from __future__ import annotations
 
 from ._server import DEFAULT_PORT, LiveFeed, LiveServer, TimelineFeed
+from ._session import evaluated_map, run_live
 from ._state import LiveState, MessageQueue, RecordingTimeline, decode_grid
 
 __all__ = [
@@ -23,4 +24,6 @@ __all__ = [
     "RecordingTimeline",
     "TimelineFeed",
     "decode_grid",
+    "evaluated_map",
+    "run_live",
 ]

@@ -47,20 +47,23 @@ class LiveFeed:
 
     mode = "live"
 
-    def __init__(self, maxlen: int = 20000) -> None:
+    def __init__(self, maxlen: int = 20000, preferred_map: str | None = None) -> None:
         self.queue = MessageQueue(maxlen)
         self.state = LiveState()
+        self.state.preferred_map = preferred_map
 
     @property
     def listener(self) -> Any:
         """The recording listener (``fn(topic, t_s, data)``); put it on the run's recording."""
         return self.queue.put
 
-    def end(self, status: str, metrics: Any = None) -> None:
-        """Tell the page that the run has ended (from any thread)."""
+    def end(self, status: str, metrics: Any = None, reason: str = "") -> None:
+        """Tell the page that the run has ended (from any thread): ``status`` ``ok``,
+        ``failed`` or ``interrupted``, the final ``metrics``, and why when it failed."""
         from ._state import END_TOPIC
 
-        self.queue.put(END_TOPIC, math.nan, {"status": status, "metrics": metrics})
+        self.queue.put(END_TOPIC, math.nan, {"status": status, "metrics": metrics,
+                                             "reason": reason})
 
     def pump(self) -> None:
         """Fold what the run has written since (the server does so even with no page open,

@@ -129,13 +129,22 @@ def _rounded(values: NDArray[np.float64], digits: int = 4) -> list[Any]:
     return out
 
 
+def _level(estimate: Mapping[str, Any] | None) -> float:
+    """The estimated outline's level: the recording's when it says, else the default."""
+    try:
+        return float(estimate["metadata"]["level"]) if estimate else OUTLINE_LEVEL
+    except (KeyError, TypeError, ValueError):
+        return OUTLINE_LEVEL
+
+
 @dataclass
 class _Map:
     grid: dict[str, Any]
     t_s: float
     version: int
-    outline: list[list[list[float]]] = field(default_factory=list)
     frame: dict[str, Any] | None = None
+    #: The scene's estimated outline of this map when the frame was made (its cache key).
+    estimate: Any = None
 
 
 @dataclass
@@ -200,6 +209,14 @@ class LiveState:
         self.messages = 0
         self.dropped = 0
         self.errors: dict[str, str] = {}
+        #: Why the run stopped when it did not finish (the page shows it with the status).
+        self.reason = ""
+        #: The map the page shows first (the evaluated one; the person may pick another).
+        self.preferred_map: str | None = None
+        #: ``/scene`` entities by id: the region, the true objects, the estimated outlines.
+        self.scene: dict[str, dict[str, Any]] = {}
+        #: Maps whose estimated outline the recording writes on ``/scene`` (or deletes).
+        self._estimated: set[str] = set()
         self._frame: dict[str, Any] | None = None
         self._frame_version = -1
 
@@ -220,7 +237,10 @@ class LiveState:
         try:
             if topic == END_TOPIC:
                 self.status = str(data.get("status", "ended"))
+                self.reason = str(data.get("reason") or "")
                 self._metrics(data.get("metrics"))
+            elif topic == "/scene":
+                self._scene(data)
             elif parts[0] == "map" and len(parts) == 3 and parts[2] == "grid":
                 self._grid(parts[1], t_s, data)
             elif parts[0] == "robot" and len(parts) == 3 and parts[2] == "state":
@@ -238,14 +258,39 @@ class LiveState:
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             self.errors[topic] = f"{type(exc).__name__}: {exc}"
 
-    def end(self, status: str, metrics: Mapping[str, Any] | None = None) -> None:
-        """The run has ended (``ok``, ``failed``, ``interrupted``); ``metrics``: its final ones."""
-        self.fold(END_TOPIC, self.t_s, {"status": status, "metrics": metrics})
+    def end(self, status: str, metrics: Mapping[str, Any] | None = None,
+            reason: str = "") -> None:
+        """The run has ended (``ok``, ``failed``, ``interrupted``); ``metrics``: its final
+        ones; ``reason``: why it stopped, when it did not finish."""
+        self.fold(END_TOPIC, self.t_s, {"status": status, "metrics": metrics,
+                                        "reason": reason})
 
     def _metrics(self, metrics: Any) -> None:
         if isinstance(metrics, Mapping):
             self.metrics = {k: v for k, v in metrics.items()
                             if isinstance(v, (int, float, str, bool)) or v is None}
+            evaluated = self.metrics.get("evaluated_map")
+            if isinstance(evaluated, str):
+                self.preferred_map = evaluated
+
+    def _scene(self, data: Mapping[str, Any]) -> None:
+        """A ``foxglove.SceneUpdate``: deletions first, then entities added or replaced."""
+        for deletion in data.get("deletions", []):
+            if int(deletion.get("type", 0)) == 1:  # ALL
+                self.scene.clear()
+            else:
+                self.scene.pop(self._entity_id(deletion["id"]), None)
+        for entity in data.get("entities", []):
+            lines = [[[float(p["x"]), float(p["y"])] for p in line["points"]]
+                     for line in entity.get("lines", [])]
+            metadata = {str(kv["key"]): str(kv["value"]) for kv in entity.get("metadata", [])}
+            self.scene[self._entity_id(entity["id"])] = {"lines": lines, "metadata": metadata}
+
+    def _entity_id(self, raw: Any) -> str:
+        entity_id = str(raw)
+        if entity_id.startswith("estimate/"):
+            self._estimated.add(entity_id.removeprefix("estimate/"))
+        return entity_id
 
     def _grid(self, map_id: str, t_s: float, data: Mapping[str, Any]) -> None:
         grid = decode_grid(data)
@@ -315,9 +360,12 @@ class LiveState:
         self._frame = {
             "t_s": round(self.t_s, 4),
             "status": self.status,
+            "reason": self.reason,
+            "preferred_map": self.preferred_map,
             "wall_s": round(self._clock() - self._started, 3),
             "phase": None if last is None else last.get("phase"),
-            "maps": {mid: self._map_frame(m) for mid, m in sorted(self.maps.items())},
+            "maps": {mid: self._map_frame(mid, m) for mid, m in sorted(self.maps.items())},
+            "scene": self._scene_frame(),
             "paths": {rid: self._path_frame(p) for rid, p in sorted(self.paths.items())},
             "movements": [{k: m.get(k) for k in (
                 "index", "start_m", "end_m", "phase", "label", "halted", "halt_reason",
@@ -347,29 +395,49 @@ class LiveState:
         }
         return {**so_far, **self.metrics}
 
-    def _map_frame(self, m: _Map) -> dict[str, Any]:
-        if m.frame is not None:
+    def _scene_frame(self) -> dict[str, Any]:
+        """The region's rectangle and the true objects' outlines (``/scene``)."""
+        region = self.scene.get("region")
+        objects = [{"id": eid, "shape": e["metadata"].get("shape", ""),
+                    "points": _rounded(np.asarray(e["lines"][0]), 5)}
+                   for eid, e in sorted(self.scene.items())
+                   if eid.startswith("object/") and e["lines"]]
+        return {"region": _rounded(np.asarray(region["lines"][0]), 5)
+                if region and region["lines"] else None,
+                "objects": objects}
+
+    def _map_frame(self, map_id: str, m: _Map) -> dict[str, Any]:
+        estimate = self.scene.get(f"estimate/{map_id}")
+        if m.frame is not None and m.estimate is estimate:
             return m.frame
-        from ..geometry import level_outlines
+        from ..geometry import main_outline
 
         grid = m.grid
         mean = grid["mean"]
         rows, columns = mean.shape
         (x0, y0), (dx, dy) = grid["origin_m"], grid["cell_m"]
-        xs = x0 + (np.arange(columns) + 0.5) * dx
-        ys = y0 + (np.arange(rows) + 0.5) * dy
         outline: list[Any] = []
-        if rows >= 2 and columns >= 2 and np.isfinite(mean).all():
-            outline = [_rounded(line, 5) for line in
-                       level_outlines(xs, ys, mean, OUTLINE_LEVEL)]
+        source = "none"
+        if estimate is not None and estimate["lines"]:
+            # The recording's own estimate (the blob the evaluation would outline).
+            outline, source = [_rounded(np.asarray(estimate["lines"][0]), 5)], "recording"
+        elif map_id not in self._estimated and rows >= 2 and columns >= 2 \
+                and np.isfinite(mean).all():
+            # A recording without estimates on /scene: the same curve, from the grid.
+            xs = x0 + (np.arange(columns) + 0.5) * dx
+            ys = y0 + (np.arange(rows) + 0.5) * dy
+            line = main_outline(xs, ys, mean, OUTLINE_LEVEL)
+            if line is not None:
+                outline, source = [_rounded(line, 5)], "grid"
         std = grid["std"]
+        m.estimate = estimate
         m.frame = {
             "version": m.version, "t_s": round(m.t_s, 4), "rows": rows, "columns": columns,
             "origin_m": grid["origin_m"], "cell_m": grid["cell_m"],
             "mean": _bytes(mean, 1.0),
             "std": None if std is None else _bytes(std, STD_SCALE), "std_scale": STD_SCALE,
             "max_mean": round(float(np.nanmax(mean)), 4) if mean.size else 0.0,
-            "outline": outline, "outline_level": OUTLINE_LEVEL,
+            "outline": outline, "outline_level": _level(estimate), "outline_source": source,
         }
         return m.frame
 
@@ -425,9 +493,20 @@ class RecordingTimeline:
     def end_s(self) -> float:
         return self.messages[-1][1] if self.messages else 0.0
 
+    @property
+    def evaluated_map(self) -> str | None:
+        """The map the run scored (its final ``/metrics``), the one the page shows first."""
+        for topic, _, data in reversed(self.messages):
+            if topic == "/metrics":
+                metrics = data.get("metrics")
+                found = metrics.get("evaluated_map") if isinstance(metrics, Mapping) else None
+                return found if isinstance(found, str) else None
+        return None
+
     def state_at(self, t_s: float) -> LiveState:
         if self._state is None or t_s < self._t_s:
             self._state, self._next = LiveState(), 0
+            self._state.preferred_map = self.evaluated_map
         state = self._state
         while self._next < len(self.messages) and self.messages[self._next][1] <= t_s:
             state.fold(*self.messages[self._next])

@@ -1,24 +1,29 @@
 """The live page in a real browser: headless Chromium (Debian's ``chromium``, driven by
-Playwright) opens the page before a short search starts and sees the map image, the path
-and the force plot change while the run runs; a screenshot is kept as a test artifact
-(``tmp_path``, and ``$HAPTICFRAME_TEST_ARTIFACTS`` when set)."""
+Playwright) opens the page of ``run --live`` before a short search starts and sees the map
+image (the recording's snapshots), the path and the force plot change while the run runs,
+then the region, the true object and the estimated outline, and the finished status; a
+screenshot is kept as a test artifact (``tmp_path``, and ``$HAPTICFRAME_TEST_ARTIFACTS``
+when set)."""
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import threading
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 import yaml
 
 from hapticframe._config import load_file, validate_data
-from hapticframe._live import LiveFeed, LiveServer
-from hapticframe._recording import RunRecording, listening
+from hapticframe._errors import RunError
+from hapticframe._live import run_live
+from hapticframe._recording import RunRecording
 from hapticframe._run import run_experiment
-from tests.live._grid import SyntheticSnapshots
+from hapticframe.kinds import SampleBatch
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -45,53 +50,59 @@ def test_the_page_follows_a_short_run(tmp_path: Path) -> None:
     (tmp_path / "search.yaml").write_text(yaml.safe_dump(model))
     experiment = validate_data(load_file(str(tmp_path / "search.yaml")))
 
-    feed = LiveFeed()
-    listeners = [feed.listener]
-    if not hasattr(RunRecording, "map_snapshot"):
-        # Until the recording writes map snapshots itself (contract B), make them from the
-        # run's observations, as the contract describes them.
-        region = model["scene"]["region"]
-        listeners.append(SyntheticSnapshots(feed.listener, (
-            region["x_min_m"], region["y_min_m"], region["x_max_m"], region["y_max_m"])))
-    samples: list[dict[str, Any]] = []
-    done = threading.Event()
+    # run --live as the command runs it (run_live), in a thread: this one drives the browser.
+    lines: list[str] = []
+    page_open, done_with_page, ended = (threading.Event() for _ in range(3))
     failure: list[BaseException] = []
 
-    def run() -> None:
+    def run() -> Any:
+        page_open.wait(60)  # the page is there before the run starts
+        return run_experiment(experiment, tmp_path / "out", echo=lambda _t: None,
+                              progress=False)
+
+    def wait() -> None:  # "until Ctrl-C": until the test has looked at the page
+        ended.set()
+        done_with_page.wait(60)
+
+    def command() -> None:
         try:
-            metrics = run_experiment(experiment, tmp_path / "out", echo=lambda _t: None,
-                                     progress=False)
-            feed.end("ok", dict(metrics))
+            run_live(experiment, run, port=0, say=lines.append, wait=wait)
         except BaseException as exc:  # reported by the test's thread
             failure.append(exc)
-            feed.end("failed")
         finally:
-            done.set()
+            ended.set()
 
-    with LiveServer(feed, port=0) as server, sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 1100})
-        page.goto(server.url)
-        page.wait_for_function("window.hfLive && window.hfLive.frames > 0", timeout=20000)
-        with _listening_all(listeners):
-            worker = threading.Thread(target=run, name="the run")
-            worker.start()
-            while not done.is_set():
+    worker = threading.Thread(target=command, name="run --live")
+    worker.start()
+    samples: list[dict[str, Any]] = []
+    try:
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1280, "height": 1150})
+            while not lines and worker.is_alive():
+                page.wait_for_timeout(20)
+            url = re.search(r"(http://127\.0\.0\.1:\d+/)", lines[0])
+            assert url is not None, lines
+            page.goto(url.group(1))
+            page.wait_for_function("window.hfLive && window.hfLive.frames > 0", timeout=20000)
+            page_open.set()
+            while not ended.is_set():
                 samples.append(page.evaluate("({...window.hfLive})"))
                 page.wait_for_timeout(50)
-            worker.join()
-        assert not failure, failure
-        page.wait_for_function("window.hfLive.status === 'ok'", timeout=10000)
-        final = page.evaluate("({...window.hfLive})")
-        # The run has ended: the page still answers and shows its final metrics.
-        assert "object_found" in page.inner_text("#metrics")
-        shot = tmp_path / "live-page.png"
-        page.screenshot(path=str(shot), full_page=True)
-        browser.close()
-    artifacts = os.environ.get("HAPTICFRAME_TEST_ARTIFACTS")
-    if artifacts:
-        Path(artifacts).mkdir(parents=True, exist_ok=True)
-        shutil.copy(shot, Path(artifacts) / shot.name)
+            assert not failure, failure
+            page.wait_for_function("window.hfLive.status === 'ok'", timeout=10000)
+            final = page.evaluate("({...window.hfLive})")
+            # The run has ended: the page still answers and shows its final metrics.
+            assert "object_found" in page.inner_text("#metrics")
+            assert "finished" in page.inner_text("#banner")
+            shot = tmp_path / "live-page.png"
+            page.screenshot(path=str(shot), full_page=True)
+            browser.close()
+    finally:
+        page_open.set()
+        done_with_page.set()
+        worker.join(30)
+    _keep(shot)
     assert shot.stat().st_size > 10_000
 
     during = [s for s in samples if s["status"] == "running"]
@@ -101,18 +112,57 @@ def test_the_page_follows_a_short_run(tmp_path: Path) -> None:
         assert len(set(values)) >= 2, f"{key} did not change during the run: {values}"
     assert final["mapDraws"] > during[0]["mapDraws"]
     assert final["frames"] >= len({s["frames"] for s in during})
+    # The scene from /scene, the recorded estimate, and the map the run scores.
+    assert final["regionDrawn"] and final["objectsDrawn"] == 1
+    assert final["outlinePoints"] > 10 and final["map"] == "bhm"
 
 
-class _listening_all:
-    """``listening`` for several listeners at once."""
+def test_the_page_says_so_when_the_run_fails(tmp_path: Path) -> None:
+    """A run that fails: the page keeps its last picture, with the status and the reason."""
+    sync_playwright = _sync_playwright()
+    experiment = validate_data(load_file(str(ROOT / "examples" / "search-ellipse.yaml")))
+    lines: list[str] = []
+    seen: dict[str, Any] = {}
 
-    def __init__(self, listeners: list[Any]) -> None:
-        self._contexts = [listening(fn) for fn in listeners]
+    def run() -> Any:
+        recording = RunRecording(tmp_path / "run.mcap")
+        recording.samples("sensor", "wrist", SampleBatch(
+            np.array([0.1, 0.2, 0.3]),
+            {"force_n": np.array([[1.0, 0.0], [3.0, 0.0], [2.0, 0.0]])}), {"force_n": "N"})
+        recording.close()
+        raise RunError("the robot 'arm' stopped answering for 0.5 s; check its cable")
 
-    def __enter__(self) -> None:
-        for context in self._contexts:
-            context.__enter__()
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1280, "height": 700})
 
-    def __exit__(self, *exc: Any) -> None:
-        for context in reversed(self._contexts):
-            context.__exit__(*exc)
+        def look() -> None:  # run_live waits for Ctrl-C: the page is still up
+            url = re.search(r"(http://127\.0\.0\.1:\d+/)", lines[0])
+            assert url is not None, lines
+            page.goto(url.group(1))
+            page.wait_for_function("window.hfLive && window.hfLive.status === 'failed'",
+                                   timeout=20000)
+            seen["banner"] = page.inner_text("#banner")
+            seen["badge"] = page.inner_text("#status")
+            seen["hf"] = page.evaluate("({...window.hfLive})")
+            page.screenshot(path=str(tmp_path / "live-page-failed.png"))
+
+        with pytest.raises(RunError):
+            run_live(experiment, run, port=0, say=lines.append, wait=look)
+        # The command has stopped: the page keeps the picture and says it lost its server.
+        page.wait_for_function("window.hfLive.status === 'disconnected'", timeout=10000)
+        seen["after"] = page.inner_text("#banner")
+        browser.close()
+    _keep(tmp_path / "live-page-failed.png")
+    assert seen["badge"].lower() == "failed"
+    assert "The run failed: the robot 'arm' stopped answering" in seen["banner"]
+    assert seen["hf"]["forceSamples"] == 3
+    assert "the run: failed" in seen["after"]
+
+
+def _keep(shot: Path) -> None:
+    """Copy a screenshot to ``$HAPTICFRAME_TEST_ARTIFACTS`` when set."""
+    artifacts = os.environ.get("HAPTICFRAME_TEST_ARTIFACTS")
+    if artifacts:
+        Path(artifacts).mkdir(parents=True, exist_ok=True)
+        shutil.copy(shot, Path(artifacts) / shot.name)

@@ -13,6 +13,8 @@ import yaml
 
 from hapticframe import _cli
 from hapticframe._cli import main
+from hapticframe._live import RecordingTimeline
+from hapticframe._recording import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -48,3 +50,14 @@ def test_run_live_serves_the_finished_run_until_ctrl_c(
     assert frame["forces"]["wrist.force_n"]["t_s"]
     assert frame["counts"]["dropped"] == 0
     assert "the page stays at" in seen["printed"]
+    # The recording's own map snapshots, scene and estimate; the scored map first.
+    assert set(frame["maps"]) == {"bhm", "grid"} and frame["preferred_map"] == "bhm"
+    assert frame["maps"]["bhm"]["outline_source"] in ("recording", "none")
+    assert frame["scene"]["region"] and len(frame["scene"]["objects"]) == 1
+
+    # view DIR: the same picture from the file, at the end of its time slider.
+    timeline = RecordingTimeline.from_recording(read_recording(tmp_path / "out" / "run.mcap"))
+    viewed = timeline.frame_at(timeline.end_s)
+    assert viewed["maps"]["bhm"]["version"] == frame["maps"]["bhm"]["version"] >= 1
+    assert viewed["maps"]["bhm"]["mean"] == frame["maps"]["bhm"]["mean"]
+    assert viewed["scene"] == frame["scene"] and viewed["preferred_map"] == "bhm"

@@ -8,12 +8,13 @@ import json
 import logging
 import socket
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
 import yaml
 
+from hapticframe._foxglove import grid_message
 from hapticframe._live import (
     LiveFeed,
     LiveServer,
@@ -25,8 +26,8 @@ from hapticframe._live import (
 )
 from hapticframe._live._state import WINDOW_S
 from hapticframe._recording import RunRecording, listening, read_recording
-from hapticframe.kinds import ClassProbabilities, SampleBatch
-from tests.live._grid import grid_message
+from hapticframe._scene import Scene
+from hapticframe.kinds import ClassProbabilities, MapEstimate, Region, SampleBatch
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -117,11 +118,11 @@ def test_the_queue_drops_the_oldest_when_full() -> None:
 def test_a_grid_snapshot_decodes_with_rows_from_the_bottom() -> None:
     mean, std = _blob()
     mean[0, 0] = 0.25  # the lower-left cell
-    grid = decode_grid(grid_message(mean, std, (0.1, 0.2), 0.01))
+    grid = decode_grid(grid_message(0.0, (0.1, 0.2), (0.01, 0.01), mean, std))
     np.testing.assert_allclose(grid["mean"], mean.astype(np.float32))
     np.testing.assert_allclose(grid["std"], std.astype(np.float32))
     assert grid["origin_m"] == [0.1, 0.2] and grid["cell_m"] == [0.01, 0.01]
-    broken = grid_message(mean, std, (0, 0), 0.01)
+    broken = grid_message(0.0, (0, 0), (0.01, 0.01), mean, std)
     broken["row_stride"] = 7
     with pytest.raises(ValueError, match="do not add up"):
         decode_grid(broken)
@@ -130,7 +131,7 @@ def test_a_grid_snapshot_decodes_with_rows_from_the_bottom() -> None:
 def test_the_state_folds_a_run_into_one_frame() -> None:
     state = LiveState(clock=FakeClock())
     mean, std = _blob()
-    state.fold("/map/bhm/grid", 0.2, grid_message(mean, std, (0.0, 0.0), 0.01))
+    state.fold("/map/bhm/grid", 0.2, grid_message(0.2, (0.0, 0.0), (0.01, 0.01), mean, std))
     state.fold("/robot/arm/state", 0.3, {
         "timestamps_s": [0.1, 0.2, 0.3], "positions_m": [[0, 0.1], [0.01, 0.1], [0.02, 0.1]],
         "headings_rad": [0, 0, 0], "depths_m": [0.04] * 3, "movement_index": [0, 0, 1]})
@@ -148,7 +149,8 @@ def test_the_state_folds_a_run_into_one_frame() -> None:
 
     bhm = frame["maps"]["bhm"]
     assert (bhm["rows"], bhm["columns"], bhm["version"]) == (20, 30, 1)
-    assert bhm["outline"], "the 0.6 level of the blob is drawn"
+    assert len(bhm["outline"]) == 1, "the 0.6 level around the blob is drawn"
+    assert bhm["outline_source"] == "grid"  # no /scene estimate: the page finds it
     ring = np.asarray(bhm["outline"][0])
     # The outline runs where the mean crosses 0.6: about (5, 4) cells * sqrt(-ln 0.6) away.
     radius = np.hypot((ring[:, 0] - 0.155) / 0.05, (ring[:, 1] - 0.105) / 0.04)
@@ -174,12 +176,60 @@ def test_the_state_folds_a_run_into_one_frame() -> None:
     assert frame["metrics"]["max_force_n"] == 100.0
     assert "/sensor/broken" in frame["errors"]
 
-    state.fold("/map/bhm/grid", 0.4, grid_message(1 - mean, std, (0.0, 0.0), 0.01))
+    state.fold("/map/bhm/grid", 0.4, grid_message(0.4, (0.0, 0.0), (0.01, 0.01), 1 - mean, std))
     state.end("ok", {"object_found": True, "centroid_error_m": 0.01, "devices": {}})
     later = state.frame()
     assert later["maps"]["bhm"]["version"] == 2 and later["status"] == "ok"
     assert later["metrics"]["object_found"] is True and "devices" not in later["metrics"]
     assert later["counts"]["map_versions"] == 2
+
+
+class _Ramp:
+    """A map whose mean rises along x: its 0.6 curve is the band x > 0.3 (duck-typed)."""
+
+    region = Region(0.0, 0.5, 0.0, 0.25)
+
+    def query(self, points_m: Any) -> MapEstimate:
+        p = np.asarray(points_m, dtype=np.float64)
+        return MapEstimate(p[:, 0] / 0.5, 0.5 - p[:, 1])
+
+
+def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> None:
+    scene = Scene.model_validate({
+        "region": {"x_min_m": 0.0, "x_max_m": 0.5, "y_min_m": 0.0, "y_max_m": 0.25},
+        "objects": [{"shape": "circle", "center_m": [0.4, 0.12], "radius_m": 0.05}]})
+    state = LiveState(clock=FakeClock())
+    recording = RunRecording(tmp_path / "run.mcap", clock=FakeClock())
+    recording.add_listener(state.fold)
+    recording.configure_snapshots(5.0, 0.05)
+    recording.scene(scene)
+    recording.map_snapshot("ramp", cast(Any, _Ramp()), 0.2)
+    frame = state.frame()
+    assert frame["scene"]["region"] == [[0.0, 0.0], [0.5, 0.0], [0.5, 0.25], [0.0, 0.25]]
+    [circle] = frame["scene"]["objects"]
+    assert circle["shape"] == "circle"
+    ring = np.asarray(circle["points"])
+    np.testing.assert_allclose(np.hypot(ring[:, 0] - 0.4, ring[:, 1] - 0.12), 0.05, atol=1e-4)
+    ramp = frame["maps"]["ramp"]
+    # The outline is the recording's own (the evaluation's blob), not one the page makes.
+    assert ramp["outline_source"] == "recording" and ramp["outline_level"] == 0.6
+    [outline] = ramp["outline"]
+    assert min(x for x, _ in outline) == pytest.approx(0.3, abs=0.01)
+
+    class Empty(_Ramp):
+        def query(self, points_m: Any) -> MapEstimate:
+            n = len(np.asarray(points_m))
+            return MapEstimate(np.full(n, 0.5), np.full(n, 0.3))
+
+    recording.map_snapshot("ramp", cast(Any, Empty()), 0.4)  # nothing above 0.6: the outline goes
+    recording.close()
+    later = state.frame()["maps"]["ramp"]
+    assert later["version"] == 2 and later["outline"] == [] and later["outline_source"] == "none"
+    assert state.frame()["scene"]["objects"] == frame["scene"]["objects"]
+    # view DIR folds the same messages from the file into the same picture.
+    timeline = RecordingTimeline.from_recording(read_recording(tmp_path / "run.mcap"))
+    assert timeline.frame_at(0.3)["maps"]["ramp"]["outline"] == ramp["outline"]
+    assert timeline.frame_at(1.0)["maps"]["ramp"]["outline"] == []
 
 
 def test_the_timeline_gives_the_picture_at_any_time(tmp_path: Path) -> None:
@@ -207,7 +257,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
                   push: Any = None) -> list[dict[str, Any]]:
     import aiohttp
 
-    frames = []
+    frames: list[dict[str, Any]] = []
     async with aiohttp.ClientSession() as session:
         async with session.ws_connect(url + "ws") as ws:
             for message in send or []:
