@@ -353,37 +353,26 @@ def _wait_for_interrupt() -> None:
 
 
 def _run_live(args: argparse.Namespace, experiment: Any) -> int:
-    """``run --live``: the run with its page; after a finished run the page stays up (the
-    final state, metrics included) until Ctrl-C."""
-    from ._errors import RunInterrupted, UsageError
-    from ._live import LiveFeed, LiveServer
-    from ._recording import listening
+    """``run --live``: the run with its page; however the run ends, the page stays up with
+    its last picture and the run's status until Ctrl-C (:func:`hapticframe._live.run_live`),
+    then the run's error, if any, is the command's."""
+    from ._errors import UsageError
+    from ._live import run_live
     from ._run import run_experiment
 
     if not experiment.model.run.record:
         raise UsageError("--live shows the run's recording, which this experiment turns off "
                          "(run.record: false); remove that line or drop --live")
-    feed = LiveFeed()
-    server = LiveServer(feed, port=_port_of(args))
-    _out(f"live view: {server.start()} (Ctrl-C stops it after the run)")
     echo = (lambda _text: None) if args.quiet else _progress_line
-    try:
-        with listening(feed.listener):
-            metrics = run_experiment(experiment, args.out, overwrite=args.overwrite,
-                                     echo=echo, progress=not args.quiet,
-                                     min_free_bytes=_min_free(args))
-    except BaseException as exc:  # the error is the command's; the page goes with it
-        feed.end("interrupted" if isinstance(exc, (RunInterrupted, KeyboardInterrupt))
-                 else "failed")
-        server.stop()
-        raise
-    feed.end("ok", dict(metrics))
-    label_channel = experiment.model.run.label_channel
-    _out(f"results in {args.out} (all metrics in metrics.json): "
-         + _summary(metrics, label_channel))
-    _out(f"live view: the run has ended; the page stays at {server.url} until Ctrl-C")
-    _wait_for_interrupt()
-    server.stop()
+    label = experiment.model.run.label_channel
+    run_live(
+        experiment,
+        lambda: run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
+                               progress=not args.quiet, min_free_bytes=_min_free(args)),
+        port=_port_of(args), say=_out, wait=_wait_for_interrupt,
+        finished=lambda m: _out(f"results in {args.out} (all metrics in metrics.json): "
+                                + _summary(m, label)),
+    )
     return 0
 
 
