@@ -328,7 +328,7 @@ function draw(f) {
     .map(([cid, s]) => `${several ? `${cid}: ` : ""}${s.class} (P = ${s.probability.toFixed(2)})`)
     .join(", ") || "–";
   const paths = Object.values(f.paths);
-  $("movement").textContent = paths.length ? paths.map((p) => `#${p.movement}`).join(", ") : "–";
+  $("movement").textContent = paths.length ? paths.map((p) => `#${p.movement + 1}`).join(", ") : "–";
 
   const select = $("map-select"), ids = Object.keys(f.maps);
   const labels = ids.map((id) => (id === f.preferred_map ? `${id} (evaluated)` : id));
