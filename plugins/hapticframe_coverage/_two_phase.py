@@ -224,6 +224,11 @@ class TwoPhaseCoverage(LinePlanner):
     def _object_done(self) -> None:
         """Phase 2 of the current object stopped: keep it, then finish or look for more."""
         centre = self.centroid_m if self.centroid_m is not None else self._estimate_centroid()
+        self.found_centroids.append(np.asarray(centre, dtype=np.float64))
+        limit = self.config.max_objects
+        if limit is not None and len(self.found_centroids) >= limit:
+            self._finish()  # no outline needed: nothing more is raked
+            return
         outline = None
         grid = self._map_grid()
         if grid is not None:
@@ -236,12 +241,7 @@ class TwoPhaseCoverage(LinePlanner):
             angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
             outline = centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
         self.found_outlines.append(np.asarray(outline, dtype=np.float64))
-        self.found_centroids.append(np.asarray(centre, dtype=np.float64))
-        limit = self.config.max_objects
-        if limit is not None and len(self.found_outlines) >= limit:
-            self._finish()
-        else:
-            self._start_next_object()
+        self._start_next_object()
 
     def _free_parts(self, start: FloatArray, end: FloatArray
                     ) -> list[tuple[FloatArray, FloatArray]]:
@@ -351,7 +351,7 @@ class TwoPhaseCoverage(LinePlanner):
         """Movements per phase and, when several objects are sought, how many were found."""
         out = super().phase_metrics()
         if self.config.max_objects != 1:
-            out["objects_localised"] = len(self.found_outlines)
+            out["objects_localised"] = len(self.found_centroids)
         return out
 
     def _should_stop(self) -> bool:
