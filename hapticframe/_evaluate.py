@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 __all__ = [
     "evaluate_labels",
     "evaluate_map",
+    "evaluate_objects",
     "primary_classifier",
     "save_label_figure",
     "save_outline_figure",
@@ -99,12 +100,122 @@ def evaluate_map(
     return out
 
 
+#: Blobs smaller than this (m²) are specks of the level set, neither objects nor false blobs.
+MIN_BLOB_AREA_M2 = 1e-4
+
+
+def evaluate_objects(
+    the_map: Map,
+    scene: Scene,
+    *,
+    level: float = 0.6,
+    spacing_m: float = 0.0025,
+    found_within_m: float | None = None,
+) -> dict[str, Any]:
+    """Score every object of a scene with several objects.
+
+    Each connected region where the occupancy mean reaches ``level`` (of at least
+    :data:`MIN_BLOB_AREA_M2`) is an estimated blob. Blobs are matched to true objects by
+    the Hungarian assignment on centroid distance (``scipy.optimize.linear_sum_assignment``);
+    a true object is found when its matched blob's centroid lies within ``found_within_m``
+    of its centroid (None: the object's reach, as :func:`evaluate_map`).
+
+    Returns
+    -------
+    dict
+        ``objects`` (one record per true object, in scene order: ``index``, ``shape``,
+        ``found``, ``found_within_m``, ``estimated_centroid_m``, ``centroid_error_m``,
+        ``hausdorff_est_to_true_m``, ``hausdorff_true_to_est_m``; the figures None when no
+        blob was matched), ``objects_total``, ``objects_found``, ``objects_missed``,
+        ``false_blobs`` (blobs matched to no found object), and the one-object keys of
+        :func:`evaluate_map` summarising the worst case: ``object_found`` only when every
+        object was found, ``centroid_error_m`` and the Hausdorff distances the largest over
+        found objects (None when none was found), ``estimated_centroid_m`` of the first
+        found object. ``_outlines`` (popped by the caller) holds the blobs' outlines.
+    """
+    from scipy import ndimage
+    from scipy.optimize import linear_sum_assignment
+
+    region = the_map.region
+    xs, ys, points = sample_grid(
+        (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m), spacing_m
+    )
+    mean = the_map.query(points).mean.reshape(len(ys), len(xs))
+    mask = mean >= level
+    labels, count = ndimage.label(mask)
+    cell_area = float((xs[1] - xs[0]) * (ys[1] - ys[0])) if xs.size > 1 and ys.size > 1 else 0.0
+    gx, gy = np.meshgrid(xs, ys)
+    blobs: list[NDArray[np.float64]] = []
+    for label in range(1, count + 1):
+        inside = labels == label
+        if inside.sum() * cell_area < MIN_BLOB_AREA_M2:
+            continue
+        weights = mean[inside]
+        blobs.append(np.array([np.sum(weights * gx[inside]), np.sum(weights * gy[inside])])
+                     / np.sum(weights))
+    truths = scene.objects
+    records: list[dict[str, Any]] = []
+    for k, obj in enumerate(truths):
+        within = obj.reach_m() if found_within_m is None else float(found_within_m)
+        records.append({
+            "index": k, "shape": obj.shape, "found": False, "found_within_m": within,
+            "estimated_centroid_m": None, "centroid_error_m": None,
+            "hausdorff_est_to_true_m": None, "hausdorff_true_to_est_m": None,
+        })
+    outlines: list[NDArray[np.float64]] = []
+    found_blobs: set[int] = set()
+    matched: set[int] = set()
+    if blobs:
+        cost = np.array([[float(np.linalg.norm(b - obj.centroid_m)) for b in blobs]
+                         for obj in truths])
+        for t, b in zip(*linear_sum_assignment(cost), strict=True):
+            record, centre = records[int(t)], blobs[int(b)]
+            matched.add(int(b))
+            record["estimated_centroid_m"] = centre.tolist()
+            record["centroid_error_m"] = float(cost[t, b])
+            record["found"] = bool(cost[t, b] <= record["found_within_m"])
+            if record["found"]:
+                found_blobs.add(int(b))
+            outline = main_outline(xs, ys, mean, level, near_m=centre)
+            if outline is not None:
+                outlines.append(outline)
+                est_to_true, true_to_est = directed_hausdorff_both(
+                    outline, truths[int(t)].outline(512))
+                record["hausdorff_est_to_true_m"] = est_to_true
+                record["hausdorff_true_to_est_m"] = true_to_est
+        for spare, centre in enumerate(blobs):
+            if spare not in matched:
+                outline = main_outline(xs, ys, mean, level, near_m=centre)
+                if outline is not None:
+                    outlines.append(outline)
+    found = [r for r in records if r["found"]]
+
+    def worst(key: str) -> float | None:
+        values = [r[key] for r in found if r[key] is not None]
+        return max(values) if values else None
+
+    return {
+        "object_found": len(found) == len(records),
+        "found_within_m": found_within_m,
+        "centroid_error_m": worst("centroid_error_m"),
+        "estimated_centroid_m": found[0]["estimated_centroid_m"] if found else None,
+        "hausdorff_est_to_true_m": worst("hausdorff_est_to_true_m"),
+        "hausdorff_true_to_est_m": worst("hausdorff_true_to_est_m"),
+        "objects": records,
+        "objects_total": len(records),
+        "objects_found": len(found),
+        "objects_missed": len(records) - len(found),
+        "false_blobs": len(blobs) - len(found_blobs),
+        "_outlines": outlines,
+    }
+
+
 def save_outline_figure(
     path: Path,
     region: Region,
     scene: Scene,
     movements: Sequence[MovementResult],
-    outline: NDArray[np.float64] | None,
+    outline: NDArray[np.float64] | Sequence[NDArray[np.float64]] | None,
     centroid: Sequence[float] | None,
     level: float,
     path_m: ArrayLike | None = None,
@@ -130,14 +241,16 @@ def draw_outline_figure(
     region: Region,
     scene: Scene,
     movements: Sequence[MovementResult],
-    outline: NDArray[np.float64] | None,
+    outline: NDArray[np.float64] | Sequence[NDArray[np.float64]] | None,
     centroid: Sequence[float] | None,
     level: float,
     path_m: ArrayLike | None = None,
 ) -> Figure:
     """The Figure of :func:`save_outline_figure`: movements as arrows coloured by phase
     (start to where the fingertip stopped), crosses where one halted on an interaction; an
-    open-loop run, which has no movements, draws the fingertip path ``path_m`` instead."""
+    open-loop run, which has no movements, draws the fingertip path ``path_m`` instead.
+    ``outline`` is one estimated outline or a sequence of them (a scene with several
+    objects)."""
     figure, ax, _ = plotting.map_figure(colorbar=False)
     ax.add_patch(_rectangle(region))
     plotting.draw_outlines(ax, [obj.outline(256) for obj in scene.objects],
@@ -163,9 +276,12 @@ def draw_outline_figure(
         h = np.vstack(hits)
         ax.plot(h[:, 0], h[:, 1], "x", color="tab:red", ms=8, mew=2,
                 label="interaction (movement halted)")
-    if outline is not None:
-        ring = np.vstack([outline, outline[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], "k--", lw=1.5, label=f"estimated outline (p = {level:g})")
+    rings = [] if outline is None else (
+        [outline] if isinstance(outline, np.ndarray) else list(outline))
+    for number, one in enumerate(rings):
+        ring = np.vstack([one, one[:1]])
+        ax.plot(ring[:, 0], ring[:, 1], "k--", lw=1.5,
+                label=f"estimated outline (p = {level:g})" if number == 0 else None)
     if centroid is not None:
         ax.plot(*centroid, "k+", ms=12, mew=2, label="estimated centroid")
     title = (f"{len(movements)} exploratory movements and the estimated outline" if movements
@@ -344,15 +460,25 @@ def score_run(session: Session) -> dict[str, Any]:
         met = [r.final_state.position_m for r in session.movements
                if r.interacted and r.final_state is not None]
         the_map = session.components.maps[map_id]
-        out.update(evaluate_map(
-            the_map,
-            scene,
-            level=settings.outline_level,
-            spacing_m=settings.evaluation_spacing_m,
-            near_m=np.mean(met, axis=0) if met else None,
-            found_within_m=settings.found_within_m,
-        ))
-        outline = out.pop("_outline")
+        outline: Any
+        if len(scene.objects) > 1:
+            # Every object scored (Hungarian matching); one object keeps the keys below.
+            out.update(evaluate_objects(
+                the_map, scene, level=settings.outline_level,
+                spacing_m=settings.evaluation_spacing_m,
+                found_within_m=settings.found_within_m,
+            ))
+            outline = out.pop("_outlines")
+        else:
+            out.update(evaluate_map(
+                the_map,
+                scene,
+                level=settings.outline_level,
+                spacing_m=settings.evaluation_spacing_m,
+                near_m=np.mean(met, axis=0) if met else None,
+                found_within_m=settings.found_within_m,
+            ))
+            outline = out.pop("_outline")
         out["evaluated_map"] = map_id
         if settings.figures:
             save_outline_figure(

@@ -15,6 +15,10 @@ Conventions
   summarised over those trials, and ``n`` says how many there were. Movement counts,
   interactions and forces are summarised over every completed trial.
 * A trial whose run failed contributes to ``failed`` and to nothing else.
+* A scene of several objects (issue 19) also has ``objects_total``, ``objects_found``,
+  ``objects_missed`` and ``false_blobs`` per trial (the core's Hungarian matching); its
+  aggregate sums them under ``objects``. ``object_found`` is then "every object found" and
+  the lengths are the worst found object's.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import numpy as np
 __all__ = [
     "COUNT_FIGURES",
     "LENGTH_FIGURES",
+    "OBJECT_COUNTS",
     "aggregate_trials",
     "mean_std",
     "root_mean_square",
@@ -50,6 +55,8 @@ COUNT_FIGURES = (
     "max_force_n",
     "wall_time_s",
 )
+#: Per-object counts of a multi-object scene's metrics, summed over trials.
+OBJECT_COUNTS = ("objects_total", "objects_found", "objects_missed", "false_blobs")
 #: Figures that are counts.
 _INTEGER_FIGURES = frozenset({"ems_phase1", "ems_phase2", "movements", "object_interactions"})
 
@@ -137,6 +144,10 @@ def trial_figures(metrics: Mapping[str, Any]) -> dict[str, Any]:
             out[key] = int(value)
         else:
             out[key] = value
+    if "objects_total" in metrics:  # only a multi-object scene's metrics have these
+        for key in OBJECT_COUNTS:
+            value = _finite(metrics.get(key))
+            out[key] = None if value is None else int(value)
     return out
 
 
@@ -162,7 +173,8 @@ def aggregate_trials(
         failed trial), ``found`` and ``found_fraction`` (over completed trials; None when
         none completed), ``centroid_rmse_m`` (a number, or None when the object was never
         found), ``{"mean", "std", "n"}`` for every figure of :data:`LENGTH_FIGURES` and
-        :data:`COUNT_FIGURES`, ``force_limit_n`` and ``force_limit_exceeded``.
+        :data:`COUNT_FIGURES`, ``force_limit_n`` and ``force_limit_exceeded``; for a
+        multi-object scene also ``objects`` (:data:`OBJECT_COUNTS` summed over trials).
     """
     completed = [t for t in trials if t.get("status") == "ok"]
     failed = [t for t in trials if t.get("status") != "ok"]
@@ -183,6 +195,9 @@ def aggregate_trials(
         out[key] = mean_std(f.get(key) for f in found)
     for key in COUNT_FIGURES:
         out[key] = mean_std(f.get(key) for f in figures)
+    if any("objects_total" in f for f in figures):
+        out["objects"] = {key: sum(int(f.get(key) or 0) for f in figures)
+                          for key in OBJECT_COUNTS}
     limit = _finite(force_limit_n)
     out["force_limit_n"] = limit
     if limit is None:

@@ -68,7 +68,14 @@ from hapticframe import (
 )
 
 from ._aggregate import aggregate_trials, trial_figures
-from ._placements import SHAPES, Placement, draw_placements
+from ._placements import (
+    MULTI_SCENES,
+    POLYGON_SHAPES,
+    SCENE_SETS,
+    SHAPES,
+    Placement,
+    draw_placements,
+)
 from ._report import THESIS_TABLE_3_2, render_markdown, save_trial_figure
 from ._targets import Target, check_lines, check_targets
 from ._template import REGION_HEIGHT_M, REGION_WIDTH_M, search_experiment, thesis_experiment
@@ -81,6 +88,7 @@ __all__ = [
     "THESIS_ROLE",
     "TRIAL_FILE",
     "run_search",
+    "run_search_scenes",
     "run_suite",
     "search_targets",
     "trial_fingerprint",
@@ -115,7 +123,8 @@ def trial_seed(seed: int, shape: str, index: int) -> int:
     Both planners of a trial share it. Derived with :class:`numpy.random.SeedSequence`, so
     it does not depend on the number of trials.
     """
-    shape_number = SHAPES.index(shape) if shape in SHAPES else len(SHAPES)
+    known = (*SHAPES, *POLYGON_SHAPES, *MULTI_SCENES)
+    shape_number = known.index(shape) if shape in known else len(known)
     state = np.random.SeedSequence([int(seed), shape_number, int(index)]).generate_state(1)
     return int(state[0])
 
@@ -210,8 +219,13 @@ def _progress(record: Mapping[str, Any], done: int, total: int, *, kept: bool = 
         return "   –   " if value is None else f"{value * 100:5.1f} cm"
 
     force = f.get("max_force_n")
+    if f.get("objects_total") is not None:
+        found = (f"found {f.get('objects_found')}/{f['objects_total']}, "
+                 f"{f.get('false_blobs')} false")
+    else:
+        found = "found    " if f["object_found"] else "NOT FOUND"
     return (
-        f"{head} {'found    ' if f['object_found'] else 'NOT FOUND'}"
+        f"{head} {found}"
         f" centroid {cm('centroid_error_m')}"
         f"  Hausdorff {cm('hausdorff_m')}  EMs {f.get('ems_phase1')}+{f.get('ems_phase2')}"
         f"  max force {'–' if force is None else f'{force:.0f} N'}"
@@ -520,6 +534,7 @@ def run_suite(
     experiment_factory: ExperimentFactory = search_experiment,
     shapes: Sequence[str] = SHAPES,
     planners: Mapping[str, str] | None = None,
+    report_name: str = "search",
 ) -> dict[str, Any]:
     """Run the search benchmark and write its report (see the module docstring).
 
@@ -534,13 +549,17 @@ def run_suite(
         ``factory(scene_objects, planner_type, seed, name)``; the default is the thesis's
         set-up, :func:`~hapticframe_bench._template.search_experiment`.
     shapes : sequence of str
-        Shapes to bury (default: circle and ellipse).
+        Shapes to bury (default: circle and ellipse), or multi-object scenes
+        (:data:`~hapticframe_bench._placements.MULTI_SCENES`, searched with the two-phase
+        planner's ``max_objects: null``).
     planners : mapping of str to str, optional
         Role (``"search"``, ``"thesis-params"``, ``"baseline"``) to planner type; default: the
         two-phase planner as ``"search"`` (the bundled defaults) and as ``"thesis-params"`` (Table
         3.1's parameters, :func:`~hapticframe_bench._template.thesis_experiment`), and the
         coverage planner as ``"baseline"``. A role left out is not run (its aggregates are
         then empty; the summary has no ``"thesis_params"`` without it).
+    report_name : str
+        Stem of the report files (``search`` writes search.json, search.md, search.png).
 
     Returns
     -------
@@ -582,10 +601,15 @@ def run_suite(
             for role, planner in planners.items():
                 placement = placements[shape][index]
                 seed = trial_seed(options.seed, shape, index)
-                data = experiment_factory([placement.scene_object()], planner, seed,
+                objects = placement.scene_objects()
+                data = experiment_factory(objects, planner, seed,
                                           _run_name(shape, index, role, planner))
                 if role == THESIS_ROLE:
                     data = thesis_experiment(data)
+                if len(objects) > 1 and planner == SEARCH_PLANNER:
+                    # Every object: phase 1 resumes after each outline (issue 19).
+                    for entry in data.get("planners", []):
+                        entry.setdefault("config", {})["max_objects"] = None
                 # Figures only for the first trial of each shape: drawing costs more than a
                 # fast search.
                 data.setdefault("run", {})["figures"] = index == 0
@@ -652,13 +676,13 @@ def run_suite(
     summary["targets"] = search_targets(summary)
     summary = _json_ready(summary)
     text = json.dumps(summary, indent=2, sort_keys=False, allow_nan=False)
-    atomic_write(out_dir / "search.json", text + "\n")
-    atomic_write(out_dir / "search.md", render_markdown(summary))
-    if not save_trial_figure(out_dir / "search.png", summary):
-        options.echo("search.png skipped: matplotlib is not installed")
+    atomic_write(out_dir / f"{report_name}.json", text + "\n")
+    atomic_write(out_dir / f"{report_name}.md", render_markdown(summary))
+    if not save_trial_figure(out_dir / f"{report_name}.png", summary):
+        options.echo(f"{report_name}.png skipped: matplotlib is not installed")
     for check in check_lines(summary["targets"]):
         options.echo(check)
-    options.echo(f"search benchmark done in {wall_time_s:.1f} s: {out_dir / 'search.md'}")
+    options.echo(f"search benchmark done in {wall_time_s:.1f} s: {out_dir / f'{report_name}.md'}")
     return summary
 
 
@@ -668,3 +692,22 @@ def run_search(options: BenchOptions) -> dict[str, Any]:
     See :func:`run_suite` for the options used and the summary returned.
     """
     return run_suite(options)
+
+
+#: The scene sets ``bench search-scenes`` runs, in order.
+SCENE_SET_ORDER = ("polygons", "multi")
+
+
+def run_search_scenes(options: BenchOptions) -> dict[str, Any]:
+    """``hapticframe bench search-scenes``: the scenes beyond Table 3.2 (issue 19 §3-§4).
+
+    Polygon rows (an L-shape and a 5-point star of the 8 cm circle's area) and scenes of
+    two and three objects at least 10 cm apart, each searched by the tuned two-phase
+    planner (``max_objects: null`` for several objects) and the coverage baseline, with
+    the protocol and options of :func:`run_suite`; reports ``search-scenes.json``/``.md``/
+    ``.png``. A suite of its own so that ``bench search`` keeps Table 3.2's cost.
+    """
+    shapes = tuple(s for name in SCENE_SET_ORDER for s in SCENE_SETS[name])
+    return run_suite(options, shapes=shapes,
+                     planners={"search": SEARCH_PLANNER, "baseline": BASELINE_PLANNER},
+                     report_name="search-scenes")

@@ -17,13 +17,20 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``search-devices``, ``search-dynamixel``, ``fuzz``,
-    ``perception``, ``bhm`` and ``latency``."""
+    """Yield the suites: ``search``, ``search-scenes``, ``search-devices``,
+    ``search-dynamixel``, ``fuzz``, ``perception``, ``bhm`` and ``latency``."""
     yield BenchSpec(
         name="search",
-        summary="Haptic search, Table 3.2: two-phase planner vs coverage baseline, circle "
-        "and ellipse at random placements.",
+        summary="Haptic search, Table 3.2: two-phase planner (bundled defaults and Table "
+        "3.1's parameters) vs coverage baseline, circle and ellipse at random placements.",
         factory="hapticframe_bench._search:run_search",
+        install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="search-scenes",
+        summary="Haptic search beyond Table 3.2 (issue 19): an L-shape, a 5-point star, and "
+        "two and three objects at once, every object scored.",
+        factory="hapticframe_bench._search:run_search_scenes",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
     )
     yield BenchSpec(

@@ -172,6 +172,24 @@ class TwoPhaseCoverageConfig(CoverageConfig):
     map_id: str | None = Field(
         None, description="Id of the input map to read; None takes the first input map."
     )
+    max_objects: int | None = Field(
+        1, ge=1, le=1000,
+        description="Objects to localise before the search ends. After an object's phase 2 "
+        "stops, the remaining phase-1 lines are raked outside the found objects (their "
+        "outlines dilated by found_margin_m) and the next interaction starts a new two-phase "
+        "search. None: until the phase-1 lines are exhausted (every object in the region). "
+        "1 (the dissertation): stop after the first object.",
+    )
+    found_margin_m: float = Field(
+        0.05, ge=0, le=1.0,
+        description="Dilation of a found object's outline (the 0.6 level curve of the map, else "
+        "a disc through its interaction points) that later movements keep out of; an "
+        "interaction stopping within twice this of a found object counts as meeting it again.",
+    )
+    min_segment_m: float = Field(
+        0.05, gt=0, le=10.0,
+        description="Shortest part of a line left between found objects that is still raked.",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> TwoPhaseCoverageConfig:

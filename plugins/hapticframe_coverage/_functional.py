@@ -19,6 +19,8 @@ __all__ = [
     "angle_gap_deg",
     "bearing_gap_scores_deg",
     "binary_search_order",
+    "free_runs",
+    "inside_or_near",
     "largest_angular_gap_deg",
     "line_scores",
     "longer_side_angle_deg",
@@ -368,3 +370,58 @@ def ray_exit_distance(
             out = np.minimum(out, exit_at)
     inside = x_min <= o[0] <= x_max and y_min <= o[1] <= y_max
     return np.maximum(out, 0.0) if inside else np.zeros(theta.size)
+
+
+def inside_or_near(points_m: ArrayLike, outlines: Sequence[ArrayLike], margin_m: float
+                   ) -> NDArray[np.bool_]:
+    """Which points lie inside any closed outline or within ``margin_m`` of it.
+
+    Outlines are ``(k, 2)`` vertex arrays, closed implicitly (last vertex to first): the
+    found objects, dilated by ``margin_m``.
+    """
+    p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
+    hit = np.zeros(len(p), dtype=bool)
+    x, y = p[:, 0:1], p[:, 1:2]
+    for outline in outlines:
+        v = np.asarray(outline, dtype=np.float64).reshape(-1, 2)
+        if len(v) == 0:
+            continue
+        a, b = v, np.roll(v, -1, axis=0)
+        # Even-odd rule: a ray towards +x crosses the outline an odd number of times.
+        crosses = (a[:, 1] > y) != (b[:, 1] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_at = a[:, 0] + (y - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+        inside = np.count_nonzero(crosses & (x < x_at), axis=1) % 2 == 1
+        d = b - a
+        length2 = np.maximum(np.sum(d * d, axis=1), 1e-300)
+        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / length2, 0.0, 1.0)
+        gap = np.hypot(a[:, 0] + t * d[:, 0] - x, a[:, 1] + t * d[:, 1] - y).min(axis=1)
+        hit |= inside | (gap <= margin_m)
+    return hit
+
+
+def free_runs(start_m: ArrayLike, end_m: ArrayLike, blocked: ArrayLike, min_length_m: float
+              ) -> list[tuple[FloatArray, FloatArray]]:
+    """The parts of the segment from ``start_m`` to ``end_m`` that are free.
+
+    ``blocked`` flags equally spaced points from start to end (both included); each run of
+    free points becomes a sub-segment (in the segment's direction) when at least
+    ``min_length_m`` long.
+    """
+    a = np.asarray(start_m, dtype=np.float64)
+    b = np.asarray(end_m, dtype=np.float64)
+    flags = np.asarray(blocked, dtype=bool).reshape(-1)
+    if flags.size < 2:
+        return [] if flags.any() else [(a, b)]
+    t = np.linspace(0.0, 1.0, flags.size)
+    length = float(np.linalg.norm(b - a))
+    out: list[tuple[FloatArray, FloatArray]] = []
+    # Free runs start where blocked (or the virtual point before the start) turns free.
+    padded = np.concatenate([[True], flags, [True]])
+    starts = np.flatnonzero(padded[:-1] & ~padded[1:])
+    stops = np.flatnonzero(~padded[:-1] & padded[1:])
+    for i, j in zip(starts, stops, strict=True):
+        t0, t1 = t[i], t[j - 1]
+        if (t1 - t0) * length >= min_length_m:
+            out.append((a + t0 * (b - a), a + t1 * (b - a)))
+    return out

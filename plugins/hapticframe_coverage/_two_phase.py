@@ -25,6 +25,13 @@ Readings of the dissertation chosen here (all configurable):
   of S whose std exceeds ``uncertain_std`` being less than λ of the area of S (or, with
   ``stop_rule = "mean-std"``, the mean std over S being less than λ · 0.5). It is checked
   before each phase-2 movement once ``min_phase2_movements`` were made.
+- *Every object* (``max_objects``, default 1 = the dissertation): once an object's phase 2
+  stops, its outline (the map's ``centroid_level`` curve around the estimate, else a disc
+  through its interaction points) joins the found objects; the phase-1 lines not yet raked
+  are raked in the parts lying more than ``found_margin_m`` from every found object, and
+  the next interaction elsewhere starts a new phase 1 reverse pass and phase 2. Phase-2
+  lines are cut short before a found object. The search ends when ``max_objects`` were
+  localised or the phase-1 lines are exhausted.
 - *Sweep angles* are drawn uniformly from the directions at least 30° (modulo 180°) from all
   angles used before, the phase-1 angle included; once six directions are used no angle
   fits, and the oldest are forgotten until one does.
@@ -67,7 +74,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.geometry import blob_centroid, sample_grid
+from hapticframe.geometry import blob_centroid, main_outline, sample_grid
 from hapticframe.kinds import (
     BuildContext,
     ExploratoryMovement,
@@ -83,6 +90,8 @@ from ._functional import (
     allowed_sweep_mask,
     bearing_gap_scores_deg,
     binary_search_order,
+    free_runs,
+    inside_or_near,
     line_scores,
     outer_last_order,
     parallel_lines,
@@ -147,6 +156,22 @@ class TwoPhaseCoverage(LinePlanner):
         self.last_uncertainty: float | None = None
         self._proposed = 0
         self._phase2_proposed = 0
+        #: Outlines and centroid estimates of the objects localised so far.
+        self.found_outlines: list[FloatArray] = []
+        self.found_centroids: list[FloatArray] = []
+        self._segments: list[tuple[FloatArray, FloatArray, str]] = []
+
+    def _start_next_object(self) -> None:
+        """Forget the per-object state of phase 2; phase 1 resumes its queue."""
+        self._phase = "phase1"
+        self._reverse_of = None
+        self._awaiting_reverse = False
+        self.used_angles_deg = [self.phase1_angle_deg]
+        self.current_bounds = self.search_bounds
+        self.interaction_points = []
+        self.met_from_deg = []
+        self.centroid_m = None
+        self._phase2_proposed = 0
 
     @property
     def phase(self) -> str:
@@ -162,9 +187,13 @@ class TwoPhaseCoverage(LinePlanner):
         if self._proposed >= self.max_movements:
             self._finish()
             return None
-        movement = self._propose_phase1() if self._phase == "phase1" else None
-        if movement is None and self._phase == "phase2":
-            movement = self._propose_phase2()
+        movement = None
+        # Each step either proposes, finishes, or (an object localised) returns to phase 1.
+        while movement is None and self._phase != "done":
+            if self._phase == "phase1":
+                movement = self._propose_phase1()
+            else:
+                movement = self._propose_phase2()
         if movement is not None:
             self._proposed += 1
         return movement
@@ -173,6 +202,10 @@ class TwoPhaseCoverage(LinePlanner):
         """Record interactions; they drive the switch from phase 1 to phase 2."""
         super().on_movement_end(result)
         interacted = self.is_interaction(result)
+        if interacted and self.found_outlines and inside_or_near(
+                self.stop_point(result), self.found_outlines, 2 * self.config.found_margin_m
+        )[0]:
+            interacted = False  # met an object found before: no news
         if interacted:
             self.interaction_points.append(self.stop_point(result))
             # Seen from the object, it was met from where the movement came from.
@@ -188,6 +221,39 @@ class TwoPhaseCoverage(LinePlanner):
     def _finish(self) -> None:
         self._phase = "done"
 
+    def _object_done(self) -> None:
+        """Phase 2 of the current object stopped: keep it, then finish or look for more."""
+        centre = self.centroid_m if self.centroid_m is not None else self._estimate_centroid()
+        self.found_centroids.append(np.asarray(centre, dtype=np.float64))
+        limit = self.config.max_objects
+        if limit is not None and len(self.found_centroids) >= limit:
+            self._finish()  # no outline needed: nothing more is raked
+            return
+        outline = None
+        grid = self._map_grid()
+        if grid is not None:
+            outline = main_outline(*grid, self.config.centroid_level, near_m=centre)
+            if outline is not None and not inside_or_near(centre, [outline], 0.0)[0]:
+                outline = None  # the curve around another blob, not this object
+        if outline is None:
+            reach = max([0.03, *(float(np.linalg.norm(p - centre))
+                                 for p in self.interaction_points)])
+            angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
+            outline = centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
+        self.found_outlines.append(np.asarray(outline, dtype=np.float64))
+        self._start_next_object()
+
+    def _free_parts(self, start: FloatArray, end: FloatArray
+                    ) -> list[tuple[FloatArray, FloatArray]]:
+        """The parts of a line away from every found object (the whole line before any)."""
+        if not self.found_outlines:
+            return [(start, end)]
+        c = self.config
+        count = max(2, math.ceil(float(np.linalg.norm(end - start)) / c.score_step_m) + 1)
+        points = start + np.linspace(0.0, 1.0, count)[:, None] * (end - start)
+        blocked = inside_or_near(points, self.found_outlines, c.found_margin_m)
+        return free_runs(start, end, blocked, c.min_segment_m)
+
     # --- phase 1 -------------------------------------------------------------------------------
 
     def _propose_phase1(self) -> ExploratoryMovement | None:
@@ -198,21 +264,27 @@ class TwoPhaseCoverage(LinePlanner):
             return self.make_movement(
                 first.end_m, first.start_m, "phase1", f"phase 1: reverse of {first.label}"
             )
-        if not self._queue:
-            self._finish()  # every line raked without an interaction
-            return None
-        index = self._queue.pop(0)
         starts, ends = self.phase1_lines
-        return self.make_movement(
-            starts[index], ends[index], "phase1", f"line {index + 1}/{len(starts)}"
-        )
+        while not self._segments:
+            if not self._queue:
+                self._finish()  # every line raked without an interaction
+                return None
+            index = self._queue.pop(0)
+            label = f"line {index + 1}/{len(starts)}"
+            parts = self._free_parts(starts[index], ends[index])
+            self._segments = [
+                (a, b, label if len(parts) == 1 else f"{label} part {k + 1}/{len(parts)}")
+                for k, (a, b) in enumerate(parts)
+            ]
+        start, end, label = self._segments.pop(0)
+        return self.make_movement(start, end, "phase1", label)
 
     # --- phase 2 -------------------------------------------------------------------------------
 
     def _propose_phase2(self) -> ExploratoryMovement | None:
         c = self.config
         if self._phase2_proposed >= c.max_phase2_movements:
-            self._finish()
+            self._object_done()
             return None
         self.centroid_m = self._estimate_centroid()
         if self._phase2_proposed == 0 and c.phase2_region_size_m is not None:
@@ -235,7 +307,7 @@ class TwoPhaseCoverage(LinePlanner):
             )
         self._regions.append(self.current_bounds)
         if self._should_stop():
-            self._finish()
+            self._object_done()
             return None
         if c.sweep_rule == "random":
             angle = sample_sweep_angle_deg(
@@ -262,11 +334,25 @@ class TwoPhaseCoverage(LinePlanner):
             tie = abs(mean_at_ends[1] - mean_at_ends[0]) <= 1e-6
             if low_start or (tie and self.context.rng.random() < 0.5):
                 start, end = end, start  # begin in granular material, not inside the object
+        if self.found_outlines:
+            # Stop short of the objects found before (the first free part from the start).
+            parts = self._free_parts(start, end)
+            if not parts or float(np.linalg.norm(parts[0][0] - start)) > c.score_step_m:
+                self._object_done()  # no way in from here that misses a found object
+                return None
+            start, end = parts[0]
         self._phase2_proposed += 1
         return self.make_movement(
             start, end, "phase2",
             f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}",
         )
+
+    def phase_metrics(self) -> dict[str, int]:
+        """Movements per phase and, when several objects are sought, how many were found."""
+        out = super().phase_metrics()
+        if self.config.max_objects != 1:
+            out["objects_localised"] = len(self.found_centroids)
+        return out
 
     def _should_stop(self) -> bool:
         """The stopping rule, consulted before each phase-2 movement (section 3.4.4)."""
