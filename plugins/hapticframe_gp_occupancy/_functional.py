@@ -183,12 +183,11 @@ def inducing_statistics(
 
 @dataclass(frozen=True)
 class InducingPosterior:
-    """DTC posterior on inducing points: Cholesky factors of ``K_zz`` and of
-    ``A = K_zz + S``, and ``beta = A^-1 r``."""
+    """DTC posterior on inducing points: ``beta = A^-1 r`` with ``A = K_zz + S``, and
+    ``reduction = K_zz^-1 - A^-1``, by which the variance falls below the prior's."""
 
     inducing_m: FloatArray
-    kzz_factor: FloatArray
-    a_factor: FloatArray
+    reduction: FloatArray
     beta: FloatArray
 
 
@@ -201,7 +200,13 @@ def inducing_posterior(
     kzz_factor = _cholesky(kzz, "kernel matrix of the inducing points")
     a_factor = _cholesky(kzz + s, "DTC precision matrix")
     beta = cho_solve((a_factor, True), r, check_finite=False)
-    return InducingPosterior(inducing_m, kzz_factor, a_factor, beta)
+    # One M x M matrix makes a query's variance one matrix product instead of two
+    # triangular solves (half the flops, and GEMM runs faster than TRSM).
+    identity = np.eye(inducing_m.shape[0])
+    reduction = (cho_solve((kzz_factor, True), identity, check_finite=False)
+                 - cho_solve((a_factor, True), identity, check_finite=False))
+    reduction = 0.5 * (reduction + reduction.T)
+    return InducingPosterior(inducing_m, reduction, beta)
 
 
 def inducing_predict(
@@ -213,7 +218,5 @@ def inducing_predict(
     from the inducing points, unlike the subset-of-regressors variance)."""
     cross = rbf_kernel(queries_m, posterior.inducing_m, length_scale_m, signal_variance)
     mu = cross @ posterior.beta
-    q = solve_triangular(posterior.kzz_factor, cross.T, lower=True, check_finite=False)
-    a = solve_triangular(posterior.a_factor, cross.T, lower=True, check_finite=False)
-    var = signal_variance - np.einsum("ij,ij->j", q, q) + np.einsum("ij,ij->j", a, a)
+    var = signal_variance - np.einsum("ij,ij->i", cross @ posterior.reduction, cross)
     return mu, np.maximum(var, 0.0)

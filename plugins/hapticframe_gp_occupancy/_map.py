@@ -182,6 +182,11 @@ class GPOccupancyMap(Map):
         return fn.inducing_statistics(self._inducing, points, centred, precisions,
                                       self._length_scale, self._signal_variance)
 
+    def condition(self) -> None:
+        """Build the posterior now (else the first query after an update does)."""
+        with _blas_threads(self.config.blas_threads):
+            self._ensure_posterior()
+
     def _ensure_posterior(self) -> fn.ExactPosterior | fn.InducingPosterior | None:
         if self._posterior is not None or self._count == 0:
             return self._posterior
@@ -203,9 +208,15 @@ class GPOccupancyMap(Map):
     def _learn(self, points: FloatArray, centred: FloatArray, noise: FloatArray) -> None:
         """Length scale and signal variance by scikit-learn's marginal-likelihood optimiser,
         started from the configured values, within a factor 10 (100 for the variance)."""
-        from sklearn.exceptions import ConvergenceWarning
-        from sklearn.gaussian_process import GaussianProcessRegressor
-        from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+        try:
+            from sklearn.exceptions import ConvergenceWarning
+            from sklearn.gaussian_process import GaussianProcessRegressor
+            from sklearn.gaussian_process.kernels import RBF, ConstantKernel
+        except ImportError as exc:
+            raise RuntimeError(
+                f"map {self.id!r}: learn_hyperparameters needs scikit-learn: pip install "
+                "'hapticframe[learn]', or set learn_hyperparameters: false"
+            ) from exc
 
         cfg = self.config
         kernel = ConstantKernel(cfg.signal_variance,
@@ -245,15 +256,17 @@ class GPOccupancyMap(Map):
             posterior = self._ensure_posterior()
             if posterior is None or p.shape[0] == 0:
                 return mu, var
-            if isinstance(posterior, fn.ExactPosterior):
-                columns, predict = posterior.points_m.shape[0], fn.exact_predict
-            else:
-                columns, predict = posterior.inducing_m.shape[0], fn.inducing_predict
+            columns = (posterior.points_m if isinstance(posterior, fn.ExactPosterior)
+                       else posterior.inducing_m).shape[0]
             chunk = max(64, _QUERY_ENTRIES // columns)
             for start in range(0, p.shape[0], chunk):
                 rows = slice(start, start + chunk)
-                m, v = predict(posterior, p[rows], self._length_scale,  # type: ignore[arg-type]
-                               self._signal_variance)
+                if isinstance(posterior, fn.ExactPosterior):
+                    m, v = fn.exact_predict(posterior, p[rows], self._length_scale,
+                                            self._signal_variance)
+                else:
+                    m, v = fn.inducing_predict(posterior, p[rows], self._length_scale,
+                                               self._signal_variance)
                 mu[rows] += m
                 var[rows] = v
         return mu, var

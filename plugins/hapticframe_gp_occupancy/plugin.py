@@ -22,9 +22,9 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         factory="hapticframe_gp_occupancy._map:GPOccupancyMap",
         validator="hapticframe_gp_occupancy._checks:check",
         capabilities=frozenset({"continuous", "uncertainty"}),
-        requires=("scipy", "sklearn"),
-        install_hint="pip install 'hapticframe[learn]'  (scikit-learn); figures need "
-                     "matplotlib",
+        requires=("scipy",),
+        install_hint="pip install hapticframe  (numpy and scipy); learn_hyperparameters needs "
+                     "scikit-learn ('hapticframe[learn]'), figures matplotlib",
         knobs=(
             Knob("method", "'exact' costs O(N³) per refit and O(N) per queried point; "
                  "'inducing' O(N M²) once and O(M²) per point; 'auto' switches at "

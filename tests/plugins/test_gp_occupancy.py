@@ -14,8 +14,6 @@ from hapticframe_gp_occupancy import _checks as checks
 from hapticframe_gp_occupancy import _functional as fn
 from hapticframe_gp_occupancy import plugin as gp_plugin
 
-pytest.importorskip("sklearn")
-
 SPEC = next(iter(gp_plugin.hapticframe_maps()))
 #: A 75 x 50 cm region with one 8 cm disc.
 SCENE = Scene(objects=[Circle(center_m=(0.40, 0.25), radius_m=0.04)])
@@ -68,6 +66,7 @@ def test_the_kit_builds_it_as_a_map() -> None:
 def test_exact_posterior_equals_scikit_learn() -> None:
     """Mean and std of the exact path match sklearn's GaussianProcessRegressor (same kernel,
     per-point noise, no optimiser)."""
+    pytest.importorskip("sklearn")
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel
 
@@ -163,6 +162,7 @@ def test_weights_scale_the_evidence() -> None:
 
 
 def test_learned_hyperparameters_come_from_scikit_learn() -> None:
+    pytest.importorskip("sklearn")
     the_map = build(learn_hyperparameters=True, method="exact")
     the_map.update(labelled(30, 250))
     the_map.query(np.array([[0.3, 0.3]]))
