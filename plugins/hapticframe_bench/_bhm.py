@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import itertools
 import json
 import platform
 import time
@@ -24,12 +25,16 @@ from scipy.stats import rankdata
 from hapticframe import BenchOptions, Circle, Polygon, Scene, atomic_write
 from hapticframe.kinds import BuildContext, Observations
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
+from hapticframe_gp_occupancy import GPOccupancyConfig, GPOccupancyMap
 
 from ._targets import Target, check_targets, load_average, load_note
 
 __all__ = [
     "BHM_TARGETS",
+    "GP_SIZES",
     "benchmark_bhm",
+    "benchmark_gp_scaling",
+    "crossover",
     "labelled_points",
     "log_loss",
     "roc_auc",
@@ -214,6 +219,141 @@ def benchmark_bhm(rng_seed: int = 0, repeats: int = 15) -> dict[str, Any]:
     return results
 
 
+#: Observation counts of the GP-against-BHM rows (issue 19 §2: 1k to 30k); 300 shows which
+#: side of 1k a crossover lies.
+GP_SIZES = (300, 1000, 3000, 10_000, 30_000)
+#: Largest set the exact GP is timed on: its kernel matrix holds N² doubles (10k: 800 MB,
+#: 30k: 7.2 GB) and its variance costs N² per queried point.
+GP_EXACT_MAX = 10_000
+#: Largest set whose exact GP is also queried on the 15,000-point grid (15,000 N² flops).
+_GP_EXACT_GRID_MAX = 3000
+
+
+def _timed_fit(the_map: Any, train: Observations, probe: NDArray[np.float64],
+               repeats: int) -> tuple[float, float]:
+    """Median and fastest ms of ``fit`` then a one-point query: the map ready to answer
+    (the GP factorises, the BHM caches its covariance, at their first query)."""
+    def run() -> None:
+        the_map.fit(train)
+        the_map.query(probe[:1])
+
+    return _timed_ms(run, repeats)
+
+
+def benchmark_gp_scaling(
+    rng_seed: int = 0,
+    repeats: int = 3,
+    sizes: tuple[int, ...] = GP_SIZES,
+    exact_max: int = GP_EXACT_MAX,
+    exact_grid_max: int = _GP_EXACT_GRID_MAX,
+    grid_spacing_m: float = 0.005,
+) -> dict[str, Any]:
+    """Time and accuracy of ``gp-occupancy`` (exact and inducing points) beside the BHM.
+
+    For each size ``N`` in ``sizes``: ``N`` labelled points of the §7 scene (3 % flipped).
+    Maps: the BHM (defaults), ``gp-inducing`` (default 2.5 cm inducing grid),
+    ``gp-inducing-5cm`` (inducing points on the BHM's 5 cm hinge spacing) and ``gp-exact``.
+    Per map: ``fit_ms`` (fit, then a one-point query: ready to answer), ``query_1000_ms``
+    (mean and std at 1,000 scattered points), ``grid_15000_ms`` (mean and std on the 5 mm
+    grid; the exact GP only up to ``exact_grid_max``), AUC and log loss on 5,000 fresh
+    unflipped points. The exact GP runs up to ``exact_max``. Medians of ``repeats`` up to
+    3,000 points, one run beyond. ``crossover`` holds, per GP variant and timing, where its
+    time first exceeds the BHM's (:func:`crossover`).
+    """
+    rng = np.random.default_rng(rng_seed)
+    scene = two_object_scene()
+    test = labelled_points(scene, 5000, rng, flip_fraction=0.0)
+    scattered = labelled_points(scene, 1000, rng).points_m
+    rows: list[dict[str, Any]] = []
+    context = BuildContext(id="gp-bench", rng=np.random.default_rng(rng_seed), scene=scene)
+    for n in sizes:
+        train = labelled_points(scene, n, rng)
+        times = repeats if n <= 3000 else 1
+        maps: list[tuple[str, Any]] = [("bhm", _build(BayesianHilbertMapConfig(), rng_seed,
+                                                      scene))]
+        maps.append(("gp-inducing", GPOccupancyMap(GPOccupancyConfig(method="inducing"),
+                                                   context)))
+        # Inducing points as sparse as the BHM's hinges: the same basis size, M ~ D.
+        maps.append(("gp-inducing-5cm", GPOccupancyMap(
+            GPOccupancyConfig(method="inducing", inducing_spacing_m=0.05), context)))
+        if n <= exact_max:
+            maps.append(("gp-exact", GPOccupancyMap(GPOccupancyConfig(method="exact"),
+                                                    context)))
+        for name, the_map in maps:
+            fit_ms, fit_min_ms = _timed_fit(the_map, train, scattered, times)
+            row: dict[str, Any] = {"map": name, "observations": n, "fit_ms": fit_ms,
+                                   "fit_min_ms": fit_min_ms}
+            row["query_1000_ms"] = _timed_ms(functools.partial(the_map.query, scattered),
+                                             times)[0]
+            row["grid_15000_ms"] = None
+            if name != "gp-exact" or n <= exact_grid_max:
+                row["grid_15000_ms"] = _timed_ms(
+                    functools.partial(the_map.probability_grid, grid_spacing_m), times)[0]
+            mean = the_map.query(test.points_m).mean
+            row["auc"] = roc_auc(test.targets > 0.5, mean)
+            row["log_loss"] = log_loss(test.targets > 0.5, mean)
+            rows.append(row)
+    bhm = {r["observations"]: r for r in rows if r["map"] == "bhm"}
+    found: dict[str, Any] = {}
+    for name in ("gp-exact", "gp-inducing", "gp-inducing-5cm"):
+        for timing in ("fit_ms", "query_1000_ms", "grid_15000_ms"):
+            pairs = [(r["observations"], r[timing] / bhm[r["observations"]][timing])
+                     for r in rows if r["map"] == name and r[timing] is not None]
+            found[f"{name}:{timing}"] = crossover(pairs)
+    return {"sizes": list(sizes), "exact_max": exact_max, "rows": rows, "crossover": found}
+
+
+def crossover(ratios: list[tuple[int, float]]) -> dict[str, Any]:
+    """Where a time ratio (GP over BHM) first rises through 1, by size.
+
+    ``ratios``: ``(N, ratio)`` in increasing ``N``. Returns ``{"observations": N*, "how":
+    ...}``: ``N*`` interpolated log-linearly between the sizes either side of the first
+    rise through 1 ("between"), the smallest size when the GP is slower at every size
+    ("below"), or None when it is faster at every size ("beyond").
+    """
+    if not ratios:
+        return {"observations": None, "how": "not measured"}
+    if ratios[0][1] > 1.0:
+        return {"observations": ratios[0][0], "how": "below"}
+    for (n1, r1), (n2, r2) in itertools.pairwise(ratios):
+        if r1 <= 1.0 < r2:
+            share = -np.log(r1) / (np.log(r2) - np.log(r1))
+            value = float(np.exp(np.log(n1) + share * (np.log(n2) - np.log(n1))))
+            return {"observations": round(value), "how": "between"}
+    return {"observations": None, "how": "beyond"}
+
+
+def _gp_lines(gp: dict[str, Any]) -> list[str]:
+    """The GP-against-BHM table of ``bhm.md``."""
+    def ms(value: float | None) -> str:
+        return "—" if value is None else f"{value:,.1f} ms"
+
+    lines = [
+        "## GP occupancy against the BHM (issue 19 §2)", "",
+        "| observations | map | fit (ready to answer) | query 1,000 points | grid 15,000 "
+        "| AUC | log loss |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for row in gp["rows"]:
+        lines.append(
+            f"| {row['observations']:,} | {row['map']} | {ms(row['fit_ms'])} "
+            f"| {ms(row['query_1000_ms'])} | {ms(row['grid_15000_ms'])} "
+            f"| {row['auc']:.4f} | {row['log_loss']:.4f} |"
+        )
+    lines += ["", "Where the GP's time first exceeds the BHM's:", ""]
+    for key, value in gp["crossover"].items():
+        name, timing = key.split(":")
+        how, count = value["how"], value["observations"]
+        if how == "below":
+            where = f"already at {count:,} (the smallest size)"
+        elif how == "between":
+            where = f"at about {count:,} observations"
+        else:
+            where = "never in the sizes measured" if how == "beyond" else how
+        lines.append(f"- {name}, {timing.removesuffix('_ms').replace('_', ' ')}: {where}")
+    return [*lines, ""]
+
+
 def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
     """Time the Bayesian Hilbert Map against its targets (medians, one BLAS thread).
 
@@ -224,6 +364,12 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
     """
     repeats = 5 if options.quick else (options.trials or 31)
     results = benchmark_bhm(rng_seed=options.seed, repeats=repeats)
+    # The GP rows: --quick takes 1,000 and 3,000 observations, once each.
+    results["gp"] = benchmark_gp_scaling(
+        rng_seed=options.seed, repeats=1 if options.quick else min(repeats, 3),
+        sizes=(1000, 3000) if options.quick else GP_SIZES,
+        exact_max=3000 if options.quick else GP_EXACT_MAX,
+        exact_grid_max=1000 if options.quick else _GP_EXACT_GRID_MAX)
     results["repeats"] = repeats
     results["machine"] = {"platform": platform.platform(), "numpy": np.__version__,
                           "load_average_1min": load_average()}
@@ -253,12 +399,17 @@ def run_bhm_bench(options: BenchOptions) -> dict[str, Any]:
               f"(region-dependent smoothing: {results['rds_auc']:.4f})", ""]
     if "am_auc" in results:
         lines += _kernel_lines(results)
+    lines += _gp_lines(results["gp"])
     atomic_write(options.out_dir / "bhm.md", "\n".join(lines))
     options.echo(f"Median of {repeats} repeats, BLAS threads: {results['blas_threads']}; "
                  f"{load_note(results['machine']['load_average_1min'])}")
     for check in checks:
         options.echo(check.line())
     options.echo(f"AUC on 20,000 fresh points: {results['auc']:.4f}")
+    for key, value in results["gp"]["crossover"].items():
+        if key.endswith(":fit_ms"):
+            options.echo(f"{key.split(':')[0]} fit slower than the BHM's: {value['how']} "
+                         f"{value['observations']} observations")
     if "am_auc" in results:
         options.echo(f"automorphing kernels: fit {results['am_fit_3000_ms']:.0f} ms, "
                      f"AUC {results['am_auc']:.4f}, log loss {results['am_log_loss']:.4f} "

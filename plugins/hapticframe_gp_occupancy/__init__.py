@@ -1,0 +1,25 @@
+"""Gaussian-process occupancy map plugin for hapticframe (map type ``gp-occupancy``).
+
+The baseline the thesis weighed Hilbert maps against: exact GP regression with a probit
+link on small sets, inducing points on large ones. The implementation module loads lazily,
+so importing the package stays light. ``hapticframe bench bhm`` times it beside the BHM.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from ._config import GPOccupancyConfig
+
+if TYPE_CHECKING:
+    from ._map import GPOccupancyMap
+
+__all__ = ["GPOccupancyConfig", "GPOccupancyMap"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "GPOccupancyMap":
+        from ._map import GPOccupancyMap
+
+        return GPOccupancyMap
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
