@@ -290,6 +290,9 @@ def cmd_check(args: argparse.Namespace) -> int:
 SUMMARY_METRICS = (
     "movements",
     "object_found",
+    "objects_found",
+    "objects_missed",
+    "false_blobs",
     "centroid_error_m",
     "hausdorff_est_to_true_m",
     "hausdorff_true_to_est_m",
