@@ -11,15 +11,17 @@ its IMFs are from a converged EMD. :func:`run_emd_fidelity` measures, per settin
   against PyEMD (``EMD-signal``) run with the same convergence test (its energy ratio,
   which is our SD, with its other tests off) and, when it is installed, the ``emd``
   package; the cross-check's correlations are reported beside the table;
-- the **orthogonality index** of the decomposition (:func:`orthogonality_index`);
+- the **orthogonality index** of the decomposition (:func:`orthogonality_index`; the
+  table averages its magnitude, since leakage can make it either sign);
 - **sifts per IMF** and **time**: the median of one decomposition per window kind, one
   thread, and the ``emd-features`` ``update`` per frame (pac and pdc windows);
 - **downstream balanced accuracy** for a few candidate settings: the EMD tensors of the
   perception bench's quick protocol (45 cottonwood trials, 10 robustness trials per medium,
-  air tare) scored by the (c)+Linear SVM on pac + pdc (the two EMD modalities), trained on
-  the cottonwood training split; test split and robustness set. A proxy, not the full quick
-  protocol: the settings change only the EMD tensors, and the linear model on those tensors
-  is the cheapest score that reads them directly (no dictionary, no network).
+  air tare, its training settings) scored by the (c)+RNN and (c)+Linear SVM on pac + pdc
+  (the two EMD modalities), trained on the cottonwood training split; test split and
+  robustness set (:func:`downstream_accuracy`). A proxy, not the full quick protocol: the
+  settings change only the EMD tensors, and these models read those tensors directly (no
+  dictionary, no SF-RNN), for a few seconds of training each.
 
 Signals are the synthetic BioTac's (``hapticframe_biotac.generate_trial``, cottonwood
 training specs, with and without contact): pac windows of 512 and 2,200 samples and pdc
@@ -34,6 +36,7 @@ import platform
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -192,9 +195,8 @@ def pyemd_reference(x: FloatArray, rows: int, setting: Setting = REFERENCE) -> F
     z = (x - x.mean()) / x.std()
     decomposer = EMD(energy_ratio_thr=setting.sd_threshold, std_thr=0.0, svar_thr=0.0,
                      MAX_ITERATION=setting.max_sifts, range_thr=0.0, total_power_thr=0.0)
-    imfs = np.asarray(decomposer.emd(z, max_imf=rows), dtype=np.float64)
-    # PyEMD appends the residue as a last row when it stopped before max_imf.
-    imfs = imfs[:rows] if imfs.shape[0] <= rows else imfs[:rows]
+    with np.errstate(divide="ignore", invalid="ignore"):  # its std test, off, still divides
+        imfs = np.asarray(decomposer.emd(z, max_imf=rows), dtype=np.float64)[:rows]
     out = np.zeros((rows, x.size))
     out[: imfs.shape[0]] = imfs
     return out
@@ -271,7 +273,7 @@ def fidelity_table(
                 [imf_correlations(s.imfs, r.imfs) for s, r in zip(stricter, refs, strict=True)],
                 axis=0).round(6).tolist(),
             "sifts_per_imf": float(np.mean([r.sift_counts[: r.n_found].mean() for r in refs])),
-            "orthogonality": float(np.mean([orthogonality_index(r.imfs, r.residue)
+            "orthogonality": float(np.mean([abs(orthogonality_index(r.imfs, r.residue))
                                             for r in refs])),
         }
         if cross_check:
@@ -295,11 +297,11 @@ def fidelity_table(
             for x, ref in zip(signals, references[kind], strict=True):
                 result = _decompose(x, rows, setting, residue_ratio)
                 corr.append(imf_correlations(result.imfs, ref.imfs))
-                ortho.append(orthogonality_index(result.imfs, result.residue))
+                ortho.append(abs(orthogonality_index(result.imfs, result.residue)))
                 if result.n_found:
                     sifts.append(float(result.sift_counts[: result.n_found].mean()))
                 found.append(result.n_found)
-                ms.append(_median_ms(lambda x=x: _decompose(x, rows, setting, residue_ratio),
+                ms.append(_median_ms(partial(_decompose, x, rows, setting, residue_ratio),
                                      repeats))
             c = np.asarray(corr)
             out_rows.append({
@@ -333,7 +335,7 @@ def frame_time(setting: Setting, frames: int, seed: int) -> dict[str, float]:
 
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 18, 1]))
     spec = next(s for s in training_specs(rng) if s.has_object)
-    batches = []
+    batches: list[Any] = []
     while sum(len(b) for b in batches) < frames:
         trial = generate_trial(spec, rng)
         biotac = BioTacFrames(layout_for("biotac"), trial.timestamps_s, trial.pac, trial.pdc,
@@ -365,17 +367,24 @@ def downstream_accuracy(
     workers: int = 1,
     cottonwood_trials: int = 45,
     robustness_per_medium: int = 10,
+    rnn_seeds: int = 2,
     echo: Callable[[str], None] = lambda _line: None,
 ) -> list[dict[str, Any]]:
-    """Balanced accuracy of the (c)+Linear SVM on pac + pdc EMD tensors, per setting.
+    """Balanced accuracy of models on the pac + pdc EMD tensors (stage c), per setting.
 
-    The trials, split and tare are the perception bench's (its quick protocol's sizes by
-    default); only the EMD settings change between rows. Returns one dict per setting with
-    ``test`` (cottonwood test split), ``robustness`` (all five media) and ``emd_s`` (wall
-    time of the feature pass).
+    The trials, split, tare and training settings are the perception bench's quick
+    protocol's; only the EMD settings change between rows. Two models read the tensors
+    directly: the (c)+RNN (``fusion-rnn``, one GRU stack per modality; ``rnn_seeds``
+    network seeds) and the (c)+Linear SVM. Returns one dict per setting: ``test``
+    (cottonwood test split) and ``robustness`` (all five media), the RNN's mean over its
+    seeds (the SVM reads pac + pdc at about chance on this data: kept as ``svm_*``), the
+    per-seed lists, and ``emd_s`` (wall time of the feature pass).
     """
+    from threadpoolctl import threadpool_limits
+
     from hapticframe_biotac import robustness_specs, training_specs
 
+    from ._latency import _torch_one_thread
     from ._perception import QUICK_PLAN
     from ._perception_data import (
         PerceptionData,
@@ -397,6 +406,8 @@ def downstream_accuracy(
         robust += [s for s in robust_all if s.medium == medium and s.has_object][:k_contact]
         robust += [s for s in robust_all if s.medium == medium and not s.has_object][:k_free]
     specs = list(cotton) + robust
+    rnn_settings = {"max_epochs": QUICK_PLAN.max_epochs, "patience": QUICK_PLAN.patience,
+                    "threads": 1, **QUICK_PLAN.rnn_settings}
     out = []
     for setting in settings:
         emd_settings = {"sd_threshold": setting.sd_threshold, "max_sifts": setting.max_sifts}
@@ -416,13 +427,25 @@ def downstream_accuracy(
             for pos, tensors, labels, n_raw in results
         ]
         data = PerceptionData(trials=trials, timing_s={"emd_wall": emd_s}, tare_frames=10)
-        model = train_architecture(data, Architecture("c", "svm"), ("pac", "pdc"), seed, {},
-                                   QUICK_PLAN.svm_settings)
-        row = {**setting.as_dict(), "label": setting.label, "emd_s": emd_s,
-               "test": score(model, data.by_split("test"))["balanced_accuracy"],
-               "robustness": score(model, data.by_split("robustness"))["balanced_accuracy"]}
-        echo(f"downstream {setting.label}: test {row['test']:.3f}, robustness "
-             f"{row['robustness']:.3f} (features {emd_s:.0f} s)")
+        test, robust = data.by_split("test"), data.by_split("robustness")
+        svm = train_architecture(data, Architecture("c", "svm"), ("pac", "pdc"), seed, {},
+                                 QUICK_PLAN.svm_settings)
+        row: dict[str, Any] = {
+            **setting.as_dict(), "label": setting.label, "emd_s": emd_s,
+            "svm_test": score(svm, test)["balanced_accuracy"],
+            "svm_robustness": score(svm, robust)["balanced_accuracy"],
+            "rnn_test_seeds": [], "rnn_robustness_seeds": []}
+        with threadpool_limits(limits=1), _torch_one_thread():
+            for s in range(rnn_seeds):
+                rnn = train_architecture(data, Architecture("c", "rnn"), ("pac", "pdc"),
+                                         seed * 1000 + s, rnn_settings)
+                row["rnn_test_seeds"].append(score(rnn, test)["balanced_accuracy"])
+                row["rnn_robustness_seeds"].append(score(rnn, robust)["balanced_accuracy"])
+        row["test"] = float(np.mean(row["rnn_test_seeds"]))
+        row["robustness"] = float(np.mean(row["rnn_robustness_seeds"]))
+        echo(f"downstream {setting.label}: (c)+RNN test {row['test']:.3f}, robustness "
+             f"{row['robustness']:.3f}; (c)+SVM {row['svm_test']:.3f} / "
+             f"{row['svm_robustness']:.3f} (features {emd_s:.0f} s)")
         out.append(row)
     return out
 
@@ -517,12 +540,17 @@ def _markdown(results: dict[str, Any]) -> str:
                  f"{timing['frame_ms_median']:.3f} / {timing['frame_ms_p99']:.3f}")
         lines.append(f"| {label} | {frame} | " + " | ".join(cells) + " |")
     if results.get("downstream"):
-        lines += ["", "(c)+Linear SVM on pac + pdc EMD tensors, balanced accuracy:", "",
-                  "| setting | cottonwood test | robustness | feature pass s |",
-                  "|---|---|---|---|"]
+        lines += ["", "Balanced accuracy on the pac + pdc EMD tensors (stage c), quick "
+                  "protocol; (c)+RNN per seed in brackets:", "",
+                  "| setting | (c)+RNN test | (c)+RNN robustness | (c)+SVM test / robustness "
+                  "| feature pass s |", "|---|---|---|---|---|"]
         for d in results["downstream"]:
-            lines.append(f"| {d['label']} | {d['test']:.3f} | {d['robustness']:.3f} | "
-                         f"{d['emd_s']:.0f} |")
+            lines.append(
+                f"| {d['label']} | {d['test']:.3f} ("
+                + ", ".join(f"{v:.3f}" for v in d["rnn_test_seeds"]) + f") | "
+                f"{d['robustness']:.3f} ("
+                + ", ".join(f"{v:.3f}" for v in d["rnn_robustness_seeds"]) + f") | "
+                f"{d['svm_test']:.3f} / {d['svm_robustness']:.3f} | {d['emd_s']:.0f} |")
     lines += ["", f"Chosen: {results['chosen']['label']}."]
     large = results.get("large")
     if large:
@@ -537,8 +565,9 @@ def run_emd_fidelity(options: BenchOptions) -> dict[str, Any]:
     """``hapticframe bench emd-fidelity``: the sifting sweep, the choice, 220,000 samples.
 
     ``--trials N`` sets the windows per kind (default 16; ``--quick``: 4 windows, the
-    settings at cap 10 and 50 only, 100 frames timed, two downstream candidates on 9 + 5
-    trials, 22,000 samples instead of 220,000). ``--workers`` runs the downstream feature passes in processes.
+    settings at cap 10 and 50 only, 100 frames timed, two downstream candidates on 15 + 5
+    trials, 22,000 samples instead of 220,000). ``--workers`` runs the downstream feature
+    passes in processes.
     Writes ``emd-fidelity.json`` and ``emd-fidelity.md``.
     """
     from hapticframe_tactile_features import EMDFeaturesConfig
@@ -571,7 +600,7 @@ def run_emd_fidelity(options: BenchOptions) -> dict[str, Any]:
         frame_ms.setdefault(s.label, frame_time(s, frames, options.seed))
     results["downstream"] = downstream_accuracy(
         candidates, seed=options.seed, workers=int(options.workers or 1), echo=options.echo,
-        cottonwood_trials=9 if quick else 45, robustness_per_medium=1 if quick else 10)
+        cottonwood_trials=15 if quick else 45, robustness_per_medium=1 if quick else 10)
     chosen = choose_default(results["downstream"], frame_ms)
     results["chosen"] = {**chosen.as_dict(), "label": chosen.label}
     try:
