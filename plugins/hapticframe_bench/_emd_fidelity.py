@@ -203,14 +203,19 @@ def pyemd_reference(x: FloatArray, rows: int, setting: Setting = REFERENCE) -> F
 
 
 def _emd_package_reference(x: FloatArray, rows: int) -> FloatArray | None:
-    """The ``emd`` package's IMFs of ``x`` (its sift with a tight SD stop), or None."""
+    """The ``emd`` package's IMFs of ``x`` (its sift to our reference's SD and cap), or None.
+
+    Its SD test is the same ratio as ours; its envelopes (``splrep`` splines) and end
+    padding differ, so agreement measures how much the reference depends on them.
+    """
     try:
         import emd as emd_package  # type: ignore[import-not-found]
     except ImportError:
         return None
     z = (x - x.mean()) / x.std()
-    imfs = emd_package.sift.sift(z, max_imfs=rows, imf_opts={"sd_thresh": 1e-6,
-                                                             "max_iters": 2000})
+    imfs = emd_package.sift.sift(
+        z, max_imfs=rows, return_residual=False,
+        imf_opts={"sd_thresh": REFERENCE.sd_threshold, "max_iters": REFERENCE.max_sifts})
     out = np.zeros((rows, x.size))
     out[: imfs.shape[1]] = np.asarray(imfs, dtype=np.float64).T[:rows]
     return out

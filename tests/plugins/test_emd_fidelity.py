@@ -116,7 +116,7 @@ def test_emd_features_default_is_the_measured_choice() -> None:
     # docs/benchmarks.md "EMD: sifting against fidelity" chose this setting from the table;
     # change both together.
     config = EMDFeaturesConfig()
-    assert (config.sd_threshold, config.max_sifts) == (0.1, 50)
+    assert (config.sd_threshold, config.max_sifts) == (0.01, 50)
 
 
 def test_suite_is_registered() -> None:
