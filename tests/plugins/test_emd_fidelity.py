@@ -123,3 +123,40 @@ def test_suite_is_registered() -> None:
     registry = hapticframe.get_registry()
     spec, _source = registry.benchmarks["emd-fidelity"]
     assert spec.factory == "hapticframe_bench._emd_fidelity:run_emd_fidelity"
+
+
+def test_suite_writes_its_table_and_choice(tmp_path, monkeypatch) -> None:
+    import json
+    import sys
+
+    import hapticframe_bench._emd_fidelity as suite
+    from hapticframe import BenchOptions
+
+    # Two settings, one window per kind, a stand-in for the downstream training (minutes)
+    # and no PyEMD (its import alone takes seconds): what is left is the suite's own path.
+    monkeypatch.setattr(suite, "SETTINGS", (Setting(0.1, 10), Setting(0.0, 2)))
+    monkeypatch.setitem(sys.modules, "PyEMD", None)
+    seen: list[list[str]] = []
+
+    def fake_downstream(settings, **_kwargs):
+        seen.append([s.label for s in settings])
+        return [{**s.as_dict(), "label": s.label, "modalities": ["pdc"], "emd_s": 1.0,
+                 "test": 0.7 + 0.01 * i, "robustness": 0.6, "rnn_test_seeds": [0.7],
+                 "rnn_robustness_seeds": [0.6], "svm_test": 0.5, "svm_robustness": 0.5}
+                for i, s in enumerate(settings)]
+
+    monkeypatch.setattr(suite, "downstream_accuracy", fake_downstream)
+    lines: list[str] = []
+    result = suite.run_emd_fidelity(BenchOptions(out_dir=tmp_path, trials=1, quick=True,
+                                                 echo=lines.append))
+    written = json.loads((tmp_path / "emd-fidelity.json").read_text())
+    assert len(written["fidelity"]["rows"]) == 2 * len(WINDOWS)
+    assert written["fidelity"]["reference"]["kinds"]["pac-512"]["pyemd_correlation"] is None
+    default = EMDFeaturesConfig()
+    assert written["current_default"]["sd_threshold"] == default.sd_threshold
+    # Quick scores two candidates, the current default last; the better one is chosen.
+    assert seen[0][-1] == Setting(default.sd_threshold, default.max_sifts).label
+    assert result["chosen"]["label"] == seen[0][-1]
+    assert result["large"] is None and any("PyEMD" in line for line in lines)
+    markdown = (tmp_path / "emd-fidelity.md").read_text()
+    assert f"Chosen: {seen[0][-1]}." in markdown and "| fixed 2 |" in markdown
