@@ -203,7 +203,8 @@ def pyemd_reference(x: FloatArray, rows: int, setting: Setting = REFERENCE) -> F
 
 
 def _emd_package_reference(x: FloatArray, rows: int) -> FloatArray | None:
-    """The ``emd`` package's IMFs of ``x`` (its sift to our reference's SD and cap), or None.
+    """The ``emd`` package's IMFs of ``x`` (its sift to our reference's SD and cap), or None
+    without the package; NaN where its sift does not converge within the cap.
 
     Its SD test is the same ratio as ours; its envelopes (``splrep`` splines) and end
     padding differ, so agreement measures how much the reference depends on them.
@@ -213,9 +214,14 @@ def _emd_package_reference(x: FloatArray, rows: int) -> FloatArray | None:
     except ImportError:
         return None
     z = (x - x.mean()) / x.std()
-    imfs = emd_package.sift.sift(
-        z, max_imfs=rows, return_residual=False,
-        imf_opts={"sd_thresh": REFERENCE.sd_threshold, "max_iters": REFERENCE.max_sifts})
+    try:
+        imfs = emd_package.sift.sift(
+            z, max_imfs=rows, return_residual=False,
+            imf_opts={"sd_thresh": REFERENCE.sd_threshold, "max_iters": REFERENCE.max_sifts})
+    except emd_package.support.EMDSiftCovergeError:
+        # It raises where an IMF does not meet the SD within the cap (ours accepts the
+        # last proto-IMF): no comparison for this window.
+        return np.full((rows, x.size), np.nan)
     out = np.zeros((rows, x.size))
     out[: imfs.shape[1]] = np.asarray(imfs, dtype=np.float64).T[:rows]
     return out
@@ -285,11 +291,16 @@ def fidelity_table(
             for name, other in (("pyemd", pyemd_reference), ("emd_package",
                                                              _emd_package_reference)):
                 corr = []
+                skipped = 0
                 for x, r in zip(signals, refs, strict=True):
                     theirs = other(x, rows)
                     if theirs is None:
                         break
+                    if not np.isfinite(theirs).all():
+                        skipped += 1
+                        continue
                     corr.append(imf_correlations(theirs, r.imfs / x.std()))
+                entry[f"{name}_not_converged"] = skipped
                 entry[f"{name}_correlation"] = (np.mean(corr, axis=0).round(6).tolist()
                                                 if corr else None)
                 entry[f"{name}_correlation_min"] = (float(np.min(corr)) if corr else None)
