@@ -18,7 +18,8 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     """Yield the suites: ``search``, ``search-scenes``, ``search-devices``,
-    ``search-dynamixel``, ``fuzz``, ``perception``, ``bhm`` and ``latency``."""
+    ``search-dynamixel``, ``fuzz``, ``perception``, ``bhm``, ``latency`` and
+    ``emd-fidelity``."""
     yield BenchSpec(
         name="search",
         summary="Haptic search, Table 3.2: two-phase planner (bundled defaults and Table "
@@ -71,4 +72,12 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "sf-rnn step, one thread; our EMD against PyEMD.",
         factory="hapticframe_bench._latency:run_latency_bench",
         install_hint=_LEARN_HINT,
+    )
+    yield BenchSpec(
+        name="emd-fidelity",
+        summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
+        "converged reference, orthogonality), time per frame and downstream accuracy; "
+        "220,000 samples against PyEMD (issue 18).",
+        factory="hapticframe_bench._emd_fidelity:run_emd_fidelity",
+        install_hint="pip install 'hapticframe[learn]' EMD-signal  (PyEMD for the cross-check)",
     )

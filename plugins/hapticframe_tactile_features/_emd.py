@@ -231,7 +231,7 @@ def mean_envelope(h: FloatArray, imax: IntArray, imin: IntArray, n_mirror: int =
 def sift(
     residue: FloatArray,
     *,
-    sd_threshold: float = 0.1,
+    sd_threshold: float = 0.01,
     max_sifts: int = 50,
     n_mirror: int = 2,
 ) -> tuple[FloatArray, int]:
@@ -278,7 +278,7 @@ def emd(
     signal: ArrayLike,
     max_imfs: int = 8,
     *,
-    sd_threshold: float = 0.1,
+    sd_threshold: float = 0.01,
     max_sifts: int = 50,
     residue_ratio: float = 0.1,
     n_mirror: int = 2,
@@ -295,6 +295,8 @@ def emd(
     sd_threshold : float
         Sifting stops when the mean envelope's energy is below this fraction of the
         proto-IMF's energy (Huang's SD, Cauchy type). 0 disables it (fixed sifting).
+        The default 0.01 (about 4 sifts per IMF) was chosen with ``hapticframe bench
+        emd-fidelity`` (``docs/benchmarks.md``, "EMD: sifting against fidelity").
     max_sifts : int
         Cap on sifting iterations per IMF.
     residue_ratio : float

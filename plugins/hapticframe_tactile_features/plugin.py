@@ -44,7 +44,8 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
             Knob("max_sifts", "more sifts per IMF: IMFs closer to a converged EMD, sifting "
                  "time per frame", values=(2, 5, 10, 20, 50)),
             Knob("sd_threshold", "a looser sifting stop: fewer sifts, IMFs further from a "
-                 "converged EMD (0: always max_sifts)", values=(0.0, 0.05, 0.1, 0.2, 0.3)),
+                 "converged EMD (0: always max_sifts)",
+                 values=(0.0, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3)),
             Knob("residue_ratio", "a higher residue stop: fewer IMFs extracted (the rest zero "
                  "rows), less sifting per frame", values=(0.0, 0.05, 0.1, 0.2)),
             Knob("delay_frames", "more look-ahead: IMFs further from the window's end effects, "
