@@ -16,9 +16,12 @@ largest force; for perception the balanced accuracies and onset errors; for a ma
 AUC and log loss, where the run reports them) and for cost (wall and CPU time of the run
 and per robot step, peak resident memory of the worker while it ran).
 
-Outputs in ``DIR``: ``sweep.json`` (every trial and point), ``sweep.md`` (a table per knob
-and the Pareto front over all points: the accuracy cost, :func:`accuracy_measure`,
-against mean wall time) and ``pareto.png`` (every point, the front highlighted).
+Outputs in ``DIR``: ``sweep.json`` (every trial and point, and the machine's load),
+``sweep.md`` (a table per knob, saying where a knob changed no accuracy metric, and the
+Pareto fronts over all points: the accuracy cost, :func:`accuracy_measure`, against mean
+wall time and against mean CPU time per run; a search point that found the object in
+fewer trials than the best is kept off them) and ``pareto.png`` (every point against wall
+time, the front highlighted).
 
 A point that fails (a value validation refuses, an exception, a non-finite metric, a
 trial past ``timeout_s``) is a row saying so, never a crash: sweeping to the extremes is
@@ -174,8 +177,16 @@ def _declared(experiment: Any) -> list[Vary]:
     except ImportError:  # before the knobs module: read the specs' own declarations
         pairs = [(entry.id, knob) for entry in experiment.components
                  for knob in getattr(entry.registered.spec, "knobs", ())]
-    return [Vary(f"{cid}.{knob.field}", tuple(knob.sweep_values()), knob.trades)
-            for cid, knob in pairs]
+    return [Vary(f"{cid}.{knob.field}", tuple(_tidy(v) for v in knob.sweep_values()),
+                 knob.trades) for cid, knob in pairs]
+
+
+def _tidy(value: Any) -> Any:
+    """A declared range's float to 3 significant digits (0.0171, not 0.017099759466766964):
+    the labels and tables stay readable, and no knob's effect hangs on the fourth digit."""
+    if isinstance(value, float) and math.isfinite(value) and value != 0.0:
+        return float(f"{value:.3g}")
+    return value
 
 
 def _merged(varies: Sequence[Vary]) -> list[Vary]:
@@ -603,6 +614,7 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
         ``--vary`` path names nothing: before any trial runs (exit status 2).
     """
     started = time.perf_counter()
+    load_before = _load_average()
     echo = options.echo
     if options.trials < 1:
         raise UsageError("--trials must be at least 1")
@@ -699,12 +711,14 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
         "accuracy": None if measure is None else {"metric": measure[0],
                                                    "description": measure[1]},
         "front": [s["label"] for s in summaries if s.get("front")],
+        "front_cpu": [s["label"] for s in summaries if s.get("front_cpu")],
         "points": summaries,
         "runs": rows,
         "warm_up_wall_time_s": warm_up_s,
         "wall_time_s": time.perf_counter() - started,
         "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+                    "python": platform.python_version(),
+                    "load_average_1min": {"start": load_before, "end": _load_average()}},
     }
     result = _json_ready(result)
     from ._results import atomic_write
@@ -727,23 +741,74 @@ def _brief(metrics: Mapping[str, Any]) -> str:
     return "ok " + ", ".join(parts) if parts else "ok"
 
 
+#: The time a front weighs accuracy against: ``front`` (mean wall time per run) and
+#: ``front_cpu`` (mean CPU time per run: on a busy machine wall time also counts the wait
+#: for a core, CPU time does not).
+_FRONTS = (("front", "wall_time_s"), ("front_cpu", "cpu_time_s"))
+
+
 def _mark_front(summaries: list[dict[str, Any]],
                 measure: tuple[str, str, Callable[[float], float]] | None) -> None:
-    candidates: list[tuple[int, tuple[float, float]]] = []
+    """Mark the points on each front (see :data:`_FRONTS`).
+
+    A search point that found the object in a smaller share of its trials than the best
+    points did is kept off the fronts (``off_front`` says why): a search that misses the
+    object ends early and reports a centroid error for whatever blob it has, so it would
+    otherwise sit on the front as the fastest setting.
+    """
+    eligible: list[int] = []
     for i, summary in enumerate(summaries):
-        summary["front"] = False
         summary["accuracy_cost"] = None
+        summary["off_front"] = None
+        for key, _ in _FRONTS:
+            summary[key] = False
         if measure is None or summary["status"] not in ("ok",):
             continue
         value = summary["metrics"].get(measure[0])
-        wall = summary["cost"].get("wall_time_s")
-        if value is None or wall is None:
+        if value is None:
             continue
-        cost = measure[2](value)
-        summary["accuracy_cost"] = cost
-        candidates.append((i, (wall, cost)))
-    for k in pareto_front([c[1] for c in candidates]):
-        summaries[candidates[k][0]]["front"] = True
+        summary["accuracy_cost"] = measure[2](value)
+        eligible.append(i)
+    shares = {i: summaries[i]["metrics"].get("object_found") for i in eligible}
+    known = [v for v in shares.values() if isinstance(v, (int, float))]
+    if known:
+        best = max(known)
+        for i, share in shares.items():
+            if isinstance(share, (int, float)) and share < best - 1e-9:
+                summaries[i]["off_front"] = (f"found the object in {share:.0%} of its trials, "
+                                             f"the best points in {best:.0%}")
+        eligible = [i for i in eligible if summaries[i]["off_front"] is None]
+    for key, cost_key in _FRONTS:
+        candidates = [(i, (summaries[i]["cost"].get(cost_key), summaries[i]["accuracy_cost"]))
+                      for i in eligible if summaries[i]["cost"].get(cost_key) is not None]
+        for k in pareto_front([c[1] for c in candidates]):
+            summaries[candidates[k][0]][key] = True
+
+
+def _load_average() -> float | None:
+    """The machine's 1-minute load average (None where the platform has none)."""
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return None
+
+
+def _unchanged(points: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> bool:
+    """Whether every finished point reports the same accuracy (``keys``) as the first, the
+    baseline: the knob bought nothing at the values and seeds tried."""
+    done = [p for p in points if p["status"] == "ok"]
+    if len(done) < 2 or not keys:
+        return False
+    first = done[0]["metrics"]
+    for p in done[1:]:
+        for key in keys:
+            a, b = first.get(key), p["metrics"].get(key)
+            if a is None and b is None:
+                continue
+            if a is None or b is None or not math.isclose(float(a), float(b), rel_tol=1e-9,
+                                                          abs_tol=1e-12):
+                return False
+    return True
 
 
 def _json_ready(value: Any) -> Any:
@@ -814,6 +879,13 @@ def render_markdown(result: Mapping[str, Any]) -> str:
     if result.get("overrides"):
         lines += ["Every point with: " + ", ".join(f"`--set {o}`" for o in result["overrides"]),
                   ""]
+    machine = result.get("machine") or {}
+    load = machine.get("load_average_1min") or {}
+    if load.get("start") is not None:
+        lines += [f"Machine load (1-minute average) {_fmt(load['start'])} at the start and "
+                  f"{_fmt(load.get('end'))} at the end, on {machine.get('cpu_count')} CPUs: "
+                  "where it exceeds the CPUs, wall times include waiting for a core, so "
+                  "read the CPU-time front below.", ""]
     baseline = points[0]
     for knob in result["knobs"]:
         path = knob["path"]
@@ -827,20 +899,38 @@ def render_markdown(result: Mapping[str, Any]) -> str:
         else:
             chosen = [baseline, *[p for p in points if [v["path"] for v in p["values"]] == [path]]]
         lines += [*_rows(chosen, keys), ""]
+        if result["mode"] != "grid" and _unchanged(chosen, keys):
+            lines += ["No accuracy metric changed at any value tried: at these seeds this "
+                      "knob buys nothing here.", ""]
     lines += ["## Pareto front", ""]
     if accuracy is None:
         lines += ["The runs report no accuracy metric to weigh against time.", ""]
     else:
-        front = [p for p in points if p.get("front")]
+        found = any("object_found" in p["metrics"] for p in points)
         lines += [f"Accuracy: {accuracy['description']} (lower is better; a mean over the "
                   "trials that report it: a search that estimates no centroid has none, so "
                   "read it beside object_found, the share of trials that found the object) "
-                  "against mean wall time per run; a point is on the front when no other "
-                  "point is both faster and more accurate.", "",
-                  "| point | accuracy cost | wall s |", "|---|---|---|"]
-        lines += [f"| {p['label']} | {_fmt(p['accuracy_cost'])} | "
-                  f"{_fmt(p['cost'].get('wall_time_s'))} |" for p in front]
-        lines.append("")
+                  "against mean time per run; a point is on the front when no other point "
+                  "is both faster and more accurate."
+                  + (" A point that found the object in fewer of its trials than the best "
+                     "points is kept off the fronts." if found else ""), ""]
+        for key, cost_key, what in (("front", "wall_time_s", "wall time"),
+                                    ("front_cpu", "cpu_time_s", "CPU time")):
+            front = sorted((p for p in points if p.get(key)),
+                           key=lambda p: p["cost"].get(cost_key) or 0.0)
+            lines += [f"Against {what}:", "",
+                      "| point | accuracy cost | found (share) | wall s | CPU s |",
+                      "|---|---|---|---|---|"]
+            lines += [f"| {p['label']} | {_fmt(p['accuracy_cost'])} | "
+                      f"{_fmt(p['metrics'].get('object_found'))} | "
+                      f"{_fmt(p['cost'].get('wall_time_s'))} | "
+                      f"{_fmt(p['cost'].get('cpu_time_s'))} |" for p in front]
+            lines.append("")
+        off = [p for p in points if p.get("off_front")]
+        if off:
+            lines += ["Kept off the fronts:", ""]
+            lines += [f"- {p['label']}: {p['off_front']}" for p in off]
+            lines.append("")
     failed = [p for p in points if p["status"] != "ok"]
     if failed:
         lines += ["## Points that failed", ""]
@@ -865,7 +955,11 @@ def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
     plotted = [p for p in result["points"] if p.get("accuracy_cost") is not None]
     front = sorted((p for p in plotted if p.get("front")),
                    key=lambda p: p["cost"]["wall_time_s"])
-    others = [p for p in plotted if not p.get("front")]
+    off = [p for p in plotted if p.get("off_front")]
+    others = [p for p in plotted if not p.get("front") and not p.get("off_front")]
+    if off:
+        ax.scatter([p["cost"]["wall_time_s"] for p in off], [p["accuracy_cost"] for p in off],
+                   color="tab:gray", marker="x", label="missed the object in some trials")
     if others:
         ax.scatter([p["cost"]["wall_time_s"] for p in others],
                    [p["accuracy_cost"] for p in others], color="tab:gray", marker="o",

@@ -242,7 +242,7 @@ def test_markdown_lists_a_grid_point_under_each_of_its_knobs() -> None:
             "metric": "centroid_error_m", "description": "mean centroid error (m)"},
         "knobs": [{"path": "a", "values": [1], "baseline": 0},
                   {"path": "b", "values": [2], "baseline": 0}]})
-    assert text.count("| **a=1, b=2** |") == 2 and "| a=1, b=2 | 0.01 | 1 |" in text
+    assert text.count("| **a=1, b=2** |") == 2 and "| a=1, b=2 | 0.01 | – | 1 | – |" in text
 
 
 @pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
