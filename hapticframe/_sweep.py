@@ -6,9 +6,12 @@ seeded trials (trial ``i`` runs with ``seed + i``). By default one knob changes 
 from the file's values (plus the baseline point, the file as it is); ``grid=True`` runs
 every combination. Every trial is a :func:`~hapticframe.run_experiment` in a worker, with
 figures and the recording off, into ``DIR/points/<point>/trial-<i>/``; its ``run.json``
-records the point's values as overrides (``--set``). With the process pool, one untimed
-run of the first point warms this process up before the workers fork from it, so that
-import and first-call costs fall on no point.
+records the point's values as overrides (``--set``). With the process pool, each worker
+starts with one untimed run of the first point, so that import and first-call costs fall
+on no point. The workers start from a fork server (where the platform has one), never
+forked from this process: a parent that has run torch's OpenMP threads would leave a
+forked child waiting for ever on threads it does not have, as the perception sweep of
+issue 18 did.
 
 Each trial is measured for accuracy (every scalar of ``metrics.json``: for a search the
 object found, centroid error, Hausdorff distances, movements and EMs, object interactions,
@@ -44,6 +47,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass, field
@@ -204,15 +208,17 @@ def _merged(varies: Sequence[Vary]) -> list[Vary]:
     return list(merged.values())
 
 
-def _warm_up(task: TrialTask) -> float:
-    """One untimed run of ``task`` here, before the pool forks, into a folder removed
-    after: the workers inherit its imports and warmed caches, so that a worker's first
-    trial (the baseline's, always) is not slower than the rest. Its wall time (s)."""
+def _warm_up(task: TrialTask | None) -> None:
+    """A process pool worker's initializer: one untimed run of ``task`` into a folder of
+    this process's own, removed after, so that the worker's first trial (the baseline's,
+    always) pays no import or first-call costs. Never raises (a failing run is a row)."""
     import shutil
 
-    row = run_trial(task)
-    shutil.rmtree(task.out_dir, ignore_errors=True)
-    return float(row.get("wall_time_s") or 0.0)
+    if task is None:
+        return
+    out = f"{task.out_dir}-{os.getpid()}"
+    run_trial(dataclasses.replace(task, out_dir=out))
+    shutil.rmtree(out, ignore_errors=True)
 
 
 def _baseline_value(experiment: Any, data: Any, path: str) -> Any:
@@ -350,7 +356,10 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
                            "run_dir": str(out)}
     reset = _reset_peak_rss()
     wall0, cpu0 = time.perf_counter(), _cpu_time_s()
-    with _alarm(task.timeout_s) as alarm:
+    # A run's warnings (a lasso capped at 10 sweeps warns every frame) are counted in its
+    # row, not printed by every worker over the sweep's progress.
+    with _alarm(task.timeout_s) as alarm, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         try:
             experiment = validate_with_overrides(
                 task.loaded, task.overrides, plugin_modules=task.plugin_modules,
@@ -367,6 +376,8 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
                                 else f"{type(exc).__name__}: {exc}")
         finally:
             alarm["armed"] = False
+    messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+    row["warnings"] = {"count": len(caught), "messages": messages[:3]}
     row["wall_time_s"] = time.perf_counter() - wall0
     row["cpu_time_s"] = _cpu_time_s() - cpu0
     row["peak_rss_bytes"] = _peak_rss_bytes(reset)
@@ -374,12 +385,27 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
     row["steps"] = steps
     row["wall_time_per_step_s"] = row["wall_time_s"] / steps if steps else None
     row["cpu_time_per_step_s"] = row["cpu_time_s"] / steps if steps else None
-    if row["status"] == "ok":
-        bad = sorted(k for k, v in row["metrics"].items()
-                     if isinstance(v, float) and not math.isfinite(v))
-        if bad:
-            row["status"], row["error"] = "nan", f"non-finite metrics: {', '.join(bad)}"
+    row["non_finite"] = sorted(k for k, v in row["metrics"].items()
+                               if isinstance(v, float) and not math.isfinite(v))
+    _mark_nan(row, [k for k in row["non_finite"] if _is_accuracy_key(k)])
     return row
+
+
+def _mark_nan(row: dict[str, Any], keys: Sequence[str]) -> None:
+    """Make a finished row a ``nan`` row for its non-finite ``keys``."""
+    if row["status"] == "ok" and keys:
+        row["status"], row["error"] = "nan", f"non-finite metrics: {', '.join(sorted(keys))}"
+
+
+def _mark_nan_against_baseline(rows: Sequence[dict[str, Any]]) -> None:
+    """A non-finite metric that is not an accuracy (``max_measured_force_n``, say) fails a
+    trial only where the baseline reports it finite: a perception run has no force sensor,
+    so that metric is NaN in every run, the file's own included, and means nothing."""
+    finite = {k for r in rows if r["point"] == 0 and r["status"] == "ok"
+              for k, v in r["metrics"].items() if k not in r.get("non_finite", ())
+              and isinstance(v, (int, float))}
+    for row in rows:
+        _mark_nan(row, [k for k in row.get("non_finite", ()) if k in finite])
 
 
 # --- executors -------------------------------------------------------------------------------
@@ -387,20 +413,24 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def make_executor(kind: str = "process", workers: int | None = None,
-                  scheduler: str | None = None) -> Iterator[Executor]:
+                  scheduler: str | None = None,
+                  warm_up: TrialTask | None = None) -> Iterator[Executor]:
     """The executor trials run on, shut down when the block ends.
 
     Parameters
     ----------
     kind : {"process", "dask"}
-        ``process``: a local process pool (forked on Linux, so workers start without
-        importing again). ``dask``: a ``dask.distributed`` client's executor, on the cluster
-        at ``scheduler`` (``tcp://HOST:8786``) or, without one, on a ``LocalCluster`` of
-        ``workers`` single-threaded processes; a task lost with its worker is retried twice.
+        ``process``: a local process pool, its workers started by a fork server where the
+        platform has one (Linux, macOS), else spawned. ``dask``: a ``dask.distributed``
+        client's executor, on the cluster at ``scheduler`` (``tcp://HOST:8786``) or,
+        without one, on a ``LocalCluster`` of ``workers`` single-threaded processes; a task
+        lost with its worker is retried twice.
     workers : int, optional
         Processes of the local pool or cluster (default: one per CPU).
     scheduler : str, optional
         The Dask scheduler's address (``dask`` only).
+    warm_up : TrialTask, optional
+        ``process`` only: a trial each worker runs once, untimed, when it starts.
     """
     n = max(1, int(workers or os.cpu_count() or 1))
     if kind == "process":
@@ -409,9 +439,13 @@ def make_executor(kind: str = "process", workers: int | None = None,
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        context = (multiprocessing.get_context("fork") if sys.platform.startswith("linux")
-                   else multiprocessing.get_context())
-        pool = ProcessPoolExecutor(max_workers=n, mp_context=context)
+        # Not "fork": a child forked from a process that has run torch (OpenMP) or other
+        # thread pools can block for ever on a lock one of those threads held.
+        methods = multiprocessing.get_all_start_methods()
+        context = multiprocessing.get_context("forkserver" if "forkserver" in methods
+                                              else "spawn")
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=context, initializer=_warm_up,
+                                   initargs=(warm_up,))
         try:
             yield pool
         finally:
@@ -454,9 +488,12 @@ def _shutdown_pool(pool: Any, patience_s: float = 5.0) -> None:
 
 def _gather(executor: Executor, tasks: Sequence[TrialTask], workers: int,
             timeout_s: float | None,
-            on_row: Callable[[dict[str, Any], int], None]) -> list[dict[str, Any]]:
+            on_row: Callable[[dict[str, Any], int], None],
+            warmed: bool = False) -> list[dict[str, Any]]:
     """Run ``tasks`` on ``executor``; a trial that outlives its limit (and the grace the
-    worker's own alarm has) is a ``timeout`` row. Rows come back in task order."""
+    worker's own alarm has) is a ``timeout`` row. Rows come back in task order. ``warmed``:
+    each worker runs a warm-up trial (bounded by ``timeout_s`` too) before its first task,
+    whose limit is extended by as much."""
     futures: dict[Future[dict[str, Any]], int] = {
         executor.submit(run_trial, task): i for i, task in enumerate(tasks)}
     rows: list[dict[str, Any] | None] = [None] * len(tasks)
@@ -480,7 +517,9 @@ def _gather(executor: Executor, tasks: Sequence[TrialTask], workers: int,
         if timeout_s is None:
             continue
         limit = timeout_s + max(_GRACE_S, 0.5 * timeout_s)
-        for future in [f for f in pending if time.monotonic() - started.get(f, now) > limit]:
+        first = set(order[:workers]) if warmed else set()
+        for future in [f for f in pending if time.monotonic() - started.get(f, now)
+                       > limit + (timeout_s if f in first else 0.0)]:
             future.cancel()
             pending.discard(future)
             index = futures[future]
@@ -510,13 +549,18 @@ COST_KEYS = ("wall_time_s", "cpu_time_s", "wall_time_per_step_s", "cpu_time_per_
 
 def accuracy_measure(keys: Sequence[str]) -> tuple[str, str, Callable[[float], float]] | None:
     """The accuracy cost a sweep's Pareto front uses, from the metrics its runs report:
-    (metric, description, metric mean to cost; lower cost is better)."""
+    (metric, description, metric mean to cost; lower cost is better).
+
+    A classifier's balanced accuracy comes first: a perception run that also maps reports
+    a centroid error too, but what its knobs trade is the contact-state accuracy (the
+    example's belief-map centroid is within a millimetre whatever the classifier does).
+    """
     keys = list(keys)
-    if "centroid_error_m" in keys:
-        return "centroid_error_m", "mean centroid error (m)", float
     for key in keys:
         if key.endswith("_balanced_accuracy"):
             return key, f"1 - mean {key}", lambda v: 1.0 - v
+    if "centroid_error_m" in keys:
+        return "centroid_error_m", "mean centroid error (m)", float
     for key in keys:
         if "log_loss" in key:
             return key, f"mean {key}", float
@@ -556,6 +600,9 @@ def _summarise_point(point: Point, rows: Sequence[Mapping[str, Any]]) -> dict[st
     return {"label": point.label, "values": [{"path": p, "value": v} for p, v in point.values],
             "status": status, "trials": len(rows), "trials_ok": len(ok),
             "errors": sorted({str(r["error"]) for r in failed}),
+            "warnings": sum(int((r.get("warnings") or {}).get("count", 0)) for r in rows),
+            "warning_messages": list(dict.fromkeys(
+                m for r in rows for m in (r.get("warnings") or {}).get("messages", ())))[:3],
             "metrics": means, "metrics_std": stds, "cost": cost}
 
 
@@ -679,13 +726,15 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
              + f" ({min(running, workers)} running)")
 
     rows: list[dict[str, Any]] = []
-    warm_up_s = None
+    warm = None
     if tasks and options.executor == "process":
-        echo("warming up: one untimed run of the first point")
-        warm_up_s = _warm_up(dataclasses.replace(tasks[0], out_dir=str(out / "warm-up")))
+        echo("each worker warms up first: one untimed run of the first point")
+        warm = dataclasses.replace(tasks[0], out_dir=str(out / "warm-up"))
     if tasks:
-        with make_executor(options.executor, workers, options.scheduler) as executor:
-            rows = _gather(executor, tasks, workers, options.timeout_s, on_row)
+        with make_executor(options.executor, workers, options.scheduler, warm) as executor:
+            rows = _gather(executor, tasks, workers, options.timeout_s, on_row,
+                           warmed=warm is not None)
+        _mark_nan_against_baseline(rows)
     summaries = []
     for index, point in enumerate(points):
         summary = _summarise_point(point, [r for r in rows if r["point"] == index])
@@ -714,7 +763,7 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
         "front_cpu": [s["label"] for s in summaries if s.get("front_cpu")],
         "points": summaries,
         "runs": rows,
-        "warm_up_wall_time_s": warm_up_s,
+        "warm_up": warm is not None,
         "wall_time_s": time.perf_counter() - started,
         "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
                     "python": platform.python_version(),
@@ -836,13 +885,23 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+def _is_onset_key(key: str) -> bool:
+    return "onset" in key or (key.startswith(("first_", "last_")) and key.endswith("_error_s"))
+
+
+def _is_accuracy_key(key: str) -> bool:
+    """Whether a metric is one of the accuracies the tables show (a NaN there is a
+    numerical failure of the trial; elsewhere, see :func:`_mark_nan_against_baseline`)."""
+    return (key in SEARCH_KEYS or key.endswith("_balanced_accuracy") or _is_onset_key(key)
+            or "auc" in key or "log_loss" in key)
+
+
 def _table_keys(points: Sequence[Mapping[str, Any]]) -> list[str]:
     keys = sorted({k for p in points for k in p["metrics"]})
     shown_keys = [k for k in SEARCH_KEYS if k in keys]
-    onset = [k for k in keys if "onset" in k
-             or (k.startswith(("first_", "last_")) and k.endswith("_error_s"))]
     shown_keys += [k for k in keys if k.endswith("_balanced_accuracy")]
-    shown_keys += onset + [k for k in keys if "auc" in k or "log_loss" in k]
+    shown_keys += [k for k in keys if _is_onset_key(k)]
+    shown_keys += [k for k in keys if "auc" in k or "log_loss" in k]
     return list(dict.fromkeys(shown_keys))
 
 
@@ -937,6 +996,12 @@ def render_markdown(result: Mapping[str, Any]) -> str:
         for p in failed:
             errors = "; ".join(e.replace("\n", " ") for e in p["errors"]) or p["status"]
             lines.append(f"- {p['label']}: {p['status']}: {errors[:500]}")
+        lines.append("")
+    warned = [p for p in points if p.get("warnings")]
+    if warned:
+        lines += ["## Points whose runs warned", ""]
+        lines += [f"- {p['label']}: {p['warnings']} warning(s), e.g. "
+                  f"{'; '.join(p.get('warning_messages') or [])[:300]}" for p in warned]
         lines.append("")
     return "\n".join(lines)
 

@@ -80,6 +80,9 @@ def test_the_accuracy_measure_follows_the_metrics_reported() -> None:
     assert measure is not None and measure[0] == "centroid_error_m" and measure[2](0.1) == 0.1
     measure = accuracy_measure(["contact_balanced_accuracy", "first_contact_error_s"])
     assert measure is not None and measure[2](0.75) == pytest.approx(0.25)
+    # A perception run that also maps: the classifier's accuracy is what is traded.
+    measure = accuracy_measure(["centroid_error_m", "contact_balanced_accuracy"])
+    assert measure is not None and measure[0] == "contact_balanced_accuracy"
     measure = accuracy_measure(["map_auc"])
     assert measure is not None and measure[2](0.9) == pytest.approx(0.1)
     assert accuracy_measure(["movements"]) is None

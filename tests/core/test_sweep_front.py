@@ -4,17 +4,29 @@ knobs that buy nothing named, readable declared values."""
 
 from __future__ import annotations
 
+import math
+import warnings
+from pathlib import Path
 from typing import Any
 
+import pytest
+
 from hapticframe import Knob
+from hapticframe._config import load_file
 from hapticframe._sweep import (
+    TrialTask,
     _declared,
     _mark_front,
+    _mark_nan_against_baseline,
     _tidy,
     _unchanged,
     accuracy_measure,
+    make_executor,
     render_markdown,
+    run_trial,
 )
+
+from .test_overrides import TINY
 
 
 def _point(label: str, found: float, error: float, wall: float, cpu: float,
@@ -102,3 +114,70 @@ def test_declared_range_values_are_tidied(monkeypatch: Any) -> None:
     monkeypatch.setattr("hapticframe._knobs.declared_knobs", lambda experiment: [("bhm", knob)])
     (vary,) = _declared(object())
     assert vary.path == "bhm.tolerance" and vary.values == (0.005, 0.0171, 0.0585, 0.2)
+
+
+# --- what the perception sweep showed ---------------------------------------------------------
+
+
+def _torch_product() -> float:
+    import torch
+
+    return float(torch.ones(200_000, dtype=torch.float64).mul(2.0).sum())
+
+
+def test_workers_do_not_inherit_a_parent_that_ran_torch_threads() -> None:
+    """A pool forked from a process whose torch had run an OpenMP region waited for ever
+    in its first torch call (the perception sweep's workers did, in libgomp)."""
+    torch = pytest.importorskip("torch")
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        torch.ones(2_000_000).mul(2.0).sum()  # an OpenMP region here, in the parent
+        with make_executor("process", 1) as pool:
+            assert pool.submit(_torch_product).result(timeout=120) == 400_000.0
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _tiny_task(tiny: Path, out: Path) -> TrialTask:
+    return TrialTask(0, 0, 1, load_file(tiny), (), str(out))
+
+
+def test_a_runs_warnings_are_counted_not_printed(tmp_path: Path, monkeypatch: Any,
+                                                  capsys: Any) -> None:
+    import hapticframe._run as run_module
+
+    def warns(*args: Any, **kwargs: Any) -> dict[str, Any]:
+        for _ in range(5):
+            warnings.warn("lasso encoding: 1 of 1 rows did not converge", RuntimeWarning,
+                          stacklevel=1)
+        return {"centroid_error_m": 0.01}
+
+    tiny = tmp_path / "tiny.yaml"
+    tiny.write_text(TINY, encoding="utf-8")
+    monkeypatch.setattr(run_module, "run_experiment", warns)
+    row = run_trial(_tiny_task(tiny, tmp_path / "x"))
+    assert row["status"] == "ok"
+    assert row["warnings"] == {"count": 5, "messages": [
+        "RuntimeWarning: lasso encoding: 1 of 1 rows did not converge"]}
+    assert "lasso" not in capsys.readouterr().err
+
+
+def test_a_metric_nan_in_the_baseline_too_fails_nothing(tmp_path: Path,
+                                                        monkeypatch: Any) -> None:
+    import hapticframe._run as run_module
+
+    tiny = tmp_path / "tiny.yaml"
+    tiny.write_text(TINY, encoding="utf-8")
+    monkeypatch.setattr(run_module, "run_experiment", lambda *a, **k: {
+        "contact_balanced_accuracy": 0.94, "max_measured_force_n": math.nan})
+    row = run_trial(_tiny_task(tiny, tmp_path / "x"))
+    assert row["status"] == "ok" and row["non_finite"] == ["max_measured_force_n"]
+    baseline = {**row, "point": 0}
+    other = {**row, "point": 1, "metrics": {**row["metrics"], "x_count": math.nan},
+             "non_finite": ["max_measured_force_n", "x_count"]}
+    finite_in_baseline = {**baseline, "metrics": {**baseline["metrics"], "x_count": 3}}
+    _mark_nan_against_baseline([baseline, other])
+    assert baseline["status"] == other["status"] == "ok"
+    _mark_nan_against_baseline([finite_in_baseline, other])
+    assert (other["status"], other["error"]) == ("nan", "non-finite metrics: x_count")
