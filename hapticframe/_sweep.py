@@ -208,12 +208,28 @@ def _merged(varies: Sequence[Vary]) -> list[Vary]:
     return list(merged.values())
 
 
-def _warm_up(task: TrialTask | None) -> None:
-    """A process pool worker's initializer: one untimed run of ``task`` into a folder of
-    this process's own, removed after, so that the worker's first trial (the baseline's,
-    always) pays no import or first-call costs. Never raises (a failing run is a row)."""
+def _init_worker(owner_pid: int, task: TrialTask | None) -> None:
+    """A process pool worker's initializer.
+
+    The worker ends itself once the sweep's process ``owner_pid`` is gone (its parent is
+    the fork server, which outlives a killed sweep: without this, a killed sweep's workers
+    went on training for minutes). Then one untimed run of ``task`` into a folder of this
+    process's own, removed after, so that the worker's first trial (the baseline's,
+    always) pays no import or first-call costs. Never raises (a failing run is a row).
+    """
     import shutil
 
+    def watch() -> None:
+        while True:
+            time.sleep(1.0)
+            try:
+                os.kill(owner_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except OSError:  # exists, owned by another user: not ours to judge
+                pass
+
+    threading.Thread(target=watch, name="sweep-owner-watch", daemon=True).start()
     if task is None:
         return
     out = f"{task.out_dir}-{os.getpid()}"
@@ -444,8 +460,8 @@ def make_executor(kind: str = "process", workers: int | None = None,
         methods = multiprocessing.get_all_start_methods()
         context = multiprocessing.get_context("forkserver" if "forkserver" in methods
                                               else "spawn")
-        pool = ProcessPoolExecutor(max_workers=n, mp_context=context, initializer=_warm_up,
-                                   initargs=(warm_up,))
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=context,
+                                   initializer=_init_worker, initargs=(os.getpid(), warm_up))
         try:
             yield pool
         finally:
@@ -727,7 +743,10 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
 
     rows: list[dict[str, Any]] = []
     warm = None
-    if tasks and options.executor == "process":
+    # A run that trains first (run.train_from) takes a minute or more: a first-call cost
+    # is noise beside it, and warming up would train once more per worker.
+    if (tasks and options.executor == "process"
+            and not getattr(base.model.run, "train_from", None)):
         echo("each worker warms up first: one untimed run of the first point")
         warm = dataclasses.replace(tasks[0], out_dir=str(out / "warm-up"))
     if tasks:

@@ -211,7 +211,7 @@ def test_declared_knobs_are_swept(tiny: Path, tmp_path: Path, monkeypatch: Any) 
     captured: dict[str, Any] = {}
 
     def fake_gather(executor: Any, tasks: Any, workers: int, timeout_s: Any,
-                    on_row: Any) -> list[dict[str, Any]]:
+                    on_row: Any, **options: Any) -> list[dict[str, Any]]:
         captured["tasks"] = tasks
         return []
 
