@@ -6,9 +6,12 @@ seeded trials (trial ``i`` runs with ``seed + i``). By default one knob changes 
 from the file's values (plus the baseline point, the file as it is); ``grid=True`` runs
 every combination. Every trial is a :func:`~hapticframe.run_experiment` in a worker, with
 figures and the recording off, into ``DIR/points/<point>/trial-<i>/``; its ``run.json``
-records the point's values as overrides (``--set``). With the process pool, one untimed
-run of the first point warms this process up before the workers fork from it, so that
-import and first-call costs fall on no point.
+records the point's values as overrides (``--set``). With the process pool, each worker
+starts with one untimed run of the first point, so that import and first-call costs fall
+on no point. The workers start from a fork server (where the platform has one), never
+forked from this process: a parent that has run torch's OpenMP threads would leave a
+forked child waiting for ever on threads it does not have, as the perception sweep of
+issue 18 did.
 
 Each trial is measured for accuracy (every scalar of ``metrics.json``: for a search the
 object found, centroid error, Hausdorff distances, movements and EMs, object interactions,
@@ -16,9 +19,12 @@ largest force; for perception the balanced accuracies and onset errors; for a ma
 AUC and log loss, where the run reports them) and for cost (wall and CPU time of the run
 and per robot step, peak resident memory of the worker while it ran).
 
-Outputs in ``DIR``: ``sweep.json`` (every trial and point), ``sweep.md`` (a table per knob
-and the Pareto front over all points: the accuracy cost, :func:`accuracy_measure`,
-against mean wall time) and ``pareto.png`` (every point, the front highlighted).
+Outputs in ``DIR``: ``sweep.json`` (every trial and point, and the machine's load),
+``sweep.md`` (a table per knob, saying where a knob changed no accuracy metric, and the
+Pareto fronts over all points: the accuracy cost, :func:`accuracy_measure`, against mean
+wall time and against mean CPU time per run; a search point that found the object in
+fewer trials than the best is kept off them) and ``pareto.png`` (every point against wall
+time, the front highlighted).
 
 A point that fails (a value validation refuses, an exception, a non-finite metric, a
 trial past ``timeout_s``) is a row saying so, never a crash: sweeping to the extremes is
@@ -41,6 +47,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Executor, Future, wait
 from dataclasses import dataclass, field
@@ -174,8 +181,16 @@ def _declared(experiment: Any) -> list[Vary]:
     except ImportError:  # before the knobs module: read the specs' own declarations
         pairs = [(entry.id, knob) for entry in experiment.components
                  for knob in getattr(entry.registered.spec, "knobs", ())]
-    return [Vary(f"{cid}.{knob.field}", tuple(knob.sweep_values()), knob.trades)
-            for cid, knob in pairs]
+    return [Vary(f"{cid}.{knob.field}", tuple(_tidy(v) for v in knob.sweep_values()),
+                 knob.trades) for cid, knob in pairs]
+
+
+def _tidy(value: Any) -> Any:
+    """A declared range's float to 3 significant digits (0.0171, not 0.017099759466766964):
+    the labels and tables stay readable, and no knob's effect hangs on the fourth digit."""
+    if isinstance(value, float) and math.isfinite(value) and value != 0.0:
+        return float(f"{value:.3g}")
+    return value
 
 
 def _merged(varies: Sequence[Vary]) -> list[Vary]:
@@ -193,15 +208,33 @@ def _merged(varies: Sequence[Vary]) -> list[Vary]:
     return list(merged.values())
 
 
-def _warm_up(task: TrialTask) -> float:
-    """One untimed run of ``task`` here, before the pool forks, into a folder removed
-    after: the workers inherit its imports and warmed caches, so that a worker's first
-    trial (the baseline's, always) is not slower than the rest. Its wall time (s)."""
+def _init_worker(owner_pid: int, task: TrialTask | None) -> None:
+    """A process pool worker's initializer.
+
+    The worker ends itself once the sweep's process ``owner_pid`` is gone (its parent is
+    the fork server, which outlives a killed sweep: without this, a killed sweep's workers
+    went on training for minutes). Then one untimed run of ``task`` into a folder of this
+    process's own, removed after, so that the worker's first trial (the baseline's,
+    always) pays no import or first-call costs. Never raises (a failing run is a row).
+    """
     import shutil
 
-    row = run_trial(task)
-    shutil.rmtree(task.out_dir, ignore_errors=True)
-    return float(row.get("wall_time_s") or 0.0)
+    def watch() -> None:
+        while True:
+            time.sleep(1.0)
+            try:
+                os.kill(owner_pid, 0)
+            except ProcessLookupError:
+                os._exit(1)
+            except OSError:  # exists, owned by another user: not ours to judge
+                pass
+
+    threading.Thread(target=watch, name="sweep-owner-watch", daemon=True).start()
+    if task is None:
+        return
+    out = f"{task.out_dir}-{os.getpid()}"
+    run_trial(dataclasses.replace(task, out_dir=out))
+    shutil.rmtree(out, ignore_errors=True)
 
 
 def _baseline_value(experiment: Any, data: Any, path: str) -> Any:
@@ -339,7 +372,10 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
                            "run_dir": str(out)}
     reset = _reset_peak_rss()
     wall0, cpu0 = time.perf_counter(), _cpu_time_s()
-    with _alarm(task.timeout_s) as alarm:
+    # A run's warnings (a lasso capped at 10 sweeps warns every frame) are counted in its
+    # row, not printed by every worker over the sweep's progress.
+    with _alarm(task.timeout_s) as alarm, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         try:
             experiment = validate_with_overrides(
                 task.loaded, task.overrides, plugin_modules=task.plugin_modules,
@@ -356,6 +392,8 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
                                 else f"{type(exc).__name__}: {exc}")
         finally:
             alarm["armed"] = False
+    messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
+    row["warnings"] = {"count": len(caught), "messages": messages[:3]}
     row["wall_time_s"] = time.perf_counter() - wall0
     row["cpu_time_s"] = _cpu_time_s() - cpu0
     row["peak_rss_bytes"] = _peak_rss_bytes(reset)
@@ -363,12 +401,27 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
     row["steps"] = steps
     row["wall_time_per_step_s"] = row["wall_time_s"] / steps if steps else None
     row["cpu_time_per_step_s"] = row["cpu_time_s"] / steps if steps else None
-    if row["status"] == "ok":
-        bad = sorted(k for k, v in row["metrics"].items()
-                     if isinstance(v, float) and not math.isfinite(v))
-        if bad:
-            row["status"], row["error"] = "nan", f"non-finite metrics: {', '.join(bad)}"
+    row["non_finite"] = sorted(k for k, v in row["metrics"].items()
+                               if isinstance(v, float) and not math.isfinite(v))
+    _mark_nan(row, [k for k in row["non_finite"] if _is_accuracy_key(k)])
     return row
+
+
+def _mark_nan(row: dict[str, Any], keys: Sequence[str]) -> None:
+    """Make a finished row a ``nan`` row for its non-finite ``keys``."""
+    if row["status"] == "ok" and keys:
+        row["status"], row["error"] = "nan", f"non-finite metrics: {', '.join(sorted(keys))}"
+
+
+def _mark_nan_against_baseline(rows: Sequence[dict[str, Any]]) -> None:
+    """A non-finite metric that is not an accuracy (``max_measured_force_n``, say) fails a
+    trial only where the baseline reports it finite: a perception run has no force sensor,
+    so that metric is NaN in every run, the file's own included, and means nothing."""
+    finite = {k for r in rows if r["point"] == 0 and r["status"] == "ok"
+              for k, v in r["metrics"].items() if k not in r.get("non_finite", ())
+              and isinstance(v, (int, float))}
+    for row in rows:
+        _mark_nan(row, [k for k in row.get("non_finite", ()) if k in finite])
 
 
 # --- executors -------------------------------------------------------------------------------
@@ -376,20 +429,24 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def make_executor(kind: str = "process", workers: int | None = None,
-                  scheduler: str | None = None) -> Iterator[Executor]:
+                  scheduler: str | None = None,
+                  warm_up: TrialTask | None = None) -> Iterator[Executor]:
     """The executor trials run on, shut down when the block ends.
 
     Parameters
     ----------
     kind : {"process", "dask"}
-        ``process``: a local process pool (forked on Linux, so workers start without
-        importing again). ``dask``: a ``dask.distributed`` client's executor, on the cluster
-        at ``scheduler`` (``tcp://HOST:8786``) or, without one, on a ``LocalCluster`` of
-        ``workers`` single-threaded processes; a task lost with its worker is retried twice.
+        ``process``: a local process pool, its workers started by a fork server where the
+        platform has one (Linux, macOS), else spawned. ``dask``: a ``dask.distributed``
+        client's executor, on the cluster at ``scheduler`` (``tcp://HOST:8786``) or,
+        without one, on a ``LocalCluster`` of ``workers`` single-threaded processes; a task
+        lost with its worker is retried twice.
     workers : int, optional
         Processes of the local pool or cluster (default: one per CPU).
     scheduler : str, optional
         The Dask scheduler's address (``dask`` only).
+    warm_up : TrialTask, optional
+        ``process`` only: a trial each worker runs once, untimed, when it starts.
     """
     n = max(1, int(workers or os.cpu_count() or 1))
     if kind == "process":
@@ -398,9 +455,13 @@ def make_executor(kind: str = "process", workers: int | None = None,
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
-        context = (multiprocessing.get_context("fork") if sys.platform.startswith("linux")
-                   else multiprocessing.get_context())
-        pool = ProcessPoolExecutor(max_workers=n, mp_context=context)
+        # Not "fork": a child forked from a process that has run torch (OpenMP) or other
+        # thread pools can block for ever on a lock one of those threads held.
+        methods = multiprocessing.get_all_start_methods()
+        context = multiprocessing.get_context("forkserver" if "forkserver" in methods
+                                              else "spawn")
+        pool = ProcessPoolExecutor(max_workers=n, mp_context=context,
+                                   initializer=_init_worker, initargs=(os.getpid(), warm_up))
         try:
             yield pool
         finally:
@@ -443,9 +504,12 @@ def _shutdown_pool(pool: Any, patience_s: float = 5.0) -> None:
 
 def _gather(executor: Executor, tasks: Sequence[TrialTask], workers: int,
             timeout_s: float | None,
-            on_row: Callable[[dict[str, Any], int], None]) -> list[dict[str, Any]]:
+            on_row: Callable[[dict[str, Any], int], None],
+            warmed: bool = False) -> list[dict[str, Any]]:
     """Run ``tasks`` on ``executor``; a trial that outlives its limit (and the grace the
-    worker's own alarm has) is a ``timeout`` row. Rows come back in task order."""
+    worker's own alarm has) is a ``timeout`` row. Rows come back in task order. ``warmed``:
+    each worker runs a warm-up trial (bounded by ``timeout_s`` too) before its first task,
+    whose limit is extended by as much."""
     futures: dict[Future[dict[str, Any]], int] = {
         executor.submit(run_trial, task): i for i, task in enumerate(tasks)}
     rows: list[dict[str, Any] | None] = [None] * len(tasks)
@@ -469,7 +533,9 @@ def _gather(executor: Executor, tasks: Sequence[TrialTask], workers: int,
         if timeout_s is None:
             continue
         limit = timeout_s + max(_GRACE_S, 0.5 * timeout_s)
-        for future in [f for f in pending if time.monotonic() - started.get(f, now) > limit]:
+        first = set(order[:workers]) if warmed else set()
+        for future in [f for f in pending if time.monotonic() - started.get(f, now)
+                       > limit + (timeout_s if f in first else 0.0)]:
             future.cancel()
             pending.discard(future)
             index = futures[future]
@@ -499,13 +565,18 @@ COST_KEYS = ("wall_time_s", "cpu_time_s", "wall_time_per_step_s", "cpu_time_per_
 
 def accuracy_measure(keys: Sequence[str]) -> tuple[str, str, Callable[[float], float]] | None:
     """The accuracy cost a sweep's Pareto front uses, from the metrics its runs report:
-    (metric, description, metric mean to cost; lower cost is better)."""
+    (metric, description, metric mean to cost; lower cost is better).
+
+    A classifier's balanced accuracy comes first: a perception run that also maps reports
+    a centroid error too, but what its knobs trade is the contact-state accuracy (the
+    example's belief-map centroid is within a millimetre whatever the classifier does).
+    """
     keys = list(keys)
-    if "centroid_error_m" in keys:
-        return "centroid_error_m", "mean centroid error (m)", float
     for key in keys:
         if key.endswith("_balanced_accuracy"):
             return key, f"1 - mean {key}", lambda v: 1.0 - v
+    if "centroid_error_m" in keys:
+        return "centroid_error_m", "mean centroid error (m)", float
     for key in keys:
         if "log_loss" in key:
             return key, f"mean {key}", float
@@ -545,6 +616,9 @@ def _summarise_point(point: Point, rows: Sequence[Mapping[str, Any]]) -> dict[st
     return {"label": point.label, "values": [{"path": p, "value": v} for p, v in point.values],
             "status": status, "trials": len(rows), "trials_ok": len(ok),
             "errors": sorted({str(r["error"]) for r in failed}),
+            "warnings": sum(int((r.get("warnings") or {}).get("count", 0)) for r in rows),
+            "warning_messages": list(dict.fromkeys(
+                m for r in rows for m in (r.get("warnings") or {}).get("messages", ())))[:3],
             "metrics": means, "metrics_std": stds, "cost": cost}
 
 
@@ -603,6 +677,7 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
         ``--vary`` path names nothing: before any trial runs (exit status 2).
     """
     started = time.perf_counter()
+    load_before = _load_average()
     echo = options.echo
     if options.trials < 1:
         raise UsageError("--trials must be at least 1")
@@ -667,13 +742,18 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
              + f" ({min(running, workers)} running)")
 
     rows: list[dict[str, Any]] = []
-    warm_up_s = None
-    if tasks and options.executor == "process":
-        echo("warming up: one untimed run of the first point")
-        warm_up_s = _warm_up(dataclasses.replace(tasks[0], out_dir=str(out / "warm-up")))
+    warm = None
+    # A run that trains first (run.train_from) takes a minute or more: a first-call cost
+    # is noise beside it, and warming up would train once more per worker.
+    if (tasks and options.executor == "process"
+            and not getattr(base.model.run, "train_from", None)):
+        echo("each worker warms up first: one untimed run of the first point")
+        warm = dataclasses.replace(tasks[0], out_dir=str(out / "warm-up"))
     if tasks:
-        with make_executor(options.executor, workers, options.scheduler) as executor:
-            rows = _gather(executor, tasks, workers, options.timeout_s, on_row)
+        with make_executor(options.executor, workers, options.scheduler, warm) as executor:
+            rows = _gather(executor, tasks, workers, options.timeout_s, on_row,
+                           warmed=warm is not None)
+        _mark_nan_against_baseline(rows)
     summaries = []
     for index, point in enumerate(points):
         summary = _summarise_point(point, [r for r in rows if r["point"] == index])
@@ -699,12 +779,14 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
         "accuracy": None if measure is None else {"metric": measure[0],
                                                    "description": measure[1]},
         "front": [s["label"] for s in summaries if s.get("front")],
+        "front_cpu": [s["label"] for s in summaries if s.get("front_cpu")],
         "points": summaries,
         "runs": rows,
-        "warm_up_wall_time_s": warm_up_s,
+        "warm_up": warm is not None,
         "wall_time_s": time.perf_counter() - started,
         "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+                    "python": platform.python_version(),
+                    "load_average_1min": {"start": load_before, "end": _load_average()}},
     }
     result = _json_ready(result)
     from ._results import atomic_write
@@ -727,23 +809,74 @@ def _brief(metrics: Mapping[str, Any]) -> str:
     return "ok " + ", ".join(parts) if parts else "ok"
 
 
+#: The time a front weighs accuracy against: ``front`` (mean wall time per run) and
+#: ``front_cpu`` (mean CPU time per run: on a busy machine wall time also counts the wait
+#: for a core, CPU time does not).
+_FRONTS = (("front", "wall_time_s"), ("front_cpu", "cpu_time_s"))
+
+
 def _mark_front(summaries: list[dict[str, Any]],
                 measure: tuple[str, str, Callable[[float], float]] | None) -> None:
-    candidates: list[tuple[int, tuple[float, float]]] = []
+    """Mark the points on each front (see :data:`_FRONTS`).
+
+    A search point that found the object in a smaller share of its trials than the best
+    points did is kept off the fronts (``off_front`` says why): a search that misses the
+    object ends early and reports a centroid error for whatever blob it has, so it would
+    otherwise sit on the front as the fastest setting.
+    """
+    eligible: list[int] = []
     for i, summary in enumerate(summaries):
-        summary["front"] = False
         summary["accuracy_cost"] = None
+        summary["off_front"] = None
+        for key, _ in _FRONTS:
+            summary[key] = False
         if measure is None or summary["status"] not in ("ok",):
             continue
         value = summary["metrics"].get(measure[0])
-        wall = summary["cost"].get("wall_time_s")
-        if value is None or wall is None:
+        if value is None:
             continue
-        cost = measure[2](value)
-        summary["accuracy_cost"] = cost
-        candidates.append((i, (wall, cost)))
-    for k in pareto_front([c[1] for c in candidates]):
-        summaries[candidates[k][0]]["front"] = True
+        summary["accuracy_cost"] = measure[2](value)
+        eligible.append(i)
+    shares = {i: summaries[i]["metrics"].get("object_found") for i in eligible}
+    known = [v for v in shares.values() if isinstance(v, (int, float))]
+    if known:
+        best = max(known)
+        for i, share in shares.items():
+            if isinstance(share, (int, float)) and share < best - 1e-9:
+                summaries[i]["off_front"] = (f"found the object in {share:.0%} of its trials, "
+                                             f"the best points in {best:.0%}")
+        eligible = [i for i in eligible if summaries[i]["off_front"] is None]
+    for key, cost_key in _FRONTS:
+        candidates = [(i, (summaries[i]["cost"].get(cost_key), summaries[i]["accuracy_cost"]))
+                      for i in eligible if summaries[i]["cost"].get(cost_key) is not None]
+        for k in pareto_front([c[1] for c in candidates]):
+            summaries[candidates[k][0]][key] = True
+
+
+def _load_average() -> float | None:
+    """The machine's 1-minute load average (None where the platform has none)."""
+    try:
+        return float(os.getloadavg()[0])
+    except (AttributeError, OSError):
+        return None
+
+
+def _unchanged(points: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> bool:
+    """Whether every finished point reports the same accuracy (``keys``) as the first, the
+    baseline: the knob bought nothing at the values and seeds tried."""
+    done = [p for p in points if p["status"] == "ok"]
+    if len(done) < 2 or not keys:
+        return False
+    first = done[0]["metrics"]
+    for p in done[1:]:
+        for key in keys:
+            a, b = first.get(key), p["metrics"].get(key)
+            if a is None and b is None:
+                continue
+            if a is None or b is None or not math.isclose(float(a), float(b), rel_tol=1e-9,
+                                                          abs_tol=1e-12):
+                return False
+    return True
 
 
 def _json_ready(value: Any) -> Any:
@@ -771,13 +904,23 @@ def _fmt(value: Any) -> str:
     return str(value)
 
 
+def _is_onset_key(key: str) -> bool:
+    return "onset" in key or (key.startswith(("first_", "last_")) and key.endswith("_error_s"))
+
+
+def _is_accuracy_key(key: str) -> bool:
+    """Whether a metric is one of the accuracies the tables show (a NaN there is a
+    numerical failure of the trial; elsewhere, see :func:`_mark_nan_against_baseline`)."""
+    return (key in SEARCH_KEYS or key.endswith("_balanced_accuracy") or _is_onset_key(key)
+            or "auc" in key or "log_loss" in key)
+
+
 def _table_keys(points: Sequence[Mapping[str, Any]]) -> list[str]:
     keys = sorted({k for p in points for k in p["metrics"]})
     shown_keys = [k for k in SEARCH_KEYS if k in keys]
-    onset = [k for k in keys if "onset" in k
-             or (k.startswith(("first_", "last_")) and k.endswith("_error_s"))]
     shown_keys += [k for k in keys if k.endswith("_balanced_accuracy")]
-    shown_keys += onset + [k for k in keys if "auc" in k or "log_loss" in k]
+    shown_keys += [k for k in keys if _is_onset_key(k)]
+    shown_keys += [k for k in keys if "auc" in k or "log_loss" in k]
     return list(dict.fromkeys(shown_keys))
 
 
@@ -814,6 +957,13 @@ def render_markdown(result: Mapping[str, Any]) -> str:
     if result.get("overrides"):
         lines += ["Every point with: " + ", ".join(f"`--set {o}`" for o in result["overrides"]),
                   ""]
+    machine = result.get("machine") or {}
+    load = machine.get("load_average_1min") or {}
+    if load.get("start") is not None:
+        lines += [f"Machine load (1-minute average) {_fmt(load['start'])} at the start and "
+                  f"{_fmt(load.get('end'))} at the end, on {machine.get('cpu_count')} CPUs: "
+                  "where it exceeds the CPUs, wall times include waiting for a core, so "
+                  "read the CPU-time front below.", ""]
     baseline = points[0]
     for knob in result["knobs"]:
         path = knob["path"]
@@ -827,26 +977,50 @@ def render_markdown(result: Mapping[str, Any]) -> str:
         else:
             chosen = [baseline, *[p for p in points if [v["path"] for v in p["values"]] == [path]]]
         lines += [*_rows(chosen, keys), ""]
+        if result["mode"] != "grid" and _unchanged(chosen, keys):
+            lines += ["No accuracy metric changed at any value tried: at these seeds this "
+                      "knob buys nothing here.", ""]
     lines += ["## Pareto front", ""]
     if accuracy is None:
         lines += ["The runs report no accuracy metric to weigh against time.", ""]
     else:
-        front = [p for p in points if p.get("front")]
+        found = any("object_found" in p["metrics"] for p in points)
         lines += [f"Accuracy: {accuracy['description']} (lower is better; a mean over the "
                   "trials that report it: a search that estimates no centroid has none, so "
                   "read it beside object_found, the share of trials that found the object) "
-                  "against mean wall time per run; a point is on the front when no other "
-                  "point is both faster and more accurate.", "",
-                  "| point | accuracy cost | wall s |", "|---|---|---|"]
-        lines += [f"| {p['label']} | {_fmt(p['accuracy_cost'])} | "
-                  f"{_fmt(p['cost'].get('wall_time_s'))} |" for p in front]
-        lines.append("")
+                  "against mean time per run; a point is on the front when no other point "
+                  "is both faster and more accurate."
+                  + (" A point that found the object in fewer of its trials than the best "
+                     "points is kept off the fronts." if found else ""), ""]
+        for key, cost_key, what in (("front", "wall_time_s", "wall time"),
+                                    ("front_cpu", "cpu_time_s", "CPU time")):
+            front = sorted((p for p in points if p.get(key)),
+                           key=lambda p: p["cost"].get(cost_key) or 0.0)
+            lines += [f"Against {what}:", "",
+                      "| point | accuracy cost | found (share) | wall s | CPU s |",
+                      "|---|---|---|---|---|"]
+            lines += [f"| {p['label']} | {_fmt(p['accuracy_cost'])} | "
+                      f"{_fmt(p['metrics'].get('object_found'))} | "
+                      f"{_fmt(p['cost'].get('wall_time_s'))} | "
+                      f"{_fmt(p['cost'].get('cpu_time_s'))} |" for p in front]
+            lines.append("")
+        off = [p for p in points if p.get("off_front")]
+        if off:
+            lines += ["Kept off the fronts:", ""]
+            lines += [f"- {p['label']}: {p['off_front']}" for p in off]
+            lines.append("")
     failed = [p for p in points if p["status"] != "ok"]
     if failed:
         lines += ["## Points that failed", ""]
         for p in failed:
             errors = "; ".join(e.replace("\n", " ") for e in p["errors"]) or p["status"]
             lines.append(f"- {p['label']}: {p['status']}: {errors[:500]}")
+        lines.append("")
+    warned = [p for p in points if p.get("warnings")]
+    if warned:
+        lines += ["## Points whose runs warned", ""]
+        lines += [f"- {p['label']}: {p['warnings']} warning(s), e.g. "
+                  f"{'; '.join(p.get('warning_messages') or [])[:300]}" for p in warned]
         lines.append("")
     return "\n".join(lines)
 
@@ -865,7 +1039,19 @@ def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
     plotted = [p for p in result["points"] if p.get("accuracy_cost") is not None]
     front = sorted((p for p in plotted if p.get("front")),
                    key=lambda p: p["cost"]["wall_time_s"])
-    others = [p for p in plotted if not p.get("front")]
+    off = [p for p in plotted if p.get("off_front")]
+    others = [p for p in plotted if not p.get("front") and not p.get("off_front")]
+    # A search that missed the object reports a cost far above the rest (18 cm against
+    # 1-3 cm in the README's sweep) and would squash the front into the axis: such points
+    # are drawn at the top edge, their values in sweep.md.
+    kept = [p["accuracy_cost"] for p in plotted if not p.get("off_front")]
+    top = max(kept) * 1.15 if kept and max(kept) > 0 else None
+    y = {id(p): (min(p["accuracy_cost"], top) if top is not None and p.get("off_front")
+                 else p["accuracy_cost"]) for p in plotted}
+    if off:
+        ax.scatter([p["cost"]["wall_time_s"] for p in off], [y[id(p)] for p in off],
+                   color="tab:gray", marker="x",
+                   label="missed the object in some trials (at most the top edge)")
     if others:
         ax.scatter([p["cost"]["wall_time_s"] for p in others],
                    [p["accuracy_cost"] for p in others], color="tab:gray", marker="o",
@@ -878,7 +1064,7 @@ def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
         ax.scatter([base["cost"]["wall_time_s"]], [base["accuracy_cost"]], s=160,
                    facecolors="none", edgecolors="black", label="baseline (the file)")
     for p in plotted:
-        ax.annotate(p["label"], (p["cost"]["wall_time_s"], p["accuracy_cost"]), fontsize=6,
+        ax.annotate(p["label"], (p["cost"]["wall_time_s"], y[id(p)]), fontsize=6,
                     xytext=(3, 3), textcoords="offset points")
     failed = sum(1 for p in result["points"] if p.get("accuracy_cost") is None)
     ax.set_xlabel("mean wall time per run (s)")

@@ -90,10 +90,13 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
         if view.type != "sparse-coding":
             continue
         for modality in set(config.modalities) & set(view.config.modalities):
+            if getattr(config, f"{modality}_code_size") is None:
+                continue  # taken from these atoms at build time
             atoms = getattr(view.config, f"{modality}_atoms")
             if atoms != config.code_size(modality):
                 yield Finding(
                     f"{modality}_code_size is {config.code_size(modality)} but "
-                    f"{view.id!r} codes {modality} with {atoms} atoms",
+                    f"{view.id!r} codes {modality} with {atoms} atoms: remove "
+                    f"{modality}_code_size (it then follows the atoms) or make them equal",
                     field=f"{modality}_code_size",
                 )

@@ -8,7 +8,8 @@ configured channels flattened per frame.
 
 from __future__ import annotations
 
-from typing import Literal
+from collections.abc import Mapping
+from typing import Literal, TypeVar
 
 from pydantic import Field, field_validator
 
@@ -49,6 +50,9 @@ def amplitude_channel(modality: str) -> str:
     return f"{modality}_amplitude"
 
 
+_R = TypeVar("_R", bound="RecurrentConfig")
+
+
 class RecurrentConfig(PluginConfig):
     """Settings shared by the recurrent classifiers: inputs, training and artifacts."""
 
@@ -57,16 +61,21 @@ class RecurrentConfig(PluginConfig):
         description="Modalities the network is built for; their code channels "
         "(<modality>_code) are read. A configured modality missing at run time is zero-filled.",
     )
-    pac_code_size: int = Field(
-        200, ge=1, le=10_000,
-        description="Length of pac_code (thesis: 200 atoms).",
+    pac_code_size: int | None = Field(
+        None, ge=1, le=10_000,
+        description="Length of pac_code; None: the pac atoms of the sparse-coding input, "
+        "taken at build time (thesis: 200 atoms), so that a sweep of its pac_atoms needs no "
+        "matching change here.",
     )
-    pdc_code_size: int = Field(
-        100, ge=1, le=10_000,
-        description="Length of pdc_code (thesis: 100 atoms).",
+    pdc_code_size: int | None = Field(
+        None, ge=1, le=10_000,
+        description="Length of pdc_code; None: the pdc atoms of the sparse-coding input "
+        "(thesis: 100 atoms).",
     )
-    electrodes_code_size: int = Field(
-        100, ge=1, le=10_000, description="Length of electrodes_code (thesis: 100 atoms)."
+    electrodes_code_size: int | None = Field(
+        None, ge=1, le=10_000,
+        description="Length of electrodes_code; None: the electrode atoms of the "
+        "sparse-coding input (thesis: 100 atoms).",
     )
     amplitude_inputs: bool = Field(
         False,
@@ -179,8 +188,17 @@ class RecurrentConfig(PluginConfig):
         return tuple(m for m in MODALITIES if m in value)
 
     def code_size(self, modality: str) -> int:
-        """Length of the code vector of ``modality``."""
-        return int(getattr(self, f"{modality}_code_size"))
+        """Length of the code vector of ``modality`` (the thesis's when the field is None and
+        no input has resolved it: see :meth:`with_code_sizes`)."""
+        size = getattr(self, f"{modality}_code_size")
+        return DEFAULT_CODE_SIZES[modality] if size is None else int(size)
+
+    def with_code_sizes(self: _R, sizes: Mapping[str, int]) -> _R:
+        """This config with each code size left None set from ``sizes`` (modality → atoms
+        its input codes with); sizes set in the file are kept."""
+        update = {f"{m}_code_size": int(n) for m, n in sizes.items()
+                  if m in MODALITIES and getattr(self, f"{m}_code_size") is None}
+        return self.model_copy(update=update) if update else self
 
     @field_validator("amplitude_modalities")
     @classmethod

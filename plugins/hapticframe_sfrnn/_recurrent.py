@@ -60,7 +60,15 @@ from hapticframe import atomic_path, atomic_write
 from hapticframe.artifacts import read_json_object, schema_error
 from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
 
-from ._config import CLASSES, FusionRNNConfig, RecurrentConfig, SFRNNConfig, amplitude_channel
+from ._config import (
+    CLASSES,
+    MODALITIES,
+    FusionRNNConfig,
+    RecurrentConfig,
+    SFRNNConfig,
+    amplitude_channel,
+    code_channel,
+)
 from ._functional import (
     INPUT_CLIP,
     FillReport,
@@ -102,7 +110,7 @@ class RecurrentClassifier(Classifier):
         self.feature_settings: dict[str, Any] = self._input_settings(context)
         self.fill_report = FillReport()
         self._warned: set[str] = set()
-        self._build(config)
+        self._build(config.with_code_sizes(self._input_code_sizes(context)))
         if config.model_dir is not None:
             self.load(config.model_dir)
         # One step on zeros now, so that loading (or compiling) the numba kernel happens at
@@ -138,6 +146,22 @@ class RecurrentClassifier(Classifier):
         self._state: list[np.ndarray] | None = None
         # Built from the network's weights on first use (see update).
         self._step: StreamingStep | None = None
+
+    @staticmethod
+    def _input_code_sizes(context: BuildContext) -> dict[str, int]:
+        """The code length of each modality an input emits (``<modality>_code`` of shape
+        ``(n,)``): what a code size left None in the config becomes."""
+        sizes: dict[str, int] = {}
+        for component in context.inputs.values():
+            channels = getattr(component, "output_channels", None)
+            if not isinstance(channels, Mapping):
+                continue
+            for m in MODALITIES:
+                info = channels.get(code_channel(m))
+                shape = getattr(info, "shape", None)
+                if m not in sizes and isinstance(shape, tuple) and len(shape) == 1:
+                    sizes[m] = int(shape[0])
+        return sizes
 
     @staticmethod
     def _input_settings(context: BuildContext) -> dict[str, Any]:

@@ -80,6 +80,9 @@ def test_the_accuracy_measure_follows_the_metrics_reported() -> None:
     assert measure is not None and measure[0] == "centroid_error_m" and measure[2](0.1) == 0.1
     measure = accuracy_measure(["contact_balanced_accuracy", "first_contact_error_s"])
     assert measure is not None and measure[2](0.75) == pytest.approx(0.25)
+    # A perception run that also maps: the classifier's accuracy is what is traded.
+    measure = accuracy_measure(["centroid_error_m", "contact_balanced_accuracy"])
+    assert measure is not None and measure[0] == "contact_balanced_accuracy"
     measure = accuracy_measure(["map_auc"])
     assert measure is not None and measure[2](0.9) == pytest.approx(0.1)
     assert accuracy_measure(["movements"]) is None
@@ -208,7 +211,7 @@ def test_declared_knobs_are_swept(tiny: Path, tmp_path: Path, monkeypatch: Any) 
     captured: dict[str, Any] = {}
 
     def fake_gather(executor: Any, tasks: Any, workers: int, timeout_s: Any,
-                    on_row: Any) -> list[dict[str, Any]]:
+                    on_row: Any, **options: Any) -> list[dict[str, Any]]:
         captured["tasks"] = tasks
         return []
 
@@ -242,7 +245,7 @@ def test_markdown_lists_a_grid_point_under_each_of_its_knobs() -> None:
             "metric": "centroid_error_m", "description": "mean centroid error (m)"},
         "knobs": [{"path": "a", "values": [1], "baseline": 0},
                   {"path": "b", "values": [2], "baseline": 0}]})
-    assert text.count("| **a=1, b=2** |") == 2 and "| a=1, b=2 | 0.01 | 1 |" in text
+    assert text.count("| **a=1, b=2** |") == 2 and "| a=1, b=2 | 0.01 | – | 1 | – |" in text
 
 
 @pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
