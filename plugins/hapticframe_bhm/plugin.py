@@ -33,8 +33,6 @@ def hapticframe_maps() -> Iterator[MapSpec]:
             Knob("std_method", "'surrogate': a deterministic std about 100 times cheaper on "
                  "a large grid than the sampled one of Eq. 3.8",
                  values=("surrogate", "monte_carlo")),
-            Knob("monte_carlo_samples", "more weight samples (std_method monte_carlo): a "
-                 "steadier std for the planner, linear in query time", values=(20, 50, 100, 400)),
         ),
     )
 

@@ -22,9 +22,6 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
             Knob("control_rate_hz", "more control steps per second: finer force and contact "
                  "timing, more steps (classifier and safety work) per movement",
                  values=(50.0, 100.0, 200.0)),
-            Knob("sector_radial_samples", "more samples per ray when locating objects in the "
-                 "failure zone: smoother simulated jamming, cost per step",
-                 values=(10, 20, 40, 80)),
             Knob("sector_angular_samples", "more rays across the failure zone: objects off the "
                  "axis met truer, cost per step", values=(7, 11, 21, 41)),
         ),

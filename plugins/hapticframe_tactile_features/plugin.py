@@ -65,8 +65,9 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         consumes=dict(_FEATURE_TENSORS),
         sample_rate_hz=100.0,
         check_config={"pac_atoms": 40, "pdc_atoms": 20, "electrodes_atoms": 20},
-        # The atoms change the code sizes a classifier reads (its <modality>_code_size must
-        # follow) and need dictionaries trained for them.
+        # The atoms change the code sizes a classifier reads (an sf-rnn or fusion-rnn takes
+        # them from its coder when its <modality>_code_size is left null) and need
+        # dictionaries trained for them: a point of a sweep trains its own.
         knobs=(
             Knob("pac_atoms", "a larger pac dictionary: richer codes, lasso and fit time "
                  "growing with the atoms", values=(50, 100, 200, 400)),
