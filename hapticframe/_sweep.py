@@ -1063,9 +1063,14 @@ def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
     if base.get("accuracy_cost") is not None:
         ax.scatter([base["cost"]["wall_time_s"]], [base["accuracy_cost"]], s=160,
                    facecolors="none", edgecolors="black", label="baseline (the file)")
+    times = [p["cost"]["wall_time_s"] for p in plotted]
+    middle = (min(times) + max(times)) / 2 if times else 0.0
     for p in plotted:
+        # Labels point inwards, so that those of the rightmost points are not cut off.
+        right = p["cost"]["wall_time_s"] > middle
         ax.annotate(p["label"], (p["cost"]["wall_time_s"], y[id(p)]), fontsize=6,
-                    xytext=(3, 3), textcoords="offset points")
+                    xytext=(-3 if right else 3, 3), textcoords="offset points",
+                    ha="right" if right else "left")
     failed = sum(1 for p in result["points"] if p.get("accuracy_cost") is None)
     ax.set_xlabel("mean wall time per run (s)")
     ax.set_ylabel(accuracy["description"] if accuracy else "no accuracy metric")
