@@ -152,6 +152,10 @@ class TwoPhaseCoverage(LinePlanner):
         self.current_bounds: Bounds = self.search_bounds
         self.interaction_points: list[FloatArray] = []
         self.met_from_deg: list[float] = []
+        #: Stop points and approach directions of movements that stopped short and stayed free.
+        self.probe_points: list[FloatArray] = []
+        self.probe_from_deg: list[float] = []
+        self._probe_pending = False
         self.centroid_m: FloatArray | None = None
         self.last_uncertainty: float | None = None
         self._proposed = 0
@@ -170,6 +174,9 @@ class TwoPhaseCoverage(LinePlanner):
         self.current_bounds = self.search_bounds
         self.interaction_points = []
         self.met_from_deg = []
+        self.probe_points = []
+        self.probe_from_deg = []
+        self._probe_pending = False
         self.centroid_m = None
         self._phase2_proposed = 0
 
@@ -210,13 +217,21 @@ class TwoPhaseCoverage(LinePlanner):
             self.interaction_points.append(self.stop_point(result))
             # Seen from the object, it was met from where the movement came from.
             self.met_from_deg.append((math.degrees(result.movement.heading_rad) + 180.0) % 360.0)
+        elif self._probe_pending:
+            # Stopped short and stayed free: that side was approached without a touch.
+            self.probe_points.append(self.stop_point(result))
+            self.probe_from_deg.append(
+                (math.degrees(result.movement.heading_rad) + 180.0) % 360.0)
+        self._probe_pending = False
         if self._phase != "phase1":
             return
         if self._awaiting_reverse:
             self._awaiting_reverse = False
             self._phase = "phase2"
-        elif interacted:
+        elif interacted and self.config.phase1_reverse:
             self._reverse_of = result.movement
+        elif interacted:
+            self._phase = "phase2"
 
     def _finish(self) -> None:
         self._phase = "done"
@@ -341,11 +356,38 @@ class TwoPhaseCoverage(LinePlanner):
                 self._object_done()  # no way in from here that misses a found object
                 return None
             start, end = parts[0]
+        label = f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}"
+        if c.stop_short_m is not None and len(self.interaction_points) >= c.stop_short_after:
+            short = self._stop_short_end(start, end)
+            if short is not None:
+                end = short
+                self._probe_pending = True
+                label += ", stopping short"
         self._phase2_proposed += 1
-        return self.make_movement(
-            start, end, "phase2",
-            f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}",
-        )
+        return self.make_movement(start, end, "phase2", label)
+
+    def _stop_short_end(self, start: FloatArray, end: FloatArray) -> FloatArray | None:
+        """Where a line from ``start`` must end to stay ``stop_short_m`` from the outline
+        estimate; None when it never comes that near, no outline is known, or the line
+        starts too near to be worth raking (it then rakes through)."""
+        c = self.config
+        assert c.stop_short_m is not None  # the caller checks
+        grid = self._map_grid()
+        if grid is None:
+            return None
+        centre = self._known_centroid()
+        outline = main_outline(*grid, c.centroid_level, near_m=centre)
+        if outline is None or not inside_or_near(centre, [outline], 0.0)[0]:
+            return None  # no curve around this object's estimate
+        count = max(2, math.ceil(float(np.linalg.norm(end - start)) / c.score_step_m) + 1)
+        points = start + np.linspace(0.0, 1.0, count)[:, None] * (end - start)
+        near = inside_or_near(points, [outline], c.stop_short_m)
+        if not near.any():
+            return None
+        first = int(np.argmax(near))
+        if first == 0 or float(np.linalg.norm(points[first - 1] - start)) < c.min_segment_m:
+            return None
+        return np.asarray(points[first - 1], dtype=np.float64)
 
     def phase_metrics(self) -> dict[str, int]:
         """Movements per phase and, when several objects are sought, how many were found."""
@@ -373,10 +415,12 @@ class TwoPhaseCoverage(LinePlanner):
 
     def _met_from(self) -> list[float]:
         """Directions (degrees) the object was met from, seen from the centroid estimate."""
+        headings = [*self.met_from_deg, *self.probe_from_deg]
         if self.config.met_from == "heading" or self.centroid_m is None:
-            return list(self.met_from_deg)
+            return headings
         out = []
-        for stop, heading in zip(self.interaction_points, self.met_from_deg, strict=True):
+        stops = [*self.interaction_points, *self.probe_points]
+        for stop, heading in zip(stops, headings, strict=True):
             offset = np.asarray(stop) - self.centroid_m
             if float(np.hypot(*offset)) < 1e-9:
                 out.append(heading)
