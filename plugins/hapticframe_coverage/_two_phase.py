@@ -244,18 +244,7 @@ class TwoPhaseCoverage(LinePlanner):
         if limit is not None and len(self.found_centroids) >= limit:
             self._finish()  # no outline needed: nothing more is raked
             return
-        outline = None
-        grid = self._map_grid()
-        if grid is not None:
-            outline = main_outline(*grid, self.config.centroid_level, near_m=centre)
-            if outline is not None and not inside_or_near(centre, [outline], 0.0)[0]:
-                outline = None  # the curve around another blob, not this object
-        if outline is None:
-            reach = max([0.03, *(float(np.linalg.norm(p - centre))
-                                 for p in self.interaction_points)])
-            angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
-            outline = centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
-        self.found_outlines.append(np.asarray(outline, dtype=np.float64))
+        self.found_outlines.append(self._outline_estimate(centre, (self.config.centroid_level,)))
         self._start_next_object()
 
     def _free_parts(self, start: FloatArray, end: FloatArray
@@ -358,36 +347,58 @@ class TwoPhaseCoverage(LinePlanner):
             start, end = parts[0]
         label = f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}"
         if c.stop_short_m is not None and len(self.interaction_points) >= c.stop_short_after:
-            short = self._stop_short_end(start, end)
+            short = self._stop_short(start, end)
             if short is not None:
-                end = short
+                start, end = short
                 self._probe_pending = True
                 label += ", stopping short"
         self._phase2_proposed += 1
         return self.make_movement(start, end, "phase2", label)
 
-    def _stop_short_end(self, start: FloatArray, end: FloatArray) -> FloatArray | None:
-        """Where a line from ``start`` must end to stay ``stop_short_m`` from the outline
-        estimate; None when it never comes that near, no outline is known, or the line
-        starts too near to be worth raking (it then rakes through)."""
+    def _outline_estimate(self, centre: FloatArray, levels: tuple[float, ...]) -> FloatArray:
+        """The object's outline: the map's level curve around ``centre`` at the first of
+        ``levels`` that has one, else a disc through the interaction points (3 cm at least)."""
+        grid = self._map_grid()
+        if grid is not None:
+            for level in levels:
+                outline = main_outline(*grid, level, near_m=centre)
+                # A curve not around the estimate is another blob's, not this object's.
+                if outline is not None and inside_or_near(centre, [outline], 0.0)[0]:
+                    return np.asarray(outline, dtype=np.float64)
+        reach = max([0.03, *(float(np.linalg.norm(p - centre)) for p in self.interaction_points)])
+        angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
+        return centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def _stop_short(self, start: FloatArray, end: FloatArray
+                    ) -> tuple[FloatArray, FloatArray] | None:
+        """The part of a line that stays ``stop_short_m`` from the outline estimate (the
+        ``centroid_level`` curve, else a lower one as for the centroid, else a disc through
+        the interaction points), at least ``min_segment_m`` long (its start moved back
+        along the line when needed); None when the line never comes that near or no such
+        part fits in the search region (it then rakes through)."""
         c = self.config
         assert c.stop_short_m is not None  # the caller checks
-        grid = self._map_grid()
-        if grid is None:
-            return None
-        centre = self._known_centroid()
-        outline = main_outline(*grid, c.centroid_level, near_m=centre)
-        if outline is None or not inside_or_near(centre, [outline], 0.0)[0]:
-            return None  # no curve around this object's estimate
+        levels = (c.centroid_level, *(v for v in _FALLBACK_LEVELS if v < c.centroid_level))
+        outline = self._outline_estimate(self._known_centroid(), levels)
         count = max(2, math.ceil(float(np.linalg.norm(end - start)) / c.score_step_m) + 1)
         points = start + np.linspace(0.0, 1.0, count)[:, None] * (end - start)
         near = inside_or_near(points, [outline], c.stop_short_m)
         if not near.any():
             return None
         first = int(np.argmax(near))
-        if first == 0 or float(np.linalg.norm(points[first - 1] - start)) < c.min_segment_m:
+        stop = np.asarray(points[max(first - 1, 0)], dtype=np.float64)
+        if first > 0 and float(np.linalg.norm(stop - start)) >= c.min_segment_m:
+            return start, stop
+        # Too short from the region's edge (a small phase-2 region, a wide margin): start
+        # farther back along the same line, inside the search region.
+        u = (end - start) / float(np.linalg.norm(end - start))
+        back = math.degrees(math.atan2(-u[1], -u[0]))
+        room = float(ray_exit_distance(stop, [back], self.search_bounds)[0])
+        if room < c.min_segment_m:
             return None
-        return np.asarray(points[first - 1], dtype=np.float64)
+        if inside_or_near(stop, [outline], c.stop_short_m - c.score_step_m)[0]:
+            return None  # the line's start itself is too near the object
+        return stop - c.min_segment_m * u, stop
 
     def phase_metrics(self) -> dict[str, int]:
         """Movements per phase and, when several objects are sought, how many were found."""

@@ -111,6 +111,7 @@ def test_stopping_short_keeps_off_the_object_and_still_stops() -> None:
         gap = np.linalg.norm(r.movement.end_m - CENTRE) - RADIUS
         assert 0.035 <= gap <= 0.05
         assert not r.halted
+        assert r.movement.length_m >= p.config.min_segment_m - 1e-9
     assert touches(results) == 2  # the phase-1 pair only
     assert len(p.probe_from_deg) == len(short)
     # The probes close the angular gap: the search ends well before the phase-2 cap.
@@ -135,3 +136,17 @@ def test_stop_short_after_counts_interactions() -> None:
 def test_stop_short_fields_are_validated(field: str, value: float) -> None:
     with pytest.raises(ValidationError, match=field):
         TwoPhaseCoverageConfig(**{field: value})
+
+
+def test_a_probe_from_a_small_region_starts_farther_back() -> None:
+    # The 26 cm phase-2 square leaves 13 - 4 - 8 = 1 cm before an 8 cm margin: the probe
+    # starts back along its line so that it still rakes min_segment_m.
+    p = planner(stop_short_m=0.08, stop_short_after=2, phase2_region_size_m=0.26)
+    results = search(p, reach=0.03)
+    short = [r for r in results if "stopping short" in r.movement.label]
+    assert short
+    for r in short:
+        assert r.movement.length_m >= p.config.min_segment_m - 1e-9
+        assert np.linalg.norm(r.movement.end_m - CENTRE) - RADIUS >= 0.075
+        assert np.linalg.norm(r.movement.start_m - CENTRE) > np.linalg.norm(
+            r.movement.end_m - CENTRE)
