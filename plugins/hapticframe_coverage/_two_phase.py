@@ -32,6 +32,11 @@ Readings of the dissertation chosen here (all configurable):
   the next interaction elsewhere starts a new phase 1 reverse pass and phase 2. Phase-2
   lines are cut short before a found object. The search ends when ``max_objects`` were
   localised or the phase-1 lines are exhausted.
+- *Fewer touches* (issue 19 §6, both off by default): ``phase1_reverse: false`` skips the
+  reverse pass; ``stop_short_m`` ends each phase-2 movement, once the object was met
+  ``stop_short_after`` times, that far before the outline estimate, and such a movement
+  counts as an approach from its side for the angular-gap rule. docs/benchmarks.md
+  ("Fewer movements, fewer touches") measures both: fewer touches, a coarser outline.
 - *Sweep angles* are drawn uniformly from the directions at least 30° (modulo 180°) from all
   angles used before, the phase-1 angle included; once six directions are used no angle
   fits, and the oldest are forgotten until one does.

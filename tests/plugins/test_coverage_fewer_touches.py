@@ -46,7 +46,7 @@ class DiscMap(Map):
 
 def planner(**config: object) -> TwoPhaseCoverage:
     return TwoPhaseCoverage(
-        TwoPhaseCoverageConfig(region=RegionConfig(), **config),
+        TwoPhaseCoverageConfig.model_validate({"region": RegionConfig(), **config}),
         BuildContext("plan", np.random.default_rng(3), {"bhm": DiscMap()}),
     )
 
@@ -60,7 +60,7 @@ def first_touch(m: ExploratoryMovement, reach: float) -> np.ndarray | None:
 
 
 def search(p: TwoPhaseCoverage, reach: float = 0.03) -> list[MovementResult]:
-    results = []
+    results: list[MovementResult] = []
     for i in range(60):
         movement = p.propose()
         if movement is None:
@@ -135,7 +135,7 @@ def test_stop_short_after_counts_interactions() -> None:
                                           ("stop_short_after", -1)])
 def test_stop_short_fields_are_validated(field: str, value: float) -> None:
     with pytest.raises(ValidationError, match=field):
-        TwoPhaseCoverageConfig(**{field: value})
+        TwoPhaseCoverageConfig.model_validate({field: value})
 
 
 def test_a_probe_from_a_small_region_starts_farther_back() -> None:
