@@ -67,6 +67,28 @@ class TwoPhaseCoverageConfig(CoverageConfig):
         "two lines nearest the region's edges raked last: a buried object is less often "
         "centred there).",
     )
+    phase1_reverse: bool = Field(
+        True,
+        description="Rake the first interacting phase-1 line again from its far end before "
+        "phase 2 (the dissertation). False starts phase 2 at once: one movement and one "
+        "object interaction fewer, the object's far side left to phase 2.",
+    )
+    stop_short_m: float | None = Field(
+        None, gt=0, le=1.0,
+        description="Once the object was met stop_short_after times, each phase-2 movement "
+        "ends this far before the map's outline estimate (its centroid_level curve around "
+        "the centroid estimate) instead of raking through: with the failure zone's reach "
+        "after those interactions (the rupture distance, about 4.7 cm after two at the "
+        "sandbox's default depths) below it, the movement does not touch the object, and "
+        "its free-movement evidence carves the outline from outside. Such a movement "
+        "counts as an approach from its side for the 'angular-gap' stop rule. None: every "
+        "movement rakes to the region's edge or until halted.",
+    )
+    stop_short_after: int = Field(
+        2, ge=0, le=1000,
+        description="Object interactions (in this object's search) after which phase-2 "
+        "movements stop short (stop_short_m).",
+    )
     max_phase2_movements: int = Field(
         12, ge=0, le=10_000, description="Hard cap on phase-2 movements."
     )

@@ -32,6 +32,11 @@ Readings of the dissertation chosen here (all configurable):
   the next interaction elsewhere starts a new phase 1 reverse pass and phase 2. Phase-2
   lines are cut short before a found object. The search ends when ``max_objects`` were
   localised or the phase-1 lines are exhausted.
+- *Fewer touches* (issue 19 §6, both off by default): ``phase1_reverse: false`` skips the
+  reverse pass; ``stop_short_m`` ends each phase-2 movement, once the object was met
+  ``stop_short_after`` times, that far before the outline estimate, and such a movement
+  counts as an approach from its side for the angular-gap rule. docs/benchmarks.md
+  ("Fewer movements, fewer touches") measures both: fewer touches, a coarser outline.
 - *Sweep angles* are drawn uniformly from the directions at least 30° (modulo 180°) from all
   angles used before, the phase-1 angle included; once six directions are used no angle
   fits, and the oldest are forgotten until one does.
@@ -152,6 +157,10 @@ class TwoPhaseCoverage(LinePlanner):
         self.current_bounds: Bounds = self.search_bounds
         self.interaction_points: list[FloatArray] = []
         self.met_from_deg: list[float] = []
+        #: Stop points and approach directions of movements that stopped short and stayed free.
+        self.probe_points: list[FloatArray] = []
+        self.probe_from_deg: list[float] = []
+        self._probe_pending = False
         self.centroid_m: FloatArray | None = None
         self.last_uncertainty: float | None = None
         self._proposed = 0
@@ -170,6 +179,9 @@ class TwoPhaseCoverage(LinePlanner):
         self.current_bounds = self.search_bounds
         self.interaction_points = []
         self.met_from_deg = []
+        self.probe_points = []
+        self.probe_from_deg = []
+        self._probe_pending = False
         self.centroid_m = None
         self._phase2_proposed = 0
 
@@ -210,13 +222,21 @@ class TwoPhaseCoverage(LinePlanner):
             self.interaction_points.append(self.stop_point(result))
             # Seen from the object, it was met from where the movement came from.
             self.met_from_deg.append((math.degrees(result.movement.heading_rad) + 180.0) % 360.0)
+        elif self._probe_pending:
+            # Stopped short and stayed free: that side was approached without a touch.
+            self.probe_points.append(self.stop_point(result))
+            self.probe_from_deg.append(
+                (math.degrees(result.movement.heading_rad) + 180.0) % 360.0)
+        self._probe_pending = False
         if self._phase != "phase1":
             return
         if self._awaiting_reverse:
             self._awaiting_reverse = False
             self._phase = "phase2"
-        elif interacted:
+        elif interacted and self.config.phase1_reverse:
             self._reverse_of = result.movement
+        elif interacted:
+            self._phase = "phase2"
 
     def _finish(self) -> None:
         self._phase = "done"
@@ -229,18 +249,7 @@ class TwoPhaseCoverage(LinePlanner):
         if limit is not None and len(self.found_centroids) >= limit:
             self._finish()  # no outline needed: nothing more is raked
             return
-        outline = None
-        grid = self._map_grid()
-        if grid is not None:
-            outline = main_outline(*grid, self.config.centroid_level, near_m=centre)
-            if outline is not None and not inside_or_near(centre, [outline], 0.0)[0]:
-                outline = None  # the curve around another blob, not this object
-        if outline is None:
-            reach = max([0.03, *(float(np.linalg.norm(p - centre))
-                                 for p in self.interaction_points)])
-            angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
-            outline = centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
-        self.found_outlines.append(np.asarray(outline, dtype=np.float64))
+        self.found_outlines.append(self._outline_estimate(centre, (self.config.centroid_level,)))
         self._start_next_object()
 
     def _free_parts(self, start: FloatArray, end: FloatArray
@@ -341,11 +350,60 @@ class TwoPhaseCoverage(LinePlanner):
                 self._object_done()  # no way in from here that misses a found object
                 return None
             start, end = parts[0]
+        label = f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}"
+        if c.stop_short_m is not None and len(self.interaction_points) >= c.stop_short_after:
+            short = self._stop_short(start, end)
+            if short is not None:
+                start, end = short
+                self._probe_pending = True
+                label += ", stopping short"
         self._phase2_proposed += 1
-        return self.make_movement(
-            start, end, "phase2",
-            f"phase 2: sweep {angle:.0f} deg, line {best + 1}/{len(starts)}",
-        )
+        return self.make_movement(start, end, "phase2", label)
+
+    def _outline_estimate(self, centre: FloatArray, levels: tuple[float, ...]) -> FloatArray:
+        """The object's outline: the map's level curve around ``centre`` at the first of
+        ``levels`` that has one, else a disc through the interaction points (3 cm at least)."""
+        grid = self._map_grid()
+        if grid is not None:
+            for level in levels:
+                outline = main_outline(*grid, level, near_m=centre)
+                # A curve not around the estimate is another blob's, not this object's.
+                if outline is not None and inside_or_near(centre, [outline], 0.0)[0]:
+                    return np.asarray(outline, dtype=np.float64)
+        reach = max([0.03, *(float(np.linalg.norm(p - centre)) for p in self.interaction_points)])
+        angles = np.linspace(0.0, 2 * math.pi, 32, endpoint=False)
+        return centre + reach * np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def _stop_short(self, start: FloatArray, end: FloatArray
+                    ) -> tuple[FloatArray, FloatArray] | None:
+        """The part of a line that stays ``stop_short_m`` from the outline estimate (the
+        ``centroid_level`` curve, else a lower one as for the centroid, else a disc through
+        the interaction points), at least ``min_segment_m`` long (its start moved back
+        along the line when needed); None when the line never comes that near or no such
+        part fits in the search region (it then rakes through)."""
+        c = self.config
+        assert c.stop_short_m is not None  # the caller checks
+        levels = (c.centroid_level, *(v for v in _FALLBACK_LEVELS if v < c.centroid_level))
+        outline = self._outline_estimate(self._known_centroid(), levels)
+        count = max(2, math.ceil(float(np.linalg.norm(end - start)) / c.score_step_m) + 1)
+        points = start + np.linspace(0.0, 1.0, count)[:, None] * (end - start)
+        near = inside_or_near(points, [outline], c.stop_short_m)
+        if not near.any():
+            return None
+        first = int(np.argmax(near))
+        stop = np.asarray(points[max(first - 1, 0)], dtype=np.float64)
+        if first > 0 and float(np.linalg.norm(stop - start)) >= c.min_segment_m:
+            return start, stop
+        # Too short from the region's edge (a small phase-2 region, a wide margin): start
+        # farther back along the same line, inside the search region.
+        u = (end - start) / float(np.linalg.norm(end - start))
+        back = math.degrees(math.atan2(-u[1], -u[0]))
+        room = float(ray_exit_distance(stop, [back], self.search_bounds)[0])
+        if room < c.min_segment_m:
+            return None
+        if inside_or_near(stop, [outline], c.stop_short_m - c.score_step_m)[0]:
+            return None  # the line's start itself is too near the object
+        return stop - c.min_segment_m * u, stop
 
     def phase_metrics(self) -> dict[str, int]:
         """Movements per phase and, when several objects are sought, how many were found."""
@@ -373,10 +431,12 @@ class TwoPhaseCoverage(LinePlanner):
 
     def _met_from(self) -> list[float]:
         """Directions (degrees) the object was met from, seen from the centroid estimate."""
+        headings = [*self.met_from_deg, *self.probe_from_deg]
         if self.config.met_from == "heading" or self.centroid_m is None:
-            return list(self.met_from_deg)
+            return headings
         out = []
-        for stop, heading in zip(self.interaction_points, self.met_from_deg, strict=True):
+        stops = [*self.interaction_points, *self.probe_points]
+        for stop, heading in zip(stops, headings, strict=True):
             offset = np.asarray(stop) - self.centroid_m
             if float(np.hypot(*offset)) < 1e-9:
                 out.append(heading)
