@@ -110,13 +110,14 @@ class LiveServer:
     port : int
         0 picks a free port (see :attr:`port` once started).
     rate_hz : float
-        The most frames a second each page gets (a frame goes only when it changed). 20
-        asked gives the page at least 5 while the run's thread holds the GIL most of the
-        time (measured: docs/recording.md, "Live view").
+        The most frames a second each page gets (a frame goes only when it changed). 15
+        asked gives the page 5-8 while the run's thread holds the GIL most of the time, and
+        keeps a page rendering on the same 2 cores within the loop's 10 % (20 cost it 10-11 %;
+        measured: docs/benchmarks.md, "The live view").
     """
 
     def __init__(self, feed: Feed, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 rate_hz: float = 20.0) -> None:
+                 rate_hz: float = 15.0) -> None:
         self.feed = feed
         self.host = host
         self.port = port
