@@ -24,13 +24,14 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from .kinds import MovementResult
+    from .kinds import MovementResult, Region
 
 __all__ = [
     "DPI",
     "TRUTH_COLOUR",
     "draw_level_outline",
     "draw_movements",
+    "draw_occupancy_map",
     "draw_outlines",
     "draw_path",
     "layout_map",
@@ -253,4 +254,45 @@ def _stop_point(result: MovementResult) -> NDArray[np.float64]:
     if state is not None and np.all(np.isfinite(state.position_m)):
         return np.asarray(state.position_m, dtype=np.float64)
     return np.asarray(result.movement.end_m, dtype=np.float64)
+
+
+def draw_occupancy_map(
+    region: Region,
+    xs: ArrayLike,
+    ys: ArrayLike,
+    values: ArrayLike,
+    *,
+    title: str,
+    label: str,
+    vmax: float,
+    outlines: Sequence[ArrayLike] = (),
+    movements: Sequence[MovementResult] = (),
+    outline_level: float | None = None,
+    extra: Callable[[Axes], None] | None = None,
+) -> Figure:
+    """An occupancy map's mean or std over ``region``: ``values`` (``(len(ys), len(xs))``)
+    from 0 to ``vmax`` on viridis, the true ``outlines`` (magenta: green vanishes into
+    viridis), the ``movements`` (white), the ``outline_level`` curve when given, and what
+    ``extra`` draws on the axes; returns the laid-out Figure (save it with
+    :func:`save_figure`)."""
+    x, y = np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)
+    grid = np.asarray(values, dtype=np.float64)
+    figure, axes, colorbar_axes = map_figure()
+    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+    image = axes.imshow(grid, origin="lower", extent=bounds, vmin=0.0, vmax=vmax,
+                        cmap="viridis", interpolation="nearest")
+    figure.colorbar(image, cax=colorbar_axes, label=label)
+    if outline_level is not None:
+        draw_level_outline(axes, x, y, grid, outline_level,
+                           label=f"estimated outline (p = {outline_level:g})")
+    draw_outlines(axes, outlines, colour="magenta")
+    draw_movements(axes, movements, colour="white")
+    if extra is not None:
+        extra(axes)
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.set_title(title)
+    # White lines on the dark map need a grey legend to show.
+    layout_map(figure, axes, colorbar_axes, bounds, legend_background="0.6")
+    return figure
 

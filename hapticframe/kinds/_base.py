@@ -12,10 +12,14 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 import numpy as np
 
 from .._kind import Kind
-from ._records import ChannelInfo, MovementResult
+from ._records import ChannelInfo, MovementResult, Region
 
 if TYPE_CHECKING:
-    from .._scene import Scene
+    from .._scene import RegionConfig, Scene
+
+#: The dissertation's search area (section 3.5.1, 75 x 50 cm): a map's region when neither
+#: its config nor the experiment's scene gives one.
+DEFAULT_SEARCH_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
 __all__ = ["BuildContext", "Component", "InputAlignment", "RunOutcome"]
 
@@ -45,6 +49,15 @@ class BuildContext:
     inputs: Mapping[str, Component] = field(default_factory=dict)
     scene: Scene | None = None
     progress: bool = True
+
+    def map_region(self, configured: RegionConfig | None = None) -> Region:
+        """The region a map covers: ``configured`` (the map's own ``region`` setting), else
+        the scene's, else the dissertation's 75 x 50 cm search area."""
+        if configured is not None:
+            return configured.to_region()
+        if self.scene is not None:
+            return self.scene.region.to_region()
+        return DEFAULT_SEARCH_REGION
 
     def input_of_kind(self, kind: Kind) -> list[Component]:
         """The inputs of one kind, in the order given."""

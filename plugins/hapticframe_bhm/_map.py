@@ -107,7 +107,6 @@ _WINDOWED_MIN_ROWS = 1000
 _QUERY_CHUNK = 16384
 _QUERY_ENTRIES = 1 << 21
 #: Default region when neither the config nor a scene gives one (thesis: 75 x 50 cm).
-_DEFAULT_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
 
 @functools.lru_cache(maxsize=1)
@@ -127,13 +126,6 @@ def _blas_threads(limit: int | None) -> contextlib.AbstractContextManager[Any]:
         return contextlib.nullcontext()
     return controller.limit(limits=limit, user_api="blas")
 
-
-def _resolve_region(config: BayesianHilbertMapConfig, context: BuildContext) -> Region:
-    if config.region is not None:
-        return config.region.to_region()
-    if context.scene is not None:
-        return context.scene.region.to_region()
-    return _DEFAULT_REGION
 
 
 def _grid_axes(points: FloatArray) -> tuple[FloatArray, FloatArray] | None:
@@ -170,7 +162,7 @@ class BayesianHilbertMap(Map):
 
     def __init__(self, config: BayesianHilbertMapConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        region = _resolve_region(config, context)
+        region = context.map_region(config.region)
         spacing = config.hinge_spacing_m
         xs = fn.hinge_axis(region.x_min_m, region.x_max_m, spacing)
         ys = fn.hinge_axis(region.y_min_m, region.y_max_m, spacing)

@@ -18,6 +18,7 @@ from hapticframe import plotting
 from hapticframe.kinds import MovementResult, Region
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 __all__ = ["draw_map", "save_kernel_figure", "save_map_figures"]
@@ -41,26 +42,15 @@ def draw_map(
 ) -> Figure:
     """One map ``values`` (``(len(ys), len(xs))``) with truth, path and, optionally, the
     ``outline_level`` curve and the interaction hinges; returns the laid-out Figure."""
-    figure, axes, colorbar_axes = plotting.map_figure()
-    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
-    image = axes.imshow(values, origin="lower", extent=bounds, vmin=0.0, vmax=vmax,
-                        cmap="viridis", interpolation="nearest")
-    figure.colorbar(image, cax=colorbar_axes, label=label)
-    if outline_level is not None:
-        plotting.draw_level_outline(axes, xs, ys, values, outline_level,
-                                    label=f"estimated outline (p = {outline_level:g})")
-    # Green would vanish into viridis: the truth is magenta on these maps.
-    plotting.draw_outlines(axes, outlines, colour="magenta")
-    plotting.draw_movements(axes, movements, colour="white")
-    if interaction_hinges is not None and len(interaction_hinges):
-        axes.plot(interaction_hinges[:, 0], interaction_hinges[:, 1], ls="none", marker="+",
-                  ms=4, color="orange", label="interaction hinge")
-    axes.set_xlabel("x (m)")
-    axes.set_ylabel("y (m)")
-    axes.set_title(title)
-    # White lines on the dark map need a grey legend to show.
-    plotting.layout_map(figure, axes, colorbar_axes, bounds, legend_background="0.6")
-    return figure
+
+    def hinges(axes: Axes) -> None:
+        if interaction_hinges is not None and len(interaction_hinges):
+            axes.plot(interaction_hinges[:, 0], interaction_hinges[:, 1], ls="none",
+                      marker="+", ms=4, color="orange", label="interaction hinge")
+
+    return plotting.draw_occupancy_map(
+        region, xs, ys, values, title=title, label=label, vmax=vmax, outlines=outlines,
+        movements=movements, outline_level=outline_level, extra=hinges)
 
 
 def save_map_figures(

@@ -45,7 +45,6 @@ __all__ = ["GPOccupancyMap"]
 FloatArray = NDArray[np.float64]
 
 #: Default region when neither the config nor a scene gives one (thesis: 75 x 50 cm).
-_DEFAULT_REGION = Region(0.0, 0.75, 0.0, 0.50)
 #: Kernel entries (query rows x training or inducing points) evaluated at once: 2 M doubles.
 _QUERY_ENTRIES = 1 << 21
 
@@ -67,13 +66,6 @@ def _blas_threads(limit: int | None) -> contextlib.AbstractContextManager[Any]:
     return controller.limit(limits=limit, user_api="blas")
 
 
-def _resolve_region(config: GPOccupancyConfig, context: BuildContext) -> Region:
-    if config.region is not None:
-        return config.region.to_region()
-    if context.scene is not None:
-        return context.scene.region.to_region()
-    return _DEFAULT_REGION
-
 
 class GPOccupancyMap(Map):
     """Gaussian-process occupancy map: exact on small sets, inducing points on large ones.
@@ -86,7 +78,7 @@ class GPOccupancyMap(Map):
 
     def __init__(self, config: GPOccupancyConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        self._region = _resolve_region(config, context)
+        self._region = context.map_region(config.region)
         r = self._region
         self._inducing = fn.inducing_grid(r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m,
                                           config.inducing_spacing_m)

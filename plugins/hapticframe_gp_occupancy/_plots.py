@@ -39,22 +39,9 @@ def draw_map(
 ) -> Figure:
     """One map ``values`` (``(len(ys), len(xs))``) with truth, path and, optionally, the
     ``outline_level`` curve; returns the laid-out Figure."""
-    figure, axes, colorbar_axes = plotting.map_figure()
-    bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
-    image = axes.imshow(values, origin="lower", extent=bounds, vmin=0.0, vmax=vmax,
-                        cmap="viridis", interpolation="nearest")
-    figure.colorbar(image, cax=colorbar_axes, label=label)
-    if outline_level is not None:
-        plotting.draw_level_outline(axes, xs, ys, values, outline_level,
-                                    label=f"estimated outline (p = {outline_level:g})")
-    # Green would vanish into viridis: the truth is magenta, as on the BHM's maps.
-    plotting.draw_outlines(axes, outlines, colour="magenta")
-    plotting.draw_movements(axes, movements, colour="white")
-    axes.set_xlabel("x (m)")
-    axes.set_ylabel("y (m)")
-    axes.set_title(title)
-    plotting.layout_map(figure, axes, colorbar_axes, bounds, legend_background="0.6")
-    return figure
+    return plotting.draw_occupancy_map(
+        region, xs, ys, values, title=title, label=label, vmax=vmax, outlines=outlines,
+        movements=movements, outline_level=outline_level)
 
 
 def save_map_figures(

@@ -33,15 +33,7 @@ __all__ = ["OccupancyGrid"]
 
 FloatArray = NDArray[np.float64]
 
-_DEFAULT_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
-
-def _resolve_region(config: OccupancyGridConfig, context: BuildContext) -> Region:
-    if config.region is not None:
-        return config.region.to_region()
-    if context.scene is not None:
-        return context.scene.region.to_region()
-    return _DEFAULT_REGION
 
 
 def _file_stem(phase: str) -> str:
@@ -64,7 +56,7 @@ class OccupancyGrid(Map):
 
     def __init__(self, config: OccupancyGridConfig, context: BuildContext) -> None:
         super().__init__(config, context)
-        self._region = _resolve_region(config, context)
+        self._region = context.map_region(config.region)
         width, height = self._region.size_m
         self._shape = fn.grid_shape(width, height, config.cell_size_m)
         if self._shape[0] * self._shape[1] > 50_000_000:
