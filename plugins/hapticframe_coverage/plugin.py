@@ -35,6 +35,12 @@ def hapticframe_planners() -> Iterator[PlannerSpec]:
                  values=(0.005, 0.01, 0.02)),
             Knob("gap_step_deg", "finer approach directions ('widest-gap'): a better-aimed line, "
                  "more directions tried", values=(2.5, 5.0, 10.0)),
+            # Issue 19 §6: movements against touches of a fragile object (docs/benchmarks.md).
+            Knob("max_gap_deg", "a tighter angular-gap stop: a closer centroid and outline, more "
+                 "movements and object interactions", values=(50.0, 80.0, 110.0)),
+            Knob("stop_short_m", "phase-2 movements ending this far before the estimated "
+                 "outline: fewer object interactions, a coarser outline",
+                 values=(0.05, 0.07, 0.1)),
         ),
     )
     yield PlannerSpec(
