@@ -27,10 +27,10 @@ from hapticframe._sweep import (
     pareto_front,
     parse_vary,
     plan_points,
-    render_markdown,
     run_sweep,
     run_trial,
 )
+from hapticframe._sweep_report import render_markdown
 
 from .test_overrides import TINY
 

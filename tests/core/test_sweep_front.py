@@ -22,9 +22,9 @@ from hapticframe._sweep import (
     _unchanged,
     accuracy_measure,
     make_executor,
-    render_markdown,
     run_trial,
 )
+from hapticframe._sweep_report import render_markdown
 
 from .test_overrides import TINY
 
