@@ -42,7 +42,6 @@ final region when the run finishes.
 
 from __future__ import annotations
 
-import functools
 import time
 from collections import deque
 from collections.abc import Mapping
@@ -54,6 +53,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+from hapticframe.threads import blas_threads
 
 from . import _functional as fn
 from ._config import BeliefMapConfig
@@ -137,7 +137,7 @@ def fit_calibrated_svc(
     # Inputs are finite by construction (Observations validates them); scikit-learn's
     # per-call parameter validation costs more than the small SVC fits themselves.
     with (
-        _blas_controller().limit(limits=1, user_api="blas"),
+        blas_threads(1),
         config_context(assume_finite=True, skip_parameter_validation=True),
     ):
         decision = np.concatenate([
@@ -150,14 +150,6 @@ def fit_calibrated_svc(
             np.concatenate([held.weights for _, held in splits]),
         )
     return PlattSVC(final, slope, intercept)
-
-
-@functools.cache
-def _blas_controller() -> Any:
-    """One ``ThreadpoolController``: creating it inspects every loaded library (milliseconds)."""
-    from threadpoolctl import ThreadpoolController
-
-    return ThreadpoolController()
 
 
 @dataclass(frozen=True)
@@ -189,7 +181,7 @@ class BeliefSnapshot:
         """``P(object | x)`` at ``points_m`` (finite, (q, 2))."""
         if points_m.shape[0] == 0:
             return np.empty(0)
-        with _blas_controller().limit(limits=1, user_api="blas"):
+        with blas_threads(1):
             p = np.clip(self.model.probability(points_m - self.origin_m), 0.0, 1.0)
         return _blend(
             p, points_m, self.representatives_m, self.cell_size_m, self.length_scale_m,

@@ -74,8 +74,6 @@ under the same samples.
 
 from __future__ import annotations
 
-import contextlib
-import functools
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -84,6 +82,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+from hapticframe.threads import blas_threads
 
 from . import _functional as fn
 from ._config import BayesianHilbertMapConfig
@@ -109,22 +108,6 @@ _QUERY_ENTRIES = 1 << 21
 #: Default region when neither the config nor a scene gives one (thesis: 75 x 50 cm).
 
 
-@functools.lru_cache(maxsize=1)
-def _threadpool_controller() -> Any:
-    """A cached threadpoolctl controller, or None when threadpoolctl is not installed."""
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:
-        return None
-    return ThreadpoolController()
-
-
-def _blas_threads(limit: int | None) -> contextlib.AbstractContextManager[Any]:
-    """Context limiting BLAS threads to ``limit`` (no-op for None or without threadpoolctl)."""
-    controller = None if limit is None else _threadpool_controller()
-    if controller is None:
-        return contextlib.nullcontext()
-    return controller.limit(limits=limit, user_api="blas")
 
 
 
@@ -309,7 +292,7 @@ class BayesianHilbertMap(Map):
             raise TypeError(f"update expects Observations, got {type(observations).__name__}")
         if len(observations) == 0:
             return
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             if self._tiled is not None:
                 self._tiled.update(observations)
                 return
@@ -445,12 +428,12 @@ class BayesianHilbertMap(Map):
             mean_grid, std_grid = self._grid_moments(xs, ys)
             return MapEstimate(mean_grid.reshape(-1), std_grid.reshape(-1))
         if self._tiled is not None:
-            with _blas_threads(self.config.blas_threads):
+            with blas_threads(self.config.blas_threads):
                 return MapEstimate(*self._tiled.query(p))
         mean = np.empty(p.shape[0])
         std = np.empty(p.shape[0])
         chunk = max(256, min(_QUERY_CHUNK, _QUERY_ENTRIES // self._belief.dimension))
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             for start in range(0, p.shape[0], chunk):
                 rows = slice(start, start + chunk)
                 phi = self.features(p[rows])
@@ -469,9 +452,9 @@ class BayesianHilbertMap(Map):
         if p.shape[0] == 0:
             return np.empty(0)
         if self._tiled is not None:
-            with _blas_threads(self.config.blas_threads):
+            with blas_threads(self.config.blas_threads):
                 return self._tiled.log_odds(p)
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             mu, var = fn.predictive_moments(self._belief, self.features(p))
         return fn.probit_kappa(var) * mu
 
@@ -497,10 +480,10 @@ class BayesianHilbertMap(Map):
     def _grid_moments(self, xs: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Mean and std, ``(len(ys), len(xs))``, on the grid of axes ``xs`` and ``ys``."""
         if self._tiled is not None:
-            with _blas_threads(self.config.blas_threads):
+            with blas_threads(self.config.blas_threads):
                 return self._tiled.grid_moments(xs, ys)
         args = (xs, ys, self._hinge_xs, self._hinge_ys, self.length_scales)
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             mu, var = grid_predictive_moments(*args, self._belief, self.config.bias)
             mean = fn.probit_probability(mu, var)
             if self.config.std_method == "surrogate":

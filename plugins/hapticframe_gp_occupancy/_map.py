@@ -25,8 +25,6 @@ the configured values give).
 
 from __future__ import annotations
 
-import contextlib
-import functools
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
@@ -36,6 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+from hapticframe.threads import blas_threads
 
 from . import _functional as fn
 from ._config import GPOccupancyConfig
@@ -49,21 +48,6 @@ FloatArray = NDArray[np.float64]
 _QUERY_ENTRIES = 1 << 21
 
 
-@functools.lru_cache(maxsize=1)
-def _threadpool_controller() -> Any:
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:
-        return None
-    return ThreadpoolController()
-
-
-def _blas_threads(limit: int | None) -> contextlib.AbstractContextManager[Any]:
-    """Context limiting BLAS threads to ``limit`` (no-op for None or without threadpoolctl)."""
-    controller = None if limit is None else _threadpool_controller()
-    if controller is None:
-        return contextlib.nullcontext()
-    return controller.limit(limits=limit, user_api="blas")
 
 
 
@@ -157,7 +141,7 @@ class GPOccupancyMap(Map):
         self._posterior = None
         if self.method_in_use != "inducing":
             return
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             if self._statistics is None:
                 # The first batch beyond the exact limit (or the first of an inducing map):
                 # the statistics of everything stored so far.
@@ -176,7 +160,7 @@ class GPOccupancyMap(Map):
 
     def condition(self) -> None:
         """Build the posterior now (else the first query after an update does)."""
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             self._ensure_posterior()
 
     def _ensure_posterior(self) -> fn.ExactPosterior | fn.InducingPosterior | None:
@@ -244,7 +228,7 @@ class GPOccupancyMap(Map):
         p = self._query_points(points_m)
         mu = np.full(p.shape[0], self._prior_mean)
         var = np.full(p.shape[0], self._signal_variance)
-        with _blas_threads(self.config.blas_threads):
+        with blas_threads(self.config.blas_threads):
             posterior = self._ensure_posterior()
             if posterior is None or p.shape[0] == 0:
                 return mu, var
