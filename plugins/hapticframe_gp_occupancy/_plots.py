@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,32 +15,9 @@ from numpy.typing import NDArray
 from hapticframe import plotting
 from hapticframe.kinds import MovementResult, Region
 
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
-__all__ = ["draw_map", "save_map_figures"]
+__all__ = ["save_map_figures"]
 
 FloatArray = NDArray[np.float64]
-
-
-def draw_map(
-    region: Region,
-    xs: FloatArray,
-    ys: FloatArray,
-    values: FloatArray,
-    *,
-    title: str,
-    label: str,
-    vmax: float,
-    outlines: Sequence[FloatArray] = (),
-    movements: Sequence[MovementResult] = (),
-    outline_level: float | None = None,
-) -> Figure:
-    """One map ``values`` (``(len(ys), len(xs))``) with truth, path and, optionally, the
-    ``outline_level`` curve; returns the laid-out Figure."""
-    return plotting.draw_occupancy_map(
-        region, xs, ys, values, title=title, label=label, vmax=vmax, outlines=outlines,
-        movements=movements, outline_level=outline_level)
 
 
 def save_map_figures(
@@ -59,11 +35,12 @@ def save_map_figures(
 ) -> list[Path]:
     """Write ``gp_mean.png`` and ``gp_std.png``; return the paths."""
     how = f" ({method})" if method else ""
-    mean_figure = draw_map(region, xs, ys, mean, title=f"GP occupancy mean{how}",
-                           label="p(occupied)", vmax=1.0, outlines=outlines,
-                           movements=movements, outline_level=outline_level)
-    std_figure = draw_map(region, xs, ys, std, title=f"GP occupancy standard deviation{how}",
-                          label="std of p(occupied)", vmax=max(float(std.max()), 1e-12),
-                          outlines=outlines, movements=movements)
+    mean_figure = plotting.draw_occupancy_map(
+        region, xs, ys, mean, title=f"GP occupancy mean{how}", label="p(occupied)",
+        vmax=1.0, outlines=outlines, movements=movements, outline_level=outline_level)
+    std_figure = plotting.draw_occupancy_map(
+        region, xs, ys, std, title=f"GP occupancy standard deviation{how}",
+        label="std of p(occupied)", vmax=max(float(std.max()), 1e-12), outlines=outlines,
+        movements=movements)
     return [plotting.save_figure(mean_figure, out_dir / "gp_mean.png"),
             plotting.save_figure(std_figure, out_dir / "gp_std.png")]
