@@ -7,7 +7,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ._sweep import SEARCH_KEYS, _flow, _fmt, _is_onset_key, _unchanged
+from ._sweep import _flow, _fmt, _unchanged
+from ._sweep_trials import SEARCH_KEYS, _is_onset_key
 
 __all__ = ["render_markdown", "save_pareto_figure"]
 

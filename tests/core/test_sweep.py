@@ -136,7 +136,7 @@ def test_a_trial_past_its_limit_is_a_timeout_row(tiny: Path, tmp_path: Path) -> 
 
 def test_a_worker_that_dies_or_hangs_is_a_row(tiny: Path, tmp_path: Path,
                                               monkeypatch: Any) -> None:
-    import hapticframe._sweep as sweep
+    import hapticframe._sweep_trials as sweep
 
     release = threading.Event()
 
