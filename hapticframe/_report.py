@@ -2,7 +2,7 @@
 
 Everything is read from ``run.mcap`` (a finished run's, a recovered one, or the staging
 file a killed run left, read up to its cut): the trace holds the same keys, values and
-dtypes the run's in-memory recorder writes (:class:`~hapticframe._dataflow.TraceRecorder`),
+dtypes the run's in-memory recorder writes (:class:`~hapticframe._streams.TraceRecorder`),
 and the figures show
 
 - ``report_map_ID_mean.png``, ``report_map_ID_std.png``: each map's last snapshot
@@ -168,8 +168,8 @@ def trace_arrays(recording: Recording) -> dict[str, np.ndarray]:
 
 def save_trace(arrays: Mapping[str, np.ndarray], path: Path) -> None:
     """Write ``arrays`` as the run's recorder does (compressed ``.npz``, atomically)."""
-    from ._dataflow import TraceRecorder
     from ._results import atomic_path
+    from ._streams import TraceRecorder
 
     recorder = TraceRecorder()
     for key, value in arrays.items():

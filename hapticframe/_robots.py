@@ -28,8 +28,9 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ._dataflow import Dataflow, PoseHistory
+from ._dataflow import Dataflow
 from ._errors import RunError
+from ._streams import PoseHistory
 from .kinds import ExploratoryMovement, Region, Robot, RobotFollower, RobotState
 
 __all__ = ["WORKSPACE_LIMIT", "RobotTeam", "exit_distance", "workspace_of"]

@@ -17,7 +17,7 @@ from typing import Any
 
 from ._components import Components
 from ._config import Experiment, RunSettings
-from ._dataflow import TraceRecorder
+from ._streams import TraceRecorder
 from .kinds import Component, MovementResult
 
 __all__ = ["Session", "SessionView"]

@@ -33,10 +33,10 @@ import numpy as np
 from ._assembly import build_components
 from ._components import Components
 from ._config import Experiment
-from ._dataflow import merge_batches
 from ._errors import HapticframeError, RunError, UsageError
 from ._kind import Kind
 from ._results import OutputDir, OutputError, environment
+from ._streams import merge_batches
 from .kinds import Component, Persistent, SampleBatch, Trainable
 
 __all__ = [

@@ -7,10 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from .._dataflow import InputAligner, merge_batches
 from .._kind import Kind
 from .._registry import Registry
 from .._specs import PluginSpec
+from .._streams import InputAligner, merge_batches
 from ..kinds import (
     Classifier,
     ClassProbabilities,

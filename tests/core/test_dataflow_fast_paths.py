@@ -14,7 +14,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from hapticframe._dataflow import Dataflow, PoseHistory, TraceRecorder, _last_label
+from hapticframe._dataflow import Dataflow, _last_label
+from hapticframe._streams import PoseHistory, TraceRecorder
 from hapticframe.kinds import ChannelInfo, ClassProbabilities, LocatedMeasurement, SampleBatch
 
 

@@ -173,7 +173,7 @@ def test_kill_9_leaves_an_unfinished_run_that_is_refused_then_cleared(experiment
         if point == "build":
             assembly.build_components = kill_self  # type: ignore[assignment]
         elif point == "trace":  # the trace half written
-            from hapticframe._dataflow import TraceRecorder
+            from hapticframe._streams import TraceRecorder
 
             def half(self: Any, path: str) -> None:
                 Path(path).write_bytes(b"PK\x03\x04 truncated")
