@@ -129,8 +129,9 @@ class RecordingSensor(Sensor):
     A streaming read delivers the samples of the next recorded message (0.1 to 0.2 s of
     them, see docs/recording.md), paced in real time with ``pace: true``;
     :meth:`deliver_until` instead lets the reads deliver exactly up to a sample count
-    (``hapticframe replay`` cuts the streams where the recorded run committed them). A missing file, channel or sample is a
-    ``ValueError`` (exit status 2) naming the file and listing the recorded sensor channels.
+    (``hapticframe replay`` cuts the streams where the recorded run committed them). A
+    missing file, channel or sample is a ``ValueError`` (exit status 2) naming the file and
+    listing the recorded sensor channels.
     With ``tare_frames`` the channels are zeroed on the recording's first samples exactly as
     the biotac sensor's replay zeroes its frames (:func:`tared_samples`).
 
