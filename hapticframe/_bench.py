@@ -40,6 +40,9 @@ class BenchOptions:
     overrides : tuple of str
         ``--set PATH=VALUE`` texts a suite that runs experiments applies to each of them
         (:func:`hapticframe.apply_overrides`); suites that run none ignore them.
+    data : Path or None
+        ``--data DIR``: recordings a suite that reads real data reads (e.g. the Penn BOLT
+        BioTac files for ``perception-real``); suites that read none ignore it.
     """
 
     out_dir: Path
@@ -50,6 +53,7 @@ class BenchOptions:
     device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
     overrides: tuple[str, ...] = ()
+    data: Path | None = None
 
 
 def list_benches() -> list[str]:

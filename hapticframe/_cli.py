@@ -521,6 +521,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
         workers=args.workers, device=args.device, echo=_out,
         overrides=tuple(o.text for o in args.set),
+        data=None if args.data is None else Path(args.data),
     )
     run_bench(args.name, options)
     return 0
@@ -691,6 +692,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu",
                    help="where a suite that trains models trains them: cpu (default) or a "
                    "torch accelerator such as cuda")
+    p.add_argument("--data", default=None, metavar="DIR",
+                   help="recordings a suite reads (perception-real: the Penn BOLT .h5 files)")
     _add_set_option(p, "every experiment the suite runs (suites that run experiment "
                     "files: search)")
     p.set_defaults(func=cmd_bench)

@@ -18,7 +18,8 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     """Yield the suites: ``search``, ``search-scenes``, ``search-devices``,
-    ``search-dynamixel``, ``fuzz``, ``perception``, ``bhm``, ``latency`` and
+    ``search-dynamixel``, ``fuzz``, ``perception``, ``perception-real``,
+    ``biotac-calibration``, ``bhm``, ``latency`` and
     ``emd-fidelity``."""
     yield BenchSpec(
         name="search",
@@ -60,6 +61,22 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "plus the streaming chain's latency per frame.",
         factory="hapticframe_bench._perception:run_perception",
         install_hint=_LEARN_HINT,
+    )
+    yield BenchSpec(
+        name="perception-real",
+        summary="Contact detection on real BioTac trials (Penn BOLT, --data DIR) against a "
+        "reference derived from pdc, with and without pdc: models trained on synthetic, "
+        "calibrated synthetic and other objects' real trials, and the linear SVM baselines.",
+        factory="hapticframe_bench._perception_real:run_perception_real",
+        install_hint="pip install 'hapticframe[learn,hdf5]'",
+    )
+    yield BenchSpec(
+        name="biotac-calibration",
+        summary="Calibrate the synthetic BioTac on real recordings (--data DIR of Penn BOLT "
+        "files): writes the generator's parameters and a figure of real, uncalibrated and "
+        "calibrated statistics.",
+        factory="hapticframe_bench._biotac_calibration:run_biotac_calibration",
+        install_hint="pip install 'hapticframe[hdf5,plots]'",
     )
     yield BenchSpec(
         name="bhm",

@@ -21,6 +21,8 @@ from typing import Any
 from ._config import BioTacSensorConfig
 
 __all__ = [
+    "DERIVED_FROM_PDC",
+    "BioTacCalibration",
     "BioTacFrames",
     "BioTacSensor",
     "BoltTrial",
@@ -34,10 +36,14 @@ __all__ = [
     "Trial",
     "TrialSpec",
     "WordStreamDecoder",
+    "PdcReference",
+    "calibrate_biotac",
     "contact_interval_x_m",
+    "derived_from_pdc",
     "encode_frames",
     "frame_features",
     "generate_open_air_trial",
+    "generate_press_trial",
     "generate_trial",
     "granular_noise_ratios",
     "layout_for",
@@ -81,6 +87,12 @@ _LAZY = {
     "load_bolt_dir": "._bolt",
     "rebuild_frame_clock": "._bolt",
     "save_bolt": "._bolt",
+    "DERIVED_FROM_PDC": "._reference",
+    "PdcReference": "._reference",
+    "derived_from_pdc": "._reference",
+    "BioTacCalibration": "._calibration",
+    "calibrate_biotac": "._calibration",
+    "generate_press_trial": "._synthetic_press",
     # the synthetic granular-media generator (its own module, numpy-heavy)
     "Trial": "._synthetic",
     "TrialSpec": "._synthetic",
