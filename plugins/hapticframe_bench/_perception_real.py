@@ -151,7 +151,9 @@ def score_object(truth: Sequence[np.ndarray], proba: Sequence[np.ndarray], thres
     recall = None
     cut = None
     if free.size and contact.size:
-        cut = float(np.quantile(free, specificity, method="higher"))
+        # The lowest cut that keeps at least ``specificity`` of the free frames at or below.
+        ordered = np.sort(free)
+        cut = float(ordered[max(0, int(np.ceil(specificity * free.size - 1e-9)) - 1)])
         recall = float(np.mean(contact > cut))
     delay = figures["onset_delay_frames"]
     return {

@@ -38,7 +38,7 @@ def bolt_trials(rng: np.random.Generator, name: str, count: int = 2, n: int = 60
     out = {}
     for k in range(count):
         stamps = start_s + 1000 * k + (np.arange(n) + 40) // 100
-        press = (int(n * 0.3), int(n * 0.7))
+        press = (max(int(n * 0.3), 120), int(n * 0.8))  # after 100 resting frames
         out[f"{name}_{k + 1:02d}"] = (stamps, [press_finger(rng, n, press),
                                                press_finger(rng, n, press, depth=90.0)])
     return out
