@@ -17,6 +17,8 @@ on
 - ``calibrated``: synthetic press trials from the generator calibrated on real recordings
   that are never scored (``calibration_trials_per_object`` other trials of every object;
   ``hapticframe_biotac.calibrate_biotac``), none of the scored ones;
+- ``calibrated-loo``: the same, calibrated on the calibration trials of the *other* objects
+  only (no recording of the scored object informs its model);
 - ``real-loo``: the scored real trials of the other objects (leave one object out);
 
 and scored by balanced accuracy over the object's frames, recall at
@@ -62,7 +64,7 @@ SPECIFICITY = 0.95
 ARCHITECTURES = (Architecture("d", "rnn"), Architecture("b", "svm"), Architecture("d", "svm"))
 MODALITY_SETS = {"with pdc": ("pac", "pdc", "electrodes"),
                  "without pdc": ("pac", "electrodes")}
-SOURCES = ("synthetic", "calibrated", "real-loo")
+SOURCES = ("synthetic", "calibrated", "calibrated-loo", "real-loo")
 
 
 @dataclass(frozen=True)
@@ -86,6 +88,10 @@ class RealPlan:
         default_factory=lambda: dict(QUICK_PLAN.coder_settings))
     sources: tuple[str, ...] = SOURCES
     architectures: tuple[Architecture, ...] = ARCHITECTURES
+    #: The recurrent models' window step over the long press trials (real and calibrated,
+    #: about 5,000 frames each, mostly holds): every 50 frames keeps their training windows
+    #: (50 frames each) to ~100 per trial instead of ~1,000 (memory: GBs).
+    long_trial_stride_frames: int = 50
 
     def as_dict(self) -> dict[str, Any]:
         out = {k: v for k, v in self.__dict__.items() if k != "architectures"}
@@ -94,10 +100,10 @@ class RealPlan:
         return out
 
 
-#: Three trials per object (both fingers: six recordings), two others per object for the
-#: calibration; about 10 minutes on 2 shared cores.
-QUICK_REAL_PLAN = RealPlan(recordings_per_object=3, calibration_trials_per_object=2,
-                           synthetic_trials=45, press_trials=40, max_epochs=6, patience=3,
+#: Two trials per object (both fingers: four recordings, about 20,000 frames), two others
+#: per object for the calibration, 16 calibrated press trials (about 75,000 frames).
+QUICK_REAL_PLAN = RealPlan(recordings_per_object=2, calibration_trials_per_object=2,
+                           synthetic_trials=45, press_trials=16, max_epochs=6, patience=3,
                            coder_fit_frames=2000)
 #: Every trial but three per object (kept for the calibration) scored.
 REAL_PLAN = RealPlan(recordings_per_object=None, calibration_trials_per_object=3,
@@ -169,13 +175,18 @@ def score_object(truth: Sequence[np.ndarray], proba: Sequence[np.ndarray], thres
     }
 
 
-def _train_all(data: Any, plan: RealPlan, seed: int) -> dict[tuple[str, str], TrainedModel]:
+def _train_all(data: Any, plan: RealPlan, seed: int, say: Callable[[str], None],
+               long_trials: bool = True) -> dict[tuple[str, str], TrainedModel]:
     rnn = {**plan.rnn_settings, "max_epochs": plan.max_epochs, "patience": plan.patience}
+    if long_trials:
+        rnn.update(free_stride_frames=plan.long_trial_stride_frames,
+                   contact_stride_frames=plan.long_trial_stride_frames)
     models = {}
     for arch in plan.architectures:
         for label, mods in MODALITY_SETS.items():
-            models[arch.label, label] = train_architecture(data, arch, mods, seed, rnn,
-                                                           plan.svm_settings)
+            model = train_architecture(data, arch, mods, seed, rnn, plan.svm_settings)
+            models[arch.label, label] = model
+            say(f"  trained {arch.label}, {label}: {model.train_time_s:.0f} s")
     return models
 
 
@@ -186,6 +197,17 @@ def _score_models(models: dict[tuple[str, str], TrainedModel], source: str, obj:
         row = score_object([t.labels for t in trials], proba, model.contact_threshold)
         rows.append({"source": source, "model": arch, "inputs": label, "object": obj, **row,
                      "train_time_s": model.train_time_s})
+
+
+def _summary_lines(rows: Sequence[dict[str, Any]], source: str) -> list[str]:
+    """One progress line per model and inputs: balanced accuracy per object."""
+    cells: dict[tuple[str, str], list[str]] = {}
+    for r in rows:
+        if r["source"] == source:
+            cells.setdefault((r["model"], r["inputs"]), []).append(
+                f"{r['object']} {r['balanced_accuracy']:.3f}")
+    return [f"  {source} {model}, {inputs}: {', '.join(v)}"
+            for (model, inputs), v in cells.items()]
 
 
 def run_real_suite(data_dir: Path, plan: RealPlan, seed: int, workers: int,
@@ -226,18 +248,21 @@ def run_real_suite(data_dir: Path, plan: RealPlan, seed: int, workers: int,
             workers=workers, tare_frames=10, tare_source="air",
             coder_fit_frames=plan.coder_fit_frames, coder_settings=plan.coder_settings,
             echo=say)
-        models = _train_all(synth, plan, seed)
+        models = _train_all(synth, plan, seed, say, long_trials=False)
         coded = code_trials(real, synth.coder)
+        del synth
         for obj in objects:
             _score_models(models, "synthetic", obj, [t for t in coded if t.medium == obj], rows)
         timing["synthetic"] = time.perf_counter() - t0
-        say(f"(a) done in {timing['synthetic']:.0f} s")
+        say(f"(a) done in {timing['synthetic']:.0f} s; balanced accuracy:")
+        for line in _summary_lines(rows, "synthetic"):
+            say(line)
 
     if "calibrated" in plan.sources:
         t0 = time.perf_counter()
         chosen = [t for t in trials if t.trial in calibration_trials[t.object]]
-        calibration = calibrate_biotac([t.frames for t in chosen], **_calibration_reference(
-            plan))
+        calibration = calibrate_biotac([t.frames for t in chosen], [t.finger for t in chosen],
+                                       **_calibration_reference(plan))
         calibration_summary = {"trials": {o: v for o, v in calibration_trials.items()},
                                "parameters": calibration.as_dict()}
         say(f"(a') calibrated press trials: {plan.press_trials}, calibrated on "
@@ -247,13 +272,39 @@ def run_real_suite(data_dir: Path, plan: RealPlan, seed: int, workers: int,
         coder = fit_coder([t for t in press if t.split == "train"], plan.coder_settings,
                           plan.coder_fit_frames, seed)
         models = _train_all(as_data(code_trials(press, coder), coder, plan.tare_frames),
-                            plan, seed)
+                            plan, seed, say)
+        del press
         coded = code_trials(real, coder)
         for obj in objects:
             _score_models(models, "calibrated", obj, [t for t in coded if t.medium == obj],
                           rows)
         timing["calibrated"] = time.perf_counter() - t0
-        say(f"(a') done in {timing['calibrated']:.0f} s")
+        say(f"(a') done in {timing['calibrated']:.0f} s; balanced accuracy:")
+        for line in _summary_lines(rows, "calibrated"):
+            say(line)
+
+    if "calibrated-loo" in plan.sources:
+        t0 = time.perf_counter()
+        for k, obj in enumerate(objects):
+            chosen = [t for t in trials
+                      if t.object != obj and t.trial in calibration_trials[t.object]]
+            calibration = calibrate_biotac([t.frames for t in chosen],
+                                           [t.finger for t in chosen],
+                                           **_calibration_reference(plan))
+            press = press_features(calibration, plan.press_trials, seed, plan.reference,
+                                   plan.tare_frames, workers, {}, lambda _line: None)
+            coder = fit_coder([t for t in press if t.split == "train"], plan.coder_settings,
+                              plan.coder_fit_frames, seed)
+            models = _train_all(as_data(code_trials(press, coder), coder, plan.tare_frames),
+                                plan, seed, lambda _line: None)
+            del press
+            _score_models(models, "calibrated-loo", obj,
+                          code_trials([t for t in real if t.medium == obj], coder), rows)
+            say(f"(a'') calibrated without {obj}: {k + 1}/{len(objects)}, "
+                f"{time.perf_counter() - t0:.0f} s")
+        timing["calibrated_loo"] = time.perf_counter() - t0
+        for line in _summary_lines(rows, "calibrated-loo"):
+            say(line)
 
     if "real-loo" in plan.sources:
         t0 = time.perf_counter()
@@ -270,7 +321,7 @@ def run_real_suite(data_dir: Path, plan: RealPlan, seed: int, workers: int,
             coder = fit_coder([t for t in others if split(t) == "train"], plan.coder_settings,
                               plan.coder_fit_frames, seed)
             fold = code_trials(real, coder, split)
-            models = _train_all(as_data(fold, coder, plan.tare_frames), plan, seed)
+            models = _train_all(as_data(fold, coder, plan.tare_frames), plan, seed, say)
             _score_models(models, "real-loo", obj, [t for t in fold if t.split == "test"], rows)
             say(f"(b) leave out {obj}: {k + 1}/{len(objects)}, "
                 f"{time.perf_counter() - t0:.0f} s")

@@ -9,6 +9,8 @@ __all__ = ["render_real_markdown"]
 _SOURCES = {
     "synthetic": "(a) trained on synthetic granular rakes only (uncalibrated generator)",
     "calibrated": "(a') trained on synthetic press trials from the calibrated generator only",
+    "calibrated-loo": "(a'') trained on synthetic press trials only, the generator calibrated "
+    "on the other objects' trials (leave one object out)",
     "real-loo": "(b) trained on the real trials of the other objects (leave one object out)",
 }
 

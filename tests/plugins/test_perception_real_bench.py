@@ -50,7 +50,7 @@ def test_perception_real_scores_every_object_with_and_without_pdc(bolt_dir: Path
                                                                   tmp_path: Path) -> None:
     plan = RealPlan(recordings_per_object=2, calibration_trials_per_object=1,
                     synthetic_trials=0, press_trials=3, max_epochs=1, patience=1,
-                    coder_fit_frames=100, sources=("calibrated", "real-loo"),
+                    coder_fit_frames=100, sources=("calibrated", "calibrated-loo", "real-loo"),
                     architectures=(Architecture("b", "svm"), Architecture("d", "svm")),
                     svm_settings={"calibration_folds": 2, "max_iter": 50},
                     coder_settings={"fit_epochs": 1, "amplitude": "channel",
@@ -60,7 +60,7 @@ def test_perception_real_scores_every_object_with_and_without_pdc(bolt_dir: Path
                                               echo=lines.append), plan)
     rows = result["results"]
     cells = {(r["source"], r["model"], r["inputs"], r["object"]) for r in rows}
-    assert len(cells) == len(rows) == 2 * 2 * 2 * 3
+    assert len(cells) == len(rows) == 3 * 2 * 2 * 3
     assert {r["inputs"] for r in rows} == {"with pdc", "without pdc"}
     for r in rows:
         assert 0.0 <= r["balanced_accuracy"] <= 1.0 and r["recordings"] == 4
