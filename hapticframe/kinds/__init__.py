@@ -32,7 +32,7 @@ from .capabilities import (
 )
 from .classifier import Classifier
 from .feature_extractor import FeatureExtractor
-from .map import Map
+from .map import Map, query_points
 from .planner import Planner
 from .robot import Robot
 from .sensor import Sensor
@@ -69,4 +69,5 @@ __all__ = [
     "SensorModel",
     "Trainable",
     "concatenate_batches",
+    "query_points",
 ]
