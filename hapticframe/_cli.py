@@ -23,6 +23,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+from hapticframe._defaults import LIVE_PORT
+
 __all__ = ["main"]
 
 
@@ -491,8 +493,6 @@ def _port(text: str) -> int:
     return value
 
 
-#: The live page's port when --port is not given (kept here: the parser imports nothing).
-LIVE_PORT = 8765
 
 
 def _add_port_option(p: argparse.ArgumentParser) -> None:

@@ -17,6 +17,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._defaults import OUTLINE_LEVEL
+
 from . import plotting
 from ._errors import RunError
 from ._kind import Kind
@@ -44,7 +47,7 @@ def evaluate_map(
     the_map: Map,
     scene: Scene,
     *,
-    level: float = 0.6,
+    level: float = OUTLINE_LEVEL,
     spacing_m: float = 0.0025,
     near_m: ArrayLike | None = None,
     found_within_m: float | None = None,
@@ -108,7 +111,7 @@ def evaluate_objects(
     the_map: Map,
     scene: Scene,
     *,
-    level: float = 0.6,
+    level: float = OUTLINE_LEVEL,
     spacing_m: float = 0.0025,
     found_within_m: float | None = None,
 ) -> dict[str, Any]:
@@ -548,15 +551,8 @@ def _label_metrics(session: Session) -> dict[str, Any]:
 
 def _evaluation_map(session: Session) -> str | None:
     chosen = session.settings.evaluation_map
-    if chosen is not None:
-        if chosen not in session.components.maps:
-            found = session.components.get(chosen)
-            what = f"a {found.kind}" if found is not None else "no component"
-            raise RunError(f"run.evaluation_map {chosen!r} names {what}, not a map")
-        return chosen
-    for entry in session.experiment.of_kind(Kind.PLANNER):
-        for name in entry.inputs:
-            if name in session.components.maps:
-                return name
-    maps = session.experiment.of_kind(Kind.MAP)
-    return maps[-1].id if maps else None
+    if chosen is not None and chosen not in session.components.maps:
+        found = session.components.get(chosen)
+        what = f"a {found.kind}" if found is not None else "no component"
+        raise RunError(f"run.evaluation_map {chosen!r} names {what}, not a map")
+    return evaluated_map_id(session.experiment.components, chosen)

@@ -50,6 +50,9 @@ class SafetyMonitor:
     def __init__(self, settings: RunSettings, flow: Dataflow, halts: list[dict[str, Any]]) -> None:
         self.flow = flow
         self.limit_n = settings.force_limit_n
+        # The dataflow notes the first sample above the limit as it commits samples; the
+        # limit itself lives here (one home), handed to the dataflow that reports to us.
+        flow.force_limit_n = self.limit_n
         self.stall_s = settings.force_stall_s if flow.force_sensors else None
         self.halts = halts
         self._robot: Robot | None = None

@@ -8,6 +8,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
+from .._defaults import OUTLINE_LEVEL
 from .._kind import Kind
 from .._registry import Registry
 from .._scene import NAME_PATTERN, Scene
@@ -69,7 +70,8 @@ class RunSettings(BaseModel):
         "at a time.",
     )
     outline_level: float = Field(
-        0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
+        OUTLINE_LEVEL, gt=0, lt=1,
+        description="Occupancy level of the estimated outline (thesis: 0.6).",
     )
     evaluation_map: _ComponentId | None = Field(
         None,

@@ -29,6 +29,7 @@ from ._model import (
     ExperimentRoot,
     build_experiment_model,
 )
+from ._roles import evaluated_map_id
 
 __all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
 
@@ -74,6 +75,11 @@ class Experiment:
 
     def of_kind(self, kind: Kind) -> list[ComponentEntry]:
         return [c for c in self.components if c.kind is kind]
+
+    def evaluated_map(self) -> str | None:
+        """The id of the map the run scores against the scene (``run.evaluation_map``, else
+        the first map a planner reads, else the last map; see :func:`evaluated_map_id`)."""
+        return evaluated_map_id(self.components, self.model.run.evaluation_map)
 
 
 def validate_file(

@@ -6,7 +6,7 @@ What only some components can do (train, persist, evaluate on a grid) is declare
 :mod:`hapticframe.kinds.capabilities`.
 """
 
-from ._base import BuildContext, Component, InputAlignment, RunOutcome
+from ._base import OUTLINE_LEVEL, BuildContext, Component, InputAlignment, RunOutcome
 from ._records import (
     ChannelInfo,
     ClassProbabilities,
@@ -39,6 +39,7 @@ from .sensor import Sensor
 from .sensor_model import SensorModel
 
 __all__ = [
+    "OUTLINE_LEVEL",
     "BuildContext",
     "ChannelInfo",
     "ClassProbabilities",
