@@ -39,7 +39,6 @@ from .sensor import Sensor
 from .sensor_model import SensorModel
 
 __all__ = [
-    "OUTLINE_LEVEL",
     "BuildContext",
     "ChannelInfo",
     "ClassProbabilities",
@@ -55,6 +54,7 @@ __all__ = [
     "Map",
     "MapEstimate",
     "MovementResult",
+    "OUTLINE_LEVEL",
     "Observations",
     "Persistent",
     "PhysicalTruth",
