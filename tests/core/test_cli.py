@@ -194,18 +194,18 @@ def test_the_library_logs_and_the_cli_prints_its_warnings(lab_dir, capsys):
     logging.getLogger("hapticframe.test").warning("outside a command")
     assert "outside a command" not in capsys.readouterr().err
 
-    from hapticframe.cli import _cli
-    original = _cli.cmd_plugins
+    from hapticframe.cli import _plugins
+    original = _plugins.cmd_plugins
 
     def noisy(args):  # type: ignore[no-untyped-def]
         logging.getLogger("hapticframe.test").warning("the port is slow")
         return original(args)
 
     try:
-        _cli.cmd_plugins = noisy
+        _plugins.cmd_plugins = noisy
         parser_default = main(["plugins"])
     finally:
-        _cli.cmd_plugins = original
+        _plugins.cmd_plugins = original
     assert parser_default == 0
     assert "warning: the port is slow" in capsys.readouterr().err
 
