@@ -13,13 +13,13 @@ import pytest
 
 from hapticframe import Knob
 from hapticframe._config import load_file
+from hapticframe.sweep._format import unchanged
 from hapticframe.sweep._sweep import (
     TrialTask,
     _declared,
     _mark_front,
     _mark_nan_against_baseline,
     _tidy,
-    _unchanged,
     accuracy_measure,
     make_executor,
     run_trial,
@@ -79,10 +79,10 @@ def test_without_a_found_metric_nothing_is_kept_off() -> None:
 
 def test_a_knob_that_changes_no_accuracy_metric_is_named() -> None:
     same = [_point("baseline", 1.0, 0.018, 1.0, 0.4), _point("g=0.02", 1.0, 0.018, 1.3, 0.4)]
-    assert _unchanged(same, ["object_found", "centroid_error_m"])
-    assert not _unchanged([*same, _point("g=0.04", 1.0, 0.019, 1.0, 0.4)],
+    assert unchanged(same, ["object_found", "centroid_error_m"])
+    assert not unchanged([*same, _point("g=0.04", 1.0, 0.019, 1.0, 0.4)],
                           ["object_found", "centroid_error_m"])
-    assert not _unchanged(same[:1], ["centroid_error_m"])
+    assert not unchanged(same[:1], ["centroid_error_m"])
 
 
 def test_the_report_states_the_load_both_fronts_and_what_bought_nothing() -> None:
