@@ -154,6 +154,8 @@ def summary_line(metrics: Any, label_channel: str = "contact") -> str:
     """The few figures a person reads after a run: search result, force, accuracy, time
     (``contact`` in the names stands for ``run.label_channel``)."""
     wanted = [k.replace("contact_", f"{label_channel}_", 1) for k in SUMMARY_METRICS]
+    if "object_found" not in metrics and "objects_found" not in metrics:
+        wanted.remove("movements")  # no search: a perception run's zero movements say nothing
     parts = []
     for key in wanted:
         value = metrics.get(key)

@@ -221,3 +221,13 @@ def test_the_run_summary_keeps_the_few_figures_a_person_reads(lab_dir, capsys):
     # The largest force on the console is the one metrics.json records.
     assert f"max_measured_force_n={metrics['max_measured_force_n']:.4g}" in line
     assert "contact_frames" not in line and "contact_frames" in metrics  # the rest stays there
+
+
+def test_a_run_without_a_search_prints_no_movement_count():
+    from hapticframe.cli._common import summary_line
+
+    perception = {"movements": 0, "contact_balanced_accuracy": 0.93, "wall_time_s": 31.0}
+    search = {"movements": 0, "object_found": False, "wall_time_s": 2.0}
+    assert "movements" not in summary_line(perception)
+    assert "contact_balanced_accuracy=0.93" in summary_line(perception)
+    assert summary_line(search).startswith("movements=0, object_found=no")
