@@ -231,3 +231,13 @@ def test_a_run_without_a_search_prints_no_movement_count():
     assert "movements" not in summary_line(perception)
     assert "contact_balanced_accuracy=0.93" in summary_line(perception)
     assert summary_line(search).startswith("movements=0, object_found=no")
+
+
+def test_check_says_what_it_checks_before_each_result(capsys):
+    assert main(["check", "occupancy-grid"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("[1/1] map/occupancy-grid: ") and lines[0].endswith(" checks")
+    count = int(lines[0].split(": ")[1].split()[0])
+    results = [line for line in lines[1:-1] if line.startswith("PASS ")]
+    assert len(results) == count and all(line.endswith(" s)") for line in results)
+    assert lines[-1] == "all checks passed"

@@ -181,3 +181,22 @@ def test_a_metric_nan_in_the_baseline_too_fails_nothing(tmp_path: Path,
     assert baseline["status"] == other["status"] == "ok"
     _mark_nan_against_baseline([finite_in_baseline, other])
     assert (other["status"], other["error"]) == ("nan", "non-finite metrics: x_count")
+
+
+def test_a_large_sweep_names_only_its_front_and_baseline(monkeypatch: Any, tmp_path: Path) -> None:
+    import hapticframe.plotting as plotting
+    from hapticframe.sweep._sweep_report import LABEL_ALL_UP_TO, save_pareto_figure
+
+    captured: dict[str, Any] = {}
+    monkeypatch.setattr(plotting, "save_figure", lambda figure, path: captured.update(f=figure))
+    points = [{"label": f"k={i}", "accuracy_cost": 1.0 + (i % 7) / 10,
+               "cost": {"wall_time_s": 1.0 + i / 10}, "front": i in (0, 3, 9),
+               "off_front": False} for i in range(55)]
+    assert save_pareto_figure(tmp_path / "pareto.png", {
+        "points": points, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
+    named = sorted(t.get_text() for t in captured["f"].axes[0].texts)
+    assert named == ["k=0", "k=3", "k=9"]  # the baseline (k=0) is on the front here
+    few = points[:LABEL_ALL_UP_TO]
+    save_pareto_figure(tmp_path / "few.png", {
+        "points": few, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
+    assert len(captured["f"].axes[0].texts) == LABEL_ALL_UP_TO
