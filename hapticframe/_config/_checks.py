@@ -14,13 +14,13 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
-from .._errors import Issue, PluginImportError
-from .._kind import Kind
-from ._load import LoadedFile
-from ._roles import evaluated_map_id
+from hapticframe._config._load import LoadedFile
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._errors import Issue, PluginImportError
+from hapticframe._kind import Kind
 
 if TYPE_CHECKING:
-    from ._validate import ComponentEntry
+    from hapticframe._config._model import ComponentEntry
 
 __all__ = [
     "ComponentView",

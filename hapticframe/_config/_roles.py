@@ -4,17 +4,27 @@ need to agree on: one home for each such rule."""
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-from .._kind import Kind
+from hapticframe._kind import Kind
 
-if TYPE_CHECKING:
-    from ._validate import ComponentEntry
-
-__all__ = ["evaluated_map_id"]
+__all__ = ["RoleEntry", "evaluated_map_id"]
 
 
-def evaluated_map_id(entries: Iterable[ComponentEntry], chosen: str | None) -> str | None:
+class RoleEntry(Protocol):
+    """What a rule reads of an experiment's component (``ComponentEntry`` has it)."""
+
+    @property
+    def kind(self) -> Kind: ...
+
+    @property
+    def id(self) -> str: ...
+
+    @property
+    def inputs(self) -> tuple[str, ...]: ...
+
+
+def evaluated_map_id(entries: Iterable[RoleEntry], chosen: str | None) -> str | None:
     """The id of the map a run scores against the scene: ``chosen`` (``run.evaluation_map``,
     not checked here) when set, else the first map a planner reads, else the last map, else
     None (no map)."""

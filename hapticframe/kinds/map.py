@@ -24,9 +24,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._kind import Kind
-from ._base import Component
-from ._records import MapEstimate, Observations, Region
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import MapEstimate, Observations, Region
 
 __all__ = ["Map", "query_points"]
 

@@ -42,9 +42,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from .._kind import Kind
-from ._base import Component
-from ._records import ExploratoryMovement, Region, RobotState
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import ExploratoryMovement, Region, RobotState
 
 __all__ = ["Robot"]
 
