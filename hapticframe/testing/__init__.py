@@ -32,7 +32,8 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 - sensor models: ``check_sensor_model_contract``, ``check_sensor_model_streaming``,
   ``check_sensor_model_extremes``;
 - maps: ``check_map_contract``, ``check_map_streaming_matches_batch``,
-  ``check_map_extremes``, ``check_map_ranks_scattered_points``;
+  ``check_map_extremes``, ``check_map_ranks_scattered_points``,
+  ``check_map_refuses_bad_query_points``;
 - planners: ``check_planner_contract``, ``check_planner_extremes`` (an all-unknown map, an
   all-occupied map, a region smaller than one line spacing);
 - robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_stops_at_once``
@@ -81,6 +82,7 @@ from hapticframe.testing._spatial import (
     check_map_contract,
     check_map_extremes,
     check_map_ranks_scattered_points,
+    check_map_refuses_bad_query_points,
     check_map_streaming_matches_batch,
     check_planner_contract,
     check_planner_extremes,
@@ -123,6 +125,7 @@ __all__ = [
     "check_map_contract",
     "check_map_extremes",
     "check_map_ranks_scattered_points",
+    "check_map_refuses_bad_query_points",
     "check_map_streaming_matches_batch",
     "check_numerical_extremes",
     "check_planner_contract",

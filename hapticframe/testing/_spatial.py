@@ -268,6 +268,40 @@ def check_map_extremes(spec: PluginSpec, *, registry: Registry | None = None) ->
             release_component(the_map)
 
 
+@check(Kind.MAP)
+def check_map_refuses_bad_query_points(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
+    """``query()`` refuses NaN or infinite points and arrays that are not ``(q, 2)`` with a
+    ``ValueError``, and answers one ``(2,)`` point with one estimate. ``Map.query`` does this
+    before it calls the plugin's ``_query``: a map that overrides ``query`` itself must too."""
+    the_map = make_component(spec, registry=registry, interface=Map)
+    cases: dict[str, ArrayLike] = {
+        "a NaN query point": [[np.nan, 0.1]],
+        "an infinite query point": [[0.1, np.inf]],
+        "query points of shape (2, 3)": np.full((2, 3), 0.1),
+    }
+    try:
+        for what, points in cases.items():
+            try:
+                estimate = the_map.query(np.asarray(points, dtype=np.float64))
+            except ValueError as exc:
+                if not str(exc) or raised_by_record_validation(exc):
+                    raise _invalid(spec, what, exc) from exc
+                continue
+            raise CheckFailure(
+                f"query() accepted {what} (mean {np.asarray(estimate.mean).tolist()}): it must "
+                "raise ValueError; implement Map._query and leave the checks to Map.query"
+            )
+        one = the_map.query(np.array([0.1, 0.1]))
+        if np.shape(one.mean) != (1,):
+            raise CheckFailure(
+                f"query() of one (2,) point returned mean of shape {np.shape(one.mean)}, not (1,)"
+            )
+    finally:
+        release_component(the_map)
+
+
 def _auc(score: np.ndarray, truth: np.ndarray) -> float:
     """Area under the ROC curve: the chance a true point outranks a free one (ties half)."""
     pos, neg = score[truth], score[~truth]
@@ -411,8 +445,8 @@ class FixedMap(KitMap):
     def update(self, observations: Observations) -> None:
         pass
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
-        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+    def _query(self, points_m: np.ndarray) -> MapEstimate:
+        n = len(points_m)
         return MapEstimate(np.full(n, self.level[0]), np.full(n, self.level[1]))
 
 

@@ -207,6 +207,13 @@ class EmptyQueryMap(CellMap):
         return est
 
 
+class UncheckedQueryMap(CellMap):
+    def query(self, points_m):  # type: ignore[no-untyped-def]
+        # Overrides the base's query and so skips its checks of the points.
+        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+        return MapEstimate(np.full(n, 0.5), np.full(n, 0.5))
+
+
 class ForgetfulMap(CellMap):
     def update(self, observations: Observations) -> None:
         self.reset()
@@ -471,6 +478,8 @@ BROKEN = [
      "check_knobs", "has no field 'cell_size_m'; did you mean 'cell_m'?"),
     (MapSpec("empty-query", "x", CellConfig, f"{M}:EmptyQueryMap"),
      "check_map_contract", "empty query"),
+    (MapSpec("unchecked-query", "x", CellConfig, f"{M}:UncheckedQueryMap"),
+     "check_map_refuses_bad_query_points", "a NaN query point"),
     (MapSpec("forgetful", "x", CellConfig, f"{M}:ForgetfulMap"),
      "check_map_streaming_matches_batch", "sequential updates"),
     (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"),
