@@ -329,7 +329,7 @@ def _unknown_plugin_message(registry: Any, name: str) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     experiment = _validate(args, args.file)
     if getattr(args, "live", False):
@@ -361,7 +361,7 @@ def _run_live(args: argparse.Namespace, experiment: Any) -> int:
     then the run's error, if any, is the command's."""
     from hapticframe._errors import UsageError
     from hapticframe.live import run_live
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     if not experiment.model.run.record:
         raise UsageError("--live shows the run's recording, which this experiment turns off "

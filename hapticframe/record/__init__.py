@@ -16,6 +16,7 @@ _EXPORTS = {
     "read_recording": "hapticframe.record._recording",
     "recover_run": "hapticframe.record._recording",
     "replay_run": "hapticframe.record._replay",
+    "run_experiment": "hapticframe.record._recorded",
     "write_report": "hapticframe.record._report",
 }
 __all__ = sorted(_EXPORTS)
@@ -23,6 +24,7 @@ __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:
     from hapticframe.record._bags import import_bag as import_bag
+    from hapticframe.record._recorded import run_experiment as run_experiment
     from hapticframe.record._recording import RunRecording as RunRecording
     from hapticframe.record._recording import find_recording as find_recording
     from hapticframe.record._recording import read_recording as read_recording

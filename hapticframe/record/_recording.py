@@ -95,6 +95,7 @@ __all__ = [
     "RunRecording",
     "find_recording",
     "listening",
+    "open_run_recording",
     "read_recording",
     "recover",
 ]
@@ -595,6 +596,12 @@ class RunRecording:
             return action()
         except OSError as exc:
             raise output_error(self.path, exc) from exc
+
+
+def open_run_recording(folder: Path, metadata: Mapping[str, str]) -> RunRecording:
+    """``folder/run.mcap``: the :class:`~hapticframe.run._scope.RecordingOpener` that the CLI,
+    sweep trials, replay and :func:`hapticframe.run_experiment` hand the run scope."""
+    return RunRecording(Path(folder) / RECORDING, metadata)
 
 
 # --- reading and recovering ------------------------------------------------------------------
