@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticframe._atomic import output_error
-from hapticframe._errors import UsageError, shown
+from hapticframe._errors import UsageError
 
 __all__ = ["LOCK_FILE", "DirectoryBusy", "DirectoryLock", "lock_directory"]
 
@@ -102,8 +102,9 @@ def _describe(holder: dict[str, Any]) -> str:
     if holder.get("started_utc"):
         parts.append(f", started {holder['started_utc']}")
     parts.append(")")
-    if holder.get("argv"):
-        parts.append(f": {shown(str(holder['argv']), 200)}")
+    argv = str(holder.get("argv") or "")
+    if argv:
+        parts.append(f": {argv if len(argv) <= 200 else argv[:200] + '…'}")
     return "".join(parts)
 
 
