@@ -69,7 +69,13 @@ from hapticframe.testing._harness import (
 )
 from hapticframe.testing._knobs import check_knobs
 from hapticframe.testing._rewind import check_rewind
-from hapticframe.testing._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
+from hapticframe.testing._runner import (
+    CheckResult,
+    checks_for,
+    iter_checks,
+    parametrize_with_checks,
+    run_checks,
+)
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
@@ -144,6 +150,7 @@ __all__ = [
     "parametrize_with_checks",
     "planner_episode",
     "release_component",
+    "iter_checks",
     "run_checks",
     "synthetic_batch",
 ]
