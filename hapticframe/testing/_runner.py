@@ -6,10 +6,10 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .._registry import Registry
-from .._specs import PluginSpec
-from ._common import CHECKS, CheckFunction
-from ._harness import CheckFailure
+from hapticframe._registry import Registry
+from hapticframe._specs import PluginSpec
+from hapticframe.testing._common import CHECKS, CheckFunction
+from hapticframe.testing._harness import CheckFailure
 
 __all__ = ["CheckResult", "checks_for", "parametrize_with_checks", "run_checks"]
 

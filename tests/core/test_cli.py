@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from tests.support.lab import lab_main
 
 
@@ -133,7 +133,7 @@ def test_train_fits_classifiers_on_labelled_recordings_and_saves(lab_dir, capsys
 
 
 def test_quiet_asks_every_component_to_draw_no_progress_bar(lab_dir, monkeypatch):
-    import hapticframe._assembly as assembly
+    import hapticframe.run._assembly as assembly
 
     seen: list[set[bool]] = []
     build = assembly.build_components
@@ -194,8 +194,7 @@ def test_the_library_logs_and_the_cli_prints_its_warnings(lab_dir, capsys):
     logging.getLogger("hapticframe.test").warning("outside a command")
     assert "outside a command" not in capsys.readouterr().err
 
-    from hapticframe import _cli
-
+    from hapticframe.cli import _cli
     original = _cli.cmd_plugins
 
     def noisy(args):  # type: ignore[no-untyped-def]

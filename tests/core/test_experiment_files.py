@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from hapticframe import ExperimentError
-from hapticframe._cli import main
 from hapticframe._config import load_text
+from hapticframe.cli._cli import main
 from tests.support.lab import lab_main, validate_lab
 
 GOOD = (Path(__file__).parents[1] / "support" / "lab-open-loop.yaml").read_text()

@@ -13,7 +13,7 @@ import pytest
 
 from hapticframe import Knob
 from hapticframe._config import load_file
-from hapticframe._sweep import (
+from hapticframe.sweep._sweep import (
     TrialTask,
     _declared,
     _mark_front,
@@ -24,7 +24,7 @@ from hapticframe._sweep import (
     make_executor,
     run_trial,
 )
-from hapticframe._sweep_report import render_markdown
+from hapticframe.sweep._sweep_report import render_markdown
 
 from .test_overrides import TINY
 
@@ -145,7 +145,7 @@ def _tiny_task(tiny: Path, out: Path) -> TrialTask:
 
 def test_a_runs_warnings_are_counted_not_printed(tmp_path: Path, monkeypatch: Any,
                                                   capsys: Any) -> None:
-    import hapticframe._run as run_module
+    import hapticframe.run._run as run_module
 
     def warns(*args: Any, **kwargs: Any) -> dict[str, Any]:
         for _ in range(5):
@@ -165,7 +165,7 @@ def test_a_runs_warnings_are_counted_not_printed(tmp_path: Path, monkeypatch: An
 
 def test_a_metric_nan_in_the_baseline_too_fails_nothing(tmp_path: Path,
                                                         monkeypatch: Any) -> None:
-    import hapticframe._run as run_module
+    import hapticframe.run._run as run_module
 
     tiny = tmp_path / "tiny.yaml"
     tiny.write_text(TINY, encoding="utf-8")

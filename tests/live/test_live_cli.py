@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 import yaml
 
-from hapticframe import _cli
-from hapticframe._cli import main
-from hapticframe._live import RecordingTimeline
-from hapticframe._recording import read_recording
+from hapticframe.cli import _cli
+from hapticframe.cli._cli import main
+from hapticframe.live import RecordingTimeline
+from hapticframe.record._recording import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
