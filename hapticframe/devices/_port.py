@@ -24,16 +24,16 @@ from __future__ import annotations
 import math
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ._clock import Clock, FakeClock, MonotonicClock
-from ._emulator import DeviceModel, PtyEmulator
-from ._faults import FaultSchedule
-from ._transport import ByteTransport, SerialTransport
+from hapticframe.devices._clock import Clock, FakeClock, MonotonicClock
+from hapticframe.devices._emulator import DeviceModel, PtyEmulator
+from hapticframe.devices._faults import FaultSchedule
+from hapticframe.devices._transport import ByteTransport, SerialTransport
 
-__all__ = ["DevicePort", "EmulatedPort", "PacedPort", "SerialPort", "port_for"]
+__all__ = ["DevicePort", "EmulatedPort", "LinkPort", "PacedPort", "SerialPort", "port_for"]
 
 
 class DevicePort:
@@ -81,6 +81,20 @@ class DevicePort:
     def elapse(self, seconds: float) -> None:
         """Let ``seconds`` pass (a handshake's pause, a backoff before the loop starts)."""
         self.clock.sleep(seconds)
+
+    def poll_times(self, span_s: float, step_s: float) -> Iterator[float]:
+        """The times at which one ``read()`` looks at its device: now, then every ``step_s``
+        up to :meth:`read_until` (``span_s``) where the port owns time. A live port yields
+        now only: the read does what is due and returns; it never waits."""
+        until = self.read_until(span_s)
+        now = self.clock.now()
+        yield now
+        for _ in range(_bounded_steps(now, until, step_s)):
+            now = self.clock.now()
+            if now >= until:
+                return
+            self.wait_until(min(until, now + step_s))
+            yield self.clock.now()
 
 
 class SerialPort(DevicePort):
@@ -225,11 +239,13 @@ def port_for(
         return PacedPort(clock, transport, follow=follow, name=name)
     if transport is None:
         return SerialPort(name, clock=clock)
-    return _LinkPort(transport, MonotonicClock() if clock is None else clock, name)
+    return LinkPort(transport, MonotonicClock() if clock is None else clock, name)
 
 
-class _LinkPort(DevicePort):
-    """A live port over a link a lab built itself (its own adapter class)."""
+class LinkPort(DevicePort):
+    """A live port over a given link (a lab's own adapter class): the port never moves its
+    clock, each read looks once. A test may give it a :class:`FakeClock` that the test
+    moves, to play a host whose reads come when it likes."""
 
     def __init__(self, link: ByteTransport, clock: Clock, name: str) -> None:
         super().__init__(clock, name)
@@ -239,7 +255,7 @@ class _LinkPort(DevicePort):
         return self._link
 
 
-def bounded_steps(start_s: float, until_s: float, step_s: float) -> int:
+def _bounded_steps(start_s: float, until_s: float, step_s: float) -> int:
     """How many ``step_s`` steps take a clock from ``start_s`` to ``until_s`` (a loop bound)."""
     if not until_s > start_s:
         return 0
