@@ -28,6 +28,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hapticframe.devices._clock import Clock, FakeClock, MonotonicClock
 from hapticframe.devices._emulator import DeviceModel, PtyEmulator
 from hapticframe.devices._faults import FaultSchedule
@@ -170,6 +172,8 @@ class EmulatedPort(PacedPort):
         The symlink's name (``ft300``, ``ttyDXL``).
     thread : bool or None, optional
         Passed to :class:`PtyEmulator` (True for a host library that blocks on replies).
+    fragment_rng : numpy.random.Generator or None, optional
+        Passed to :class:`PtyEmulator` (the random choices of byte faults).
     """
 
     def __init__(
@@ -181,12 +185,14 @@ class EmulatedPort(PacedPort):
         follow: Callable[[], float] | None = None,
         link_name: str = "tty",
         thread: bool | None = None,
+        fragment_rng: np.random.Generator | None = None,
     ) -> None:
         super().__init__(clock, None, follow=follow, name="emulated")
         self.model = model
         self.faults = faults
         self.link_name = link_name
         self.thread = thread
+        self.fragment_rng = fragment_rng
         self.emulator: PtyEmulator | None = None
         self._dir: Path | None = None
 
@@ -197,6 +203,7 @@ class EmulatedPort(PacedPort):
         self.emulator = PtyEmulator(
             self.model, clock=self.clock, faults=self.faults,
             link_path=self._dir / self.link_name, thread=self.thread,
+            fragment_rng=self.fragment_rng,
         ).start()
 
     def stop(self) -> None:
