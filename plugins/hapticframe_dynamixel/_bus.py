@@ -18,7 +18,14 @@ import numpy as np
 import serial
 from numpy.typing import NDArray
 
-from hapticframe.devices import DeviceError, DeviceLifecycle, DeviceModel, FaultSchedule
+from hapticframe.devices import (
+    DeviceError,
+    DeviceLifecycle,
+    DeviceModel,
+    EmulatedPort,
+    FakeClock,
+    FaultSchedule,
+)
 
 from ._config import DynamixelRobotConfig
 from ._control_table import XM430_W350, current_to_amps, to_signed
@@ -94,6 +101,23 @@ def _emulated_port(path: str, timeout_ms: float) -> Any:
             self.packet_timeout = self.tx_time_per_byte * packet_length + timeout_ms
 
     return EmulatedPort(path)
+
+
+def emulated_bus_port(
+    config: DynamixelRobotConfig, rng: np.random.Generator, ids: tuple[int, ...]
+) -> tuple[EmulatedPort, DynamixelBus]:
+    """The ``port: emulated`` link: the servos of ``config.emulated_ids`` (default ``ids``)
+    on a :class:`DynamixelBus` behind a pseudo-terminal, on a fake clock (simulation time)
+    that the robot moves by a control period per step. The pty is served by a thread:
+    dynamixel-sdk blocks waiting for its replies."""
+    fault_rng, bus_rng = rng.spawn(2)
+    schedule = _schedule(config.faults, fault_rng)
+    servo_ids = list(config.emulated_ids) if config.emulated_ids is not None else list(ids)
+    bus = DynamixelBus(servo_ids, faults=schedule, rng=bus_rng,
+                       time_constant_s=config.time_constant_s)
+    port = EmulatedPort(_SteppedBus(bus, EMULATOR_LEAD_S), FakeClock(0.0), faults=schedule,
+                        link_name="ttyDXL", thread=True)
+    return port, bus
 
 
 def _schedule(faults: Any, rng: np.random.Generator) -> FaultSchedule | None:

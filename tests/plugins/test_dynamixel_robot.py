@@ -198,22 +198,12 @@ def test_a_missing_servo_fails_configure_naming_it() -> None:
 def test_a_wrong_model_fails_configure() -> None:
     robot = build()
     try:
-        robot._start_emulator = _wrong_model(robot)  # type: ignore[method-assign]
+        assert robot.bus is not None  # the emulated bus comes with the port, before configure
+        robot.bus.servo(2).set("Model Number", 1060)  # an XL430-W250
         with pytest.raises(DeviceError, match=f"not an XM430-W350 \\({XM430_W350_MODEL_NUMBER}"):
             robot.configure()
     finally:
         robot.close()
-
-
-def _wrong_model(robot: DynamixelRobot) -> Any:
-    start = robot._start_emulator
-
-    def patched() -> None:
-        start()
-        assert robot.bus is not None
-        robot.bus.servo(2).set("Model Number", 1060)  # an XL430-W250
-
-    return patched
 
 
 def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() -> None:
