@@ -370,12 +370,14 @@ class DynamixelRobot(Robot, BusLink):
         lo = np.array([s.min_pulse for s in self.kinematics.servos])
         hi = np.array([s.max_pulse for s in self.kinematics.servos])
         self._sync_write(np.clip(np.rint(pulses), lo, hi).astype(int))
-        positions, current = self._sync_read()
-        self._measured(positions)
-        self.present_current_a = current
         self._commands += 1
         if self._commands % self._check_every == 0:
-            self._check_torque()
+            # The torque check rides on the state read: one BULK_READ, one round trip.
+            positions, current = self._sync_read_with_torque()
+        else:
+            positions, current = self._sync_read()
+        self._measured(positions)
+        self.present_current_a = current
         return self._pose
 
     def _measured(self, positions: NDArray[np.float64]) -> None:
