@@ -18,7 +18,7 @@ robot input.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -315,15 +315,23 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         self.port.stop()
 
     def on_recover(self, error: Exception) -> None:
-        """Reopen the port with backoff and configure the chip again; raise when it cannot."""
+        """:meth:`recovery_steps` run to the end (waiting a poll period between steps)."""
+        for _ in self.recovery_steps(error):
+            self.port.elapse(self._period_s)
+
+    def recovery_steps(self, error: Exception) -> Iterator[None]:
+        """Reopen the port with backoff and configure the chip again; raise when it cannot.
+        The backoff is waited in steps, one per poll slot (a read never waits for it); an
+        attempt itself is a few bounded exchanges."""
         self._close_transport()
         last: Exception = error
         for delay in Backoff(initial_s=0.05, attempts=self.config.reconnect_attempts):
-            self._clock.sleep(delay)
+            yield from self._wait_steps(delay, stepping=True)
             try:
                 self._open()
                 self._health.reconnects += 1
-                self._initialise()
+                yield from self._initialise_steps()
+                yield
                 self._select_mode()
             except (TransportError, Bno055ProtocolError) as exc:
                 last = exc
@@ -444,13 +452,30 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     def _initialise(self) -> None:
         """Identify the chip and bring it to CONFIG mode, page 0, SI-friendly units."""
+        for _ in self._initialise_steps(stepping=False):
+            pass
+
+    def _wait_steps(self, seconds: float, stepping: bool) -> Iterator[None]:
+        """Let ``seconds`` pass: in steps (a recovery under way), or sleeping (configure)."""
+        if not stepping:
+            self._clock.sleep(seconds)
+            return
+        deadline = self._clock.now() + seconds
+        while self._clock.now() < deadline:
+            yield
+
+    def _initialise_steps(self, stepping: bool = True) -> Iterator[None]:
+        """:meth:`_initialise` in steps of at most one request (a recovery's reads never
+        wait for more than one reply)."""
         link = self._link()
         if self.config.reset_on_configure:
             # The reset is never acknowledged in UART mode: write it blind and wait.
             link.write(encode_write(Register.SYS_TRIGGER, bytes((SYS_TRIGGER_RESET,))))
-            self._clock.sleep(_RESET_S)
+            yield from self._wait_steps(_RESET_S, stepping)
         chip_id: int | None = None
-        for _ in range(self.config.chip_id_attempts):
+        for attempt in range(self.config.chip_id_attempts):
+            if attempt:
+                yield
             try:
                 chip_id = self._read_register(Register.CHIP_ID, 1, what="read CHIP_ID")[0]
                 break
@@ -467,9 +492,12 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
                 f"device {self.id!r} on {self.port.name!r} has CHIP_ID 0x{chip_id:02X}, not "
                 f"0x{CHIP_ID_VALUE:02X}: not a BNO055"
             )
+        yield
         self._write_register(Register.PAGE_ID, 0)
+        yield
         self._write_register(Register.OPR_MODE, OperationMode.CONFIG)
         self._clock.sleep(_TO_CONFIG_S)
+        yield
         self._write_register(Register.UNIT_SEL, UNIT_SEL_SI)
 
     def _select_mode(self) -> None:
@@ -478,10 +506,16 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     # --- polling ----------------------------------------------------------------------------
     def _poll_or_recover(self) -> tuple[float, dict[str, np.ndarray], dict[str, bool]] | None:
+        """One poll slot: a step of a recovery under way, or one poll (starting a recovery
+        when it fails). DeviceError when the device cannot go on."""
+        if self.recovering:
+            self.continue_recovery()
+            return None
         try:
             return self._poll()
         except (TransportError, Bno055ProtocolError, _DeviceWasReset) as exc:
-            self.recover(exc)  # DeviceError when it cannot go on
+            self.begin_recovery(exc)
+            self.continue_recovery()
             return None
 
     def _poll(self) -> tuple[float, dict[str, np.ndarray], dict[str, bool]] | None:
