@@ -259,17 +259,19 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
             if row is not None:
                 rows.append(row)
             self._next_poll_s += self._period_s
-            self._skip_to(self._clock.now())
+            # Polls a recovery's exchanges overran were not due: no device was there.
+            self._skip_to(self._clock.now(), count=not self.recovering)
         self.port.wait_until(target)
         return self._batch(rows)
 
-    def _skip_to(self, now_s: float) -> None:
+    def _skip_to(self, now_s: float, count: bool = True) -> None:
         """Polls more than one period late are not sent: count them as dropped."""
         late = now_s - self._next_poll_s
         if late > self._period_s:
             missed = math.floor(late / self._period_s)
             self._next_poll_s += missed * self._period_s
-            self._health.dropped_samples += missed
+            if count:
+                self._health.dropped_samples += missed
 
     def _batch(self, rows: list[tuple[float, dict[str, np.ndarray], dict[str, bool]]]
                ) -> SampleBatch:
