@@ -8,11 +8,12 @@ request, and a reply is accepted only when exactly its bytes arrived (the protoc
 checksum: a stale or garbage byte anywhere rejects the exchange). No valid reply for
 ``watchdog_s``, a disconnect, or data registers that read zero (the chip reset to CONFIG
 mode) start a recovery: reopen with backoff and reconfigure, at most ``max_recoveries`` times
-in a row before :class:`~hapticframe.devices.DeviceError`.
+in a row before :class:`~hapticframe.devices.DeviceError`. The recovery runs in steps, one
+per poll slot: a read waits for one request's reply at most, never for the backoff.
 
-With ``port: emulated`` the device is a :class:`Bno055Model` behind a real pseudo-terminal,
-paced by a :class:`~hapticframe.devices.FakeClock` that follows the simulation time of the
-robot input.
+The driver talks to a :class:`~hapticframe.devices.DevicePort`: a serial device, or with
+``port: emulated`` a :class:`Bno055Model` behind a real pseudo-terminal whose fake clock
+follows the simulation time of the robot input. The code path is the same for both.
 """
 
 from __future__ import annotations
@@ -205,7 +206,7 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     @property
     def clock(self) -> Clock:
-        """The host clock samples are stamped with (a FakeClock when emulated)."""
+        """The host clock samples are stamped with (the port's)."""
         return self._clock
 
     @property

@@ -10,12 +10,13 @@ a movement's start is interpolated in joint space (within the limits wherever it
 
 ``port: emulated`` runs a :class:`DynamixelBus` behind a :class:`PtyEmulator` that the
 unmodified SDK opens by name. The SDK blocks waiting for replies, so the emulator serves the
-pty in a thread; the bus's time is a :class:`FakeClock` that :meth:`DynamixelRobot.step`
-advances by one control period (and pumps once, so that the servos move under the previous
-goal) before it writes the next goals. Servo dynamics therefore run in simulation time and a
-run is deterministic. Status packets are emitted up to :data:`EMULATOR_LEAD_S` of model time
-after their request (the return delay and the wire take microseconds a frozen clock would
-never reach): the servos' state is read that much later than the step's timestamp.
+pty in a thread (an :class:`EmulatedPort`); the bus's time is the port's fake clock, which
+:meth:`DynamixelRobot.step` advances by one control period (and pumps once, so that the
+servos move under the previous goal) before it writes the next goals. Servo dynamics
+therefore run in simulation time and a run is deterministic. Status packets are emitted up
+to :data:`EMULATOR_LEAD_S` of model time after their request (the return delay and the wire
+take microseconds a frozen clock would never reach): the servos' state is read that much
+later than the step's timestamp.
 :meth:`DynamixelRobot.couple_environment` loads the emulated servos with a simulated
 environment's force on the fingertip (``τ = −Jᵀ f``): Present Current follows it.
 """
@@ -144,7 +145,9 @@ class DynamixelRobot(Robot, BusLink):
     ----------
     kinematics : Gantry or TwoLink
     clock : Clock
-        A :class:`FakeClock` (simulation time) when emulated, else the monotonic clock.
+        The port's: simulation time when emulated, else the monotonic clock.
+    port : DevicePort
+        The serial device, or the emulated bus's pty (``port: emulated``).
     bus : DynamixelBus or None
         The emulated servos (``port: emulated``, after configure).
     stats : dict of str to int
