@@ -69,7 +69,13 @@ from hapticframe.testing._harness import (
 )
 from hapticframe.testing._knobs import check_knobs
 from hapticframe.testing._rewind import check_rewind
-from hapticframe.testing._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
+from hapticframe.testing._runner import (
+    CheckResult,
+    checks_for,
+    iter_checks,
+    parametrize_with_checks,
+    run_checks,
+)
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
@@ -138,6 +144,7 @@ __all__ = [
     "check_streaming_matches_batch",
     "checks_for",
     "drive_sensor",
+    "iter_checks",
     "located_measurement",
     "make_component",
     "map_observations",
