@@ -70,7 +70,7 @@ _LAZY = {
     "get_registry": "hapticframe._manager",
     "hookimpl": ".hookspecs",
     "make_plugin_manager": "hapticframe._manager",
-    "run_experiment": "hapticframe.run._run",
+    "run_experiment": "hapticframe.record._recorded",
     "validate_file": "hapticframe._config",
     "validate_mapping": "hapticframe._config",
 }
@@ -125,5 +125,5 @@ if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit
     from hapticframe._version import __version__ as __version__
     from hapticframe.cli._bench import BenchOptions as BenchOptions
     from hapticframe.hookspecs import hookimpl as hookimpl
+    from hapticframe.record._recorded import run_experiment as run_experiment
     from hapticframe.run._results import RunSummary as RunSummary
-    from hapticframe.run._run import run_experiment as run_experiment

@@ -1,4 +1,4 @@
-"""``hapticframe report``: write trace.npz and figures from a run's recording."""
+"""``hapticframe report``: a trace and figures from a run's recording, beside the run's own."""
 
 from __future__ import annotations
 
@@ -14,13 +14,14 @@ __all__ = ["register"]
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``hapticframe report`` to the command line."""
-    p = sub.add_parser("report", help="write trace.npz and figures from a run's recording")
+    p = sub.add_parser("report", help="write a trace (report_trace.npz) and figures from a "
+                       "run's recording, beside the run's own results")
     p.add_argument("target", metavar="DIR",
                    help="a run's --out directory (its run.mcap, or the one a killed run left "
                    "in .hapticframe-partial/) or an .mcap file")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="where to write them (default: DIR, or the file's folder)")
-    p.add_argument("--no-figures", action="store_true", help="write trace.npz only")
+    p.add_argument("--no-figures", action="store_true", help="write report_trace.npz only")
     p.set_defaults(func=cmd_report)
 
 

@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     experiment = validate_experiment(args, args.file)
     if getattr(args, "live", False):
@@ -60,7 +60,7 @@ def _run_live(args: argparse.Namespace, experiment: Any) -> int:
     then the run's error, if any, is the command's."""
     from hapticframe._errors import UsageError
     from hapticframe.live import run_live
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     if not experiment.model.run.record:
         raise UsageError("--live shows the run's recording, which this experiment turns off "

@@ -9,6 +9,9 @@
 - Health (:class:`DeviceHealth`): counters written to ``metrics.json``.
 - Time (:class:`Clock`, :class:`MonotonicClock`, :class:`FakeClock`, :class:`ClockSync`):
   every sample carries host time from its device's clock.
+- Ports (:class:`DevicePort`: :class:`SerialPort`, :class:`PacedPort`,
+  :class:`EmulatedPort`): what a driver is handed — its link, its clock and how far a read
+  goes — so that its code is the same for a real device and an emulated one.
 - Emulators (:class:`DeviceModel`, :class:`PtyEmulator`, :class:`EmulatedTransport`) with
   seeded fault schedules (:class:`FaultSchedule`).
 
@@ -22,6 +25,14 @@ from hapticframe.devices._faults import FaultEvent, FaultSchedule, FaultSetting,
 from hapticframe.devices._framing import FixedFrameParser, LineFramer, ParserStats
 from hapticframe.devices._health import DeviceHealth
 from hapticframe.devices._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
+from hapticframe.devices._port import (
+    DevicePort,
+    EmulatedPort,
+    LinkPort,
+    PacedPort,
+    SerialPort,
+    port_for,
+)
 from hapticframe.devices._transport import (
     Backoff,
     ByteTransport,
@@ -39,6 +50,8 @@ __all__ = [
     "DeviceHealth",
     "DeviceLifecycle",
     "DeviceModel",
+    "DevicePort",
+    "EmulatedPort",
     "EmulatedTransport",
     "FakeClock",
     "FaultEvent",
@@ -48,13 +61,17 @@ __all__ = [
     "InjectedFault",
     "LifecycleState",
     "LineFramer",
+    "LinkPort",
     "MonotonicClock",
+    "PacedPort",
     "ParserStats",
     "PtyEmulator",
+    "SerialPort",
     "SerialTransport",
     "TransportError",
     "append_crc16",
     "check_crc16",
     "crc16_modbus",
     "open_transport",
+    "port_for",
 ]

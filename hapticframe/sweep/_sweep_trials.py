@@ -195,7 +195,7 @@ def _alarm(timeout_s: float | None) -> Iterator[dict[str, bool]]:
 
 def run_trial(task: TrialTask) -> dict[str, Any]:
     """Run one trial and measure it; never raises for a failing run (the row says why)."""
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     out = Path(task.out_dir)
     row: dict[str, Any] = {"point": task.point, "trial": task.trial, "seed": task.seed,
