@@ -54,7 +54,7 @@ class RecordingRobot(Robot):
 
 
 def line(x0: float, x1: float, depth_m: float | None = None) -> ExploratoryMovement:
-    return ExploratoryMovement((x0, 0.2), (x1, 0.2), 0.05, depth_m=depth_m)
+    return ExploratoryMovement(np.array([x0, 0.2]), np.array([x1, 0.2]), 0.05, depth_m=depth_m)
 
 
 def test_the_robot_base_resolves_and_checks_the_depth_before_the_hook() -> None:
@@ -78,8 +78,10 @@ def test_the_robot_base_refuses_a_movement_outside_its_workspace() -> None:
         robot.begin(line(0.1, 0.6))
     with pytest.raises(ValueError, match="leaves the workspace"):
         robot.begin(line(0.5 + 1e-7, 0.2))
-    slack = RecordingRobot(region)
-    slack.workspace_slack_m = 1e-6  # a robot's allowance for rounding at a cut
+    class SlackRobot(RecordingRobot):
+        workspace_slack_m = 1e-6  # a robot's allowance for rounding at a cut
+
+    slack = SlackRobot(region)
     slack.begin(line(0.5 + 1e-7, 0.2))
     assert len(robot.begun) == 1 and len(slack.begun) == 1
     assert RecordingRobot(None).workspace is None
@@ -132,7 +134,8 @@ def test_the_map_base_checks_query_points_once_before_the_hook() -> None:
     assert the_map.query([0.1, 0.2]).mean.shape == (1,)
     assert the_map.query(np.zeros((3, 2), dtype=np.float32)).mean.shape == (3,)
     assert the_map.seen[-1].dtype == np.float64
-    for empty in ([], np.empty((0, 2))):
+    empties: tuple[list[float], np.ndarray] = ([], np.empty((0, 2)))
+    for empty in empties:
         assert the_map.query(empty).mean.shape == (0,)
     assert len(the_map.seen) == 2  # an empty query never reaches the hook
     for bad, message in (([[np.nan, 0.1]], "finite"), ([[0.1, -np.inf]], "finite"),
