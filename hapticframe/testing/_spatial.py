@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any
 
 import numpy as np
@@ -46,6 +48,7 @@ __all__ = [
     "KitMap",
     "check_planner_extremes",
     "check_robot_extremes",
+    "check_robot_refuses_bad_depth",
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "located_measurement",
@@ -659,6 +662,36 @@ def check_robot_refuses_outside_workspace(
         states = _robot_states(robot, _inside_movement(robot))
         if not states:
             raise CheckFailure("a movement inside the workspace gave no states")
+    finally:
+        release_component(robot)
+
+
+@check(Kind.ROBOT)
+def check_robot_refuses_bad_depth(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """``begin()`` refuses a movement whose depth is zero, negative or NaN with a
+    ``ValueError``, and no step follows. ``Robot.begin`` does this before it calls the
+    plugin's ``_begin``: a robot that overrides ``begin`` itself must too."""
+    robot = make_component(spec, registry=registry, interface=Robot)
+    try:
+        inside = _inside_movement(robot)
+        for what, depth in (("a negative depth", -0.01), ("a zero depth", 0.0),
+                            ("a NaN depth", math.nan)):
+            movement = dataclasses.replace(inside, depth_m=depth)
+            try:
+                robot.begin(movement)
+            except ValueError as exc:
+                if not str(exc) or raised_by_record_validation(exc):
+                    raise _invalid(spec, what, exc) from exc
+                if robot.step() is not None:
+                    raise CheckFailure(
+                        f"begin() refused {what}, but step() then returned a state"
+                    ) from None
+                continue
+            robot.halt("kit")
+            raise CheckFailure(
+                f"begin() accepted {what} ({depth} m): it must raise ValueError; implement "
+                "Robot._begin and leave the checks to Robot.begin"
+            )
     finally:
         release_component(robot)
 

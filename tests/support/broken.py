@@ -326,6 +326,7 @@ class LineRobotConfig(PluginConfig):
     halt_only_when_moving: bool = False
     declare_workspace: bool = False
     enforce_workspace: bool = True
+    refuse_bad_depth: bool = True
 
 
 class LineRobot(Robot):
@@ -354,6 +355,11 @@ class LineRobot(Robot):
         return self.context.scene.region.to_region()
 
     def begin(self, movement: ExploratoryMovement) -> None:
+        # Overrides Robot.begin, so it checks what the base would (the broken variants skip).
+        depth = movement.depth_m
+        if self.config.refuse_bad_depth and depth is not None and not (
+                math.isfinite(depth) and depth > 0):
+            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
         region = self.workspace
         if region is not None and self.config.enforce_workspace:  # the broken variant does not
             if not region.contains(np.vstack([movement.start_m, movement.end_m])).all():
@@ -501,6 +507,9 @@ BROKEN = [
                check_config={"declare_workspace": True, "enforce_workspace": False}),
      "check_robot_refuses_outside_workspace",
      "begin() accepted a movement that ends outside the workspace"),
+    (RobotSpec("accepts-any-depth", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"refuse_bad_depth": False}),
+     "check_robot_refuses_bad_depth", "begin() accepted a negative depth"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
     (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
