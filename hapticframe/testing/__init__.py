@@ -40,7 +40,8 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
   (after ``halt()``, before the first step or mid-movement, no step returns a state and
   the fingertip stays put), ``check_robot_refuses_outside_workspace`` (a robot that declares
   a ``workspace`` raises ``ValueError`` from ``begin()`` for a movement leaving it),
-  ``check_robot_refuses_bad_depth`` (zero, negative, NaN), ``check_robot_extremes`` (a zero-length movement, movements that leave the workspace),
+  ``check_robot_refuses_bad_depth`` (zero, negative, NaN), ``check_robot_extremes`` (a
+  zero-length movement, movements that leave the workspace),
   ``check_rewind``.
 
 A :class:`~hapticframe.kinds.Device` the kit builds is configured and activated first,
