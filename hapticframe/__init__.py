@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING
 
-from hapticframe._lazy import lazy_exports
+from hapticframe._lazy import lazy_exports as lazy_exports
 
 # The library logs through `logging` and configures no output: the application (the
 # `hapticframe` command, a notebook, a lab's script) decides what is shown.
@@ -96,7 +96,6 @@ if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit
     from hapticframe._errors import RunInterrupted as RunInterrupted
     from hapticframe._errors import UsageError as UsageError
     from hapticframe._kind import Kind as Kind
-    from hapticframe._lazy import lazy_exports as lazy_exports
     from hapticframe._manager import get_plugin_manager as get_plugin_manager
     from hapticframe._manager import get_registry as get_registry
     from hapticframe._manager import make_plugin_manager as make_plugin_manager

@@ -19,8 +19,7 @@ fixed list of rates, and a pty does not enforce any).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import AxisConfig, DynamixelRobotConfig, GantryConfig, JointConfig, TwoLinkConfig
 from ._control_table import (
@@ -183,9 +182,10 @@ __all__ = [
     "write_packet",
 ]
 
+#: Public names that load on first use, and their modules (the robot imports dynamixel_sdk:
+#: only when asked for).
+_LAZY = {
+    "DynamixelRobot": "._robot",
+}
 
-def __getattr__(name: str) -> Any:
-    # The robot imports dynamixel_sdk: only when asked for.
-    if name == "DynamixelRobot":
-        return importlib.import_module("._robot", __name__).DynamixelRobot
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
