@@ -32,14 +32,16 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 - sensor models: ``check_sensor_model_contract``, ``check_sensor_model_streaming``,
   ``check_sensor_model_extremes``;
 - maps: ``check_map_contract``, ``check_map_streaming_matches_batch``,
-  ``check_map_extremes``, ``check_map_ranks_scattered_points``;
+  ``check_map_extremes``, ``check_map_ranks_scattered_points``,
+  ``check_map_refuses_bad_query_points``;
 - planners: ``check_planner_contract``, ``check_planner_extremes`` (an all-unknown map, an
   all-occupied map, a region smaller than one line spacing);
 - robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_stops_at_once``
   (after ``halt()``, before the first step or mid-movement, no step returns a state and
   the fingertip stays put), ``check_robot_refuses_outside_workspace`` (a robot that declares
   a ``workspace`` raises ``ValueError`` from ``begin()`` for a movement leaving it),
-  ``check_robot_extremes`` (a zero-length movement, movements that leave the workspace),
+  ``check_robot_refuses_bad_depth`` (zero, negative, NaN), ``check_robot_extremes`` (a
+  zero-length movement, movements that leave the workspace),
   ``check_rewind``.
 
 A :class:`~hapticframe.kinds.Device` the kit builds is configured and activated first,
@@ -50,8 +52,8 @@ never ends fails a check instead of hanging it; no check is timed.
 """
 
 # _knobs first: its spec-level check runs beside the other checks every plugin gets.
-from . import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
-from ._common import (
+from hapticframe.testing import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
+from hapticframe.testing._common import (
     CHECKS,
     HEAVY_MODULES,
     check_builds,
@@ -59,7 +61,7 @@ from ._common import (
     check_lazy_import,
     check_spec_record,
 )
-from ._harness import (
+from hapticframe.testing._harness import (
     DEFAULT_SCENE,
     CheckFailure,
     KitMap,
@@ -67,20 +69,28 @@ from ._harness import (
     release_component,
     synthetic_batch,
 )
-from ._knobs import check_knobs
-from ._rewind import check_rewind
-from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
-from ._spatial import (
+from hapticframe.testing._knobs import check_knobs
+from hapticframe.testing._rewind import check_rewind
+from hapticframe.testing._runner import (
+    CheckResult,
+    checks_for,
+    iter_checks,
+    parametrize_with_checks,
+    run_checks,
+)
+from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
     check_map_extremes,
     check_map_ranks_scattered_points,
+    check_map_refuses_bad_query_points,
     check_map_streaming_matches_batch,
     check_planner_contract,
     check_planner_extremes,
     check_robot_contract,
     check_robot_extremes,
     check_robot_halt,
+    check_robot_refuses_bad_depth,
     check_robot_refuses_outside_workspace,
     check_robot_stops_at_once,
     check_sensor_model_contract,
@@ -90,7 +100,7 @@ from ._spatial import (
     map_observations,
     planner_episode,
 )
-from ._streams import (
+from hapticframe.testing._streams import (
     check_aligned_inputs_stream_as_batch,
     check_numerical_extremes,
     check_sensor_contract,
@@ -117,6 +127,7 @@ __all__ = [
     "check_map_contract",
     "check_map_extremes",
     "check_map_ranks_scattered_points",
+    "check_map_refuses_bad_query_points",
     "check_map_streaming_matches_batch",
     "check_numerical_extremes",
     "check_planner_contract",
@@ -125,6 +136,7 @@ __all__ = [
     "check_robot_contract",
     "check_robot_extremes",
     "check_robot_halt",
+    "check_robot_refuses_bad_depth",
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "check_sensor_contract",
@@ -138,6 +150,7 @@ __all__ = [
     "check_streaming_matches_batch",
     "checks_for",
     "drive_sensor",
+    "iter_checks",
     "located_measurement",
     "make_component",
     "map_observations",

@@ -10,7 +10,7 @@ from hapticframe import Finding, ValidationContext
 
 __all__ = ["check"]
 
-#: Largest weight-vector length (the map's precision is a dense D x D matrix; as _map).
+#: Largest weight-vector length (the precision is a dense D x D matrix; _dense reads it here).
 MAX_WEIGHTS = 5000
 #: The thesis's 75 x 50 cm search area: the region when neither config nor scene gives one.
 _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)

@@ -14,7 +14,7 @@ pytest.importorskip("h5py")
 pytest.importorskip("torch")
 
 from hapticframe import BenchOptions, UsageError
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from hapticframe_bench._biotac_calibration import run_biotac_calibration
 from hapticframe_bench._perception_models import Architecture
 from hapticframe_bench._perception_real import RealPlan, run_perception_real, score_object

@@ -15,8 +15,8 @@ pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer
 from rosbags.typesys import Stores, get_typestore
 
-from hapticframe._bags import biotac_types, import_bag, parse_map
 from hapticframe.kinds import BuildContext
+from hapticframe.record._bags import biotac_types, import_bag, parse_map
 from hapticframe_biotac import BioTacSensor, BioTacSensorConfig
 from hapticframe_recording import McapRecordingConfig, RecordingSensor
 from hapticframe_tactile_features import EMDFeatureExtractor, EMDFeaturesConfig

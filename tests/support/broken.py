@@ -207,6 +207,13 @@ class EmptyQueryMap(CellMap):
         return est
 
 
+class UncheckedQueryMap(CellMap):
+    def query(self, points_m):  # type: ignore[no-untyped-def]
+        # Overrides the base's query and so skips its checks of the points.
+        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+        return MapEstimate(np.full(n, 0.5), np.full(n, 0.5))
+
+
 class ForgetfulMap(CellMap):
     def update(self, observations: Observations) -> None:
         self.reset()
@@ -319,6 +326,7 @@ class LineRobotConfig(PluginConfig):
     halt_only_when_moving: bool = False
     declare_workspace: bool = False
     enforce_workspace: bool = True
+    refuse_bad_depth: bool = True
 
 
 class LineRobot(Robot):
@@ -347,6 +355,11 @@ class LineRobot(Robot):
         return self.context.scene.region.to_region()
 
     def begin(self, movement: ExploratoryMovement) -> None:
+        # Overrides Robot.begin, so it checks what the base would (the broken variants skip).
+        depth = movement.depth_m
+        if self.config.refuse_bad_depth and depth is not None and not (
+                math.isfinite(depth) and depth > 0):
+            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
         region = self.workspace
         if region is not None and self.config.enforce_workspace:  # the broken variant does not
             if not region.contains(np.vstack([movement.start_m, movement.end_m])).all():
@@ -471,6 +484,8 @@ BROKEN = [
      "check_knobs", "has no field 'cell_size_m'; did you mean 'cell_m'?"),
     (MapSpec("empty-query", "x", CellConfig, f"{M}:EmptyQueryMap"),
      "check_map_contract", "empty query"),
+    (MapSpec("unchecked-query", "x", CellConfig, f"{M}:UncheckedQueryMap"),
+     "check_map_refuses_bad_query_points", "a NaN query point"),
     (MapSpec("forgetful", "x", CellConfig, f"{M}:ForgetfulMap"),
      "check_map_streaming_matches_batch", "sequential updates"),
     (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"),
@@ -492,6 +507,9 @@ BROKEN = [
                check_config={"declare_workspace": True, "enforce_workspace": False}),
      "check_robot_refuses_outside_workspace",
      "begin() accepted a movement that ends outside the workspace"),
+    (RobotSpec("accepts-any-depth", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"refuse_bad_depth": False}),
+     "check_robot_refuses_bad_depth", "begin() accepted a negative depth"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
     (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
