@@ -8,6 +8,11 @@ synthetic granular-media generator of dissertation §2.6 (:class:`TrialSpec`,
 :func:`open_air_frames`, :func:`frame_features`, :func:`generate_open_air_trial`,
 :func:`contact_interval_x_m`, :func:`granular_noise_ratios`), which the perception benchmark
 (``hapticframe_bench``) and the tests build their datasets from.
+Real recordings: the Penn BOLT HDF5 layout (:func:`load_bolt`, :func:`load_bolt_dir`,
+:func:`rebuild_frame_clock`, :func:`save_bolt`), the contact reference derived from pdc
+(:func:`derived_from_pdc`, :class:`PdcReference`), and the calibration of a synthetic press
+generator on them (:func:`calibrate_biotac`, :class:`BioTacCalibration`,
+:func:`generate_press_trial`); see ``docs/real-biotac.md``.
 A real SPI adapter is a separate package that registers a backend factory by name in the
 ``hapticframe.biotac_spi`` entry-point group (see ``_backends``). Importing this package is
 cheap; the implementation modules load on first attribute access.
