@@ -8,10 +8,10 @@ fingers), measures them with ``hapticframe_biotac.calibrate_biotac`` and writes:
   (``hapticframe_biotac.BioTacCalibration.load`` reads it;
   ``hapticframe_biotac.generate_press_trial`` draws trials from it);
 - ``biotac-calibration.md`` and ``biotac-calibration.png``: each statistic measured the
-  same way (``hapticframe_biotac._calibration.recording_statistics`` through the public
-  ``calibrate_biotac``) on the real recordings, on the uncalibrated granular-media
-  generator's open-air rakes past the cylinder (the same rake with the media removed, which
-  starts in air as the real trials do) and on trials of the calibrated generator.
+  same way (``hapticframe_biotac.calibrate_biotac``) on the real recordings, on the
+  uncalibrated granular-media generator's open-air rakes past the cylinder (the same rake
+  with the media removed, which starts in air as the real trials do) and on trials of the
+  calibrated generator.
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def save_comparison_figure(stats: dict[str, dict[str, Any]], path: Path) -> Path
         import matplotlib.pyplot as plt
     except ImportError:
         return None
-    from hapticframe_biotac._calibration import PAC_BANDS_HZ
+    from hapticframe_biotac import PAC_BANDS_HZ
 
     colours = {"real": "black", "uncalibrated generator": "tab:red",
                "calibrated generator": "tab:blue"}

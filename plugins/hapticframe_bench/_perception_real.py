@@ -26,7 +26,10 @@ and scored by balanced accuracy over the object's frames, recall at
 free) and the first-contact delay (median over recordings of the frames from the
 reference's first contact to the first frame read as contact within it; recordings whose
 contact is never read are counted as missed). Every recording is zeroed on its first 100
-frames (1 s at rest in air). Outputs: ``perception-real.json``, ``perception-real.md``.
+frames (1 s at rest in air). ``--quick`` runs :data:`QUICK_REAL_PLAN`, else
+:data:`REAL_PLAN`; ``--trials N`` scores N trials per object; ``--seed`` draws the scored and
+the calibration trials and seeds every model. Outputs: ``perception-real.json``,
+``perception-real.md``.
 """
 
 from __future__ import annotations
@@ -341,7 +344,7 @@ def run_real_suite(data_dir: Path, plan: RealPlan, seed: int, workers: int,
 
 
 def _calibration_reference(plan: RealPlan) -> dict[str, Any]:
-    return {"reference": dict(plan.reference), "tare_frames": plan.tare_frames}
+    return {"reference": dict(plan.reference)}
 
 
 def run_perception_real(options: BenchOptions, plan: RealPlan | None = None) -> dict[str, Any]:

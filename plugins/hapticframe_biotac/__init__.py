@@ -27,6 +27,7 @@ from ._config import BioTacSensorConfig
 
 __all__ = [
     "DERIVED_FROM_PDC",
+    "PAC_BANDS_HZ",
     "BioTacCalibration",
     "BioTacFrames",
     "BioTacSensor",
@@ -96,6 +97,7 @@ _LAZY = {
     "PdcReference": "._reference",
     "derived_from_pdc": "._reference",
     "BioTacCalibration": "._calibration",
+    "PAC_BANDS_HZ": "._calibration",
     "calibrate_biotac": "._calibration",
     "generate_press_trial": "._synthetic_press",
     # the synthetic granular-media generator (its own module, numpy-heavy)

@@ -203,7 +203,7 @@ def recording_statistics(frames: BioTacFrames, reference: PdcReference) -> dict[
 
 def calibrate_biotac(
     recordings: Sequence[BioTacFrames], fingers: Sequence[int] | None = None, *,
-    reference: Mapping[str, Any] | None = None, tare_frames: int | None = None,
+    reference: Mapping[str, Any] | None = None,
 ) -> BioTacCalibration:
     """Measure the generator's parameters on real ``recordings`` (see the module notes).
 
@@ -216,16 +216,12 @@ def calibrate_biotac(
         default: alternating 0, 1 (the order :func:`hapticframe_biotac.load_bolt` gives).
     reference : mapping, optional
         :class:`PdcReference` settings (default 100 resting frames, on 20, off 10 counts).
-    tare_frames : int, optional
-        Unused by the measurement (the recordings are raw); accepted so that a caller can
-        pass the settings it tares with.
 
     Raises
     ------
     ValueError
         No recordings, or none with a contact by the reference.
     """
-    del tare_frames
     ref = PdcReference(**dict(reference or {}))
     if not recordings:
         raise ValueError("calibration needs at least one recording")
