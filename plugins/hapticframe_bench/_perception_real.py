@@ -29,7 +29,7 @@ contact is never read are counted as missed). Every recording is zeroed on its f
 frames (1 s at rest in air). ``--quick`` runs :data:`QUICK_REAL_PLAN`, else
 :data:`REAL_PLAN`; ``--trials N`` scores N trials per object; ``--seed`` draws the scored and
 the calibration trials and seeds every model. Outputs: ``perception-real.json``,
-``perception-real.md``.
+``perception-real.md`` and ``perception-real.png`` (balanced accuracy per object).
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ from ._perception_real_data import (
     press_features,
     real_features,
 )
-from ._perception_real_report import render_real_markdown
+from ._perception_real_report import render_real_markdown, save_real_figure
 
 __all__ = ["QUICK_REAL_PLAN", "REAL_PLAN", "RealPlan", "run_perception_real", "score_object"]
 
@@ -372,6 +372,7 @@ def run_perception_real(options: BenchOptions, plan: RealPlan | None = None) -> 
     atomic_write(out / "perception-real.json",
                  json.dumps(result, indent=2, allow_nan=False) + "\n")
     atomic_write(out / "perception-real.md", render_real_markdown(result))
+    save_real_figure(result, out / "perception-real.png")
     options.echo(f"perception-real: {len(result['results'])} scores in "
                  f"{result['timing_s']['total_wall']:.0f} s; {out / 'perception-real.md'}")
     return result

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
-__all__ = ["render_real_markdown"]
+__all__ = ["render_real_markdown", "save_real_figure"]
 
 _SOURCES = {
     "synthetic": "(a) trained on synthetic granular rakes only (uncalibrated generator)",
@@ -76,3 +77,53 @@ def render_real_markdown(result: dict[str, Any]) -> str:
                   + "; ".join(f"{o}: {', '.join(v)}"
                               for o, v in result["calibration"]["trials"].items()), ""]
     return "\n".join(lines)
+
+
+def save_real_figure(result: dict[str, Any], path: Path) -> Path | None:
+    """Balanced accuracy per object, one panel per model, a bar per training source, solid
+    with pdc and hatched without; the dashed line is the goal (0.9). None without
+    matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    rows = result["results"]
+    objects = result["objects"]
+    sources = [s for s in _SOURCES if any(r["source"] == s for r in rows)]
+    models = list(dict.fromkeys(r["model"] for r in rows))
+    if not rows or not sources:
+        return None
+    colours = {"synthetic": "tab:red", "calibrated": "tab:blue", "calibrated-loo": "tab:cyan",
+               "real-loo": "black"}
+    fig, axes = plt.subplots(len(models), 1, figsize=(12, 3.2 * len(models)), squeeze=False)
+    width = 0.8 / (2 * len(sources))
+    for ax, model in zip(axes[:, 0], models, strict=True):
+        for i, source in enumerate(sources):
+            for j, inputs in enumerate(("with pdc", "without pdc")):
+                values = []
+                for obj in objects:
+                    found = [r["balanced_accuracy"] for r in rows if r["source"] == source
+                             and r["model"] == model and r["inputs"] == inputs
+                             and r["object"] == obj]
+                    values.append(found[0] if found else 0.0)
+                offset = (2 * i + j - len(sources) + 0.5) * width
+                ax.bar([k + offset for k in range(len(objects))], values, width,
+                       color=colours.get(source, "grey"), hatch="//" if j else None,
+                       edgecolor="white" if j else None,
+                       label=f"{source}, {inputs}")
+        ax.axhline(0.9, color="grey", ls="--", lw=1, label="goal 0.9")
+        lowest = min(r["balanced_accuracy"] for r in rows)
+        ax.set_ylim(min(0.4, lowest - 0.05), 1.0)
+        ax.set_xticks(range(len(objects)), [o.replace("_", " ") for o in objects])
+        ax.set_ylabel("balanced accuracy")
+        ax.set_title(f"{model}: contact against the reference derived from pdc")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8)
+    fig.suptitle(f"Real BioTac trials (Penn BOLT), seed {result['seed']}")
+    fig.tight_layout(rect=(0.0, 0.06, 1.0, 1.0))
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

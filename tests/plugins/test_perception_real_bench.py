@@ -75,6 +75,7 @@ def test_perception_real_scores_every_object_with_and_without_pdc(bolt_dir: Path
     text = (tmp_path / "perception-real.md").read_text()
     assert "derived from pdc" in text and "without pdc" in text and "| cork |" in text
     assert any("leave out metal_bar" in line for line in lines)
+    assert (tmp_path / "perception-real.png").stat().st_size > 10_000
 
 
 def test_perception_real_needs_data(tmp_path: Path, capsys: Any) -> None:
