@@ -28,6 +28,7 @@ BUNDLED = {
     ("planner", "coverage"),
     ("planner", "two-phase-coverage"),
     ("robot", "sandbox"),
+    ("robot", "mpm-sand"),
     ("robot", "dynamixel"),
     ("robot", "barrett-wam"),
     ("robot", "barrett-hand"),
