@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -52,6 +53,14 @@ class RiseCheck:
     ratio_at_touch: float
     particles: int
     cpu_s: float
+
+
+def _rupture_cm(depth_m: float) -> float:
+    """The failure-zone model's rupture distance for the examples' sand, in cm."""
+    from hapticframe_granular import arthur_angle, rupture_distance
+
+    beta = arthur_angle(math.radians(42.0), math.radians(12.0))
+    return 100 * float(rupture_distance(depth_m, math.pi / 2, beta))
 
 
 def _window(settings: EngineSettings, case: RakeCase) -> int:
@@ -134,8 +143,8 @@ def run_physics_checks(options: Any) -> dict[str, Any]:
         f"{' / '.join(f'{f:.2f}' for f in drag.steady_drag_n)} N | about 15 N at 4.4 cm "
         "(Figure 3.6, its own plate and sand) |",
         f"| force >= 1.1 x free, from ahead of a 3 cm cylinder | "
-        f"{rise.rise_distance_m * 100:.1f} cm | the rupture distance, "
-        "about 4–5 cm at 4.4 cm depth |",
+        f"{rise.rise_distance_m * 100:.1f} cm | the failure zone's rupture distance, "
+        f"{_rupture_cm(rise.depth_m):.1f} cm (φ 42°, ψ 12°, vertical plate) |",
         f"| force / free drag at 2 cm, 1 cm, touch | {rise.ratio_at_2cm:.2f}, "
         f"{rise.ratio_at_1cm:.2f}, {rise.ratio_at_touch:.2f} | a surge (jamming) |",
     ]
