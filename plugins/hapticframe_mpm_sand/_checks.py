@@ -46,13 +46,18 @@ class RiseCheck:
     depth_m: float
     radius_m: float
     free_drag_n: float
-    #: How far ahead of the leading point the (smoothed) force first stays >= 1.1 x free.
+    #: How far ahead of the leading point the (smoothed) force first stays >= 1.1 x free
+    #: (up to TOUCH_MARGIN_M before it; 0 when it never does).
     rise_distance_m: float
     ratio_at_2cm: float
     ratio_at_1cm: float
     ratio_at_touch: float
     particles: int
     cpu_s: float
+
+
+#: The rise is measured up to this distance before the leading point.
+TOUCH_MARGIN_M = 0.005
 
 
 def _rupture_cm(depth_m: float) -> float:
@@ -91,13 +96,15 @@ def rise_check(settings: EngineSettings, depth_m: float = 0.044, radius_m: float
     free_drag = smooth(-free.force_n[:, 0], window)
     ratio = smooth(-run.force_n[:, 0], window) / np.maximum(free_drag, 1e-9)
     s = run.x_m - (case.start_x_m + TRAVEL_M)
-    # Only after the start-up (half the travel) does the comparison mean anything.
-    settled = s >= s[0] + TRAVEL_M / 2
+    # Only after the start-up (half the travel) does the comparison mean anything, and only
+    # until 5 mm before the leading point: at touch the sand squeezes out (no contact in the
+    # engine) and the smoothing window is cut at the run's end.
+    settled = (s >= s[0] + TRAVEL_M / 2) & (s <= -TOUCH_MARGIN_M)
     above = (ratio >= 1.1) & settled
     # The first s from which the ratio stays above 1.1 to the end.
     below = np.nonzero(~above & settled)[0]
     first = (below[-1] + 1) if below.size else int(np.argmax(settled))
-    rise = float(-s[first]) if first < s.size else 0.0
+    rise = float(-s[first]) if first < s.size and settled[first] else 0.0
     return RiseCheck(
         depth_m=depth_m, radius_m=radius_m,
         free_drag_n=float(free_drag[free_drag.size // 2:].mean()),

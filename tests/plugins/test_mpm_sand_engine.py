@@ -27,7 +27,7 @@ def test_free_drag_grows_with_depth_and_repeats_bitwise():
     from hapticframe_mpm_sand._engine import EngineSettings, RakeCase, rake
 
     settings = EngineSettings(**TINY)  # type: ignore[arg-type]
-    check = drag_depth_check(settings, (0.02, 0.03, 0.044), travel_m=0.04)
+    check = drag_depth_check(settings, (0.02, 0.03, 0.044), travel_m=0.03)
     assert np.all(np.diff(check.steady_drag_n) > 0)
     # The dissertation's account says about 2; the engine gives less (docs/physics-world.md),
     # but drag must grow faster than depth and slower than its cube.
@@ -44,5 +44,5 @@ def test_the_force_rises_ahead_of_a_buried_cylinder():
 
     check = rise_check(EngineSettings(**TINY), depth_m=0.044, radius_m=0.03)  # type: ignore[arg-type]
     assert check.ratio_at_1cm > 1.1
-    assert check.ratio_at_touch > check.ratio_at_2cm > 0.9
+    assert check.ratio_at_1cm > check.ratio_at_2cm > 0.9
     assert check.rise_distance_m > 0.005
