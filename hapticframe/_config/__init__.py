@@ -2,6 +2,7 @@
 
 from ._checks import ComponentView, Finding, ValidationContext
 from ._load import LoadedFile, load_file, load_text
+from ._sizes import ITERATION_LIMIT, MEMORY_LIMIT_BYTES, Size
 from ._model import SCHEMA_VERSION, ExperimentRoot, RunSettings, build_experiment_model
 from ._validate import ComponentEntry, Experiment, validate_data, validate_file, validate_mapping
 
@@ -11,9 +12,12 @@ __all__ = [
     "ComponentView",
     "Experiment",
     "ExperimentRoot",
+    "ITERATION_LIMIT",
+    "MEMORY_LIMIT_BYTES",
     "Finding",
     "LoadedFile",
     "RunSettings",
+    "Size",
     "ValidationContext",
     "build_experiment_model",
     "load_file",

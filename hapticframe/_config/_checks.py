@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from .._errors import Issue, PluginImportError
 from .._kind import Kind
 from ._load import LoadedFile
+from ._sizes import Size, format_bytes
 
 if TYPE_CHECKING:
     from ._validate import ComponentEntry
@@ -27,7 +28,9 @@ __all__ = [
     "ValidationContext",
     "core_checks",
     "declared_channels",
+    "grid_points",
     "run_validators",
+    "validator_results",
 ]
 
 
@@ -93,6 +96,56 @@ class ValidationContext:
     run: Any
     extra: Mapping[str, Any] = field(default_factory=dict)
 
+    def query_grid_points(self, width_m: float, height_m: float) -> int:
+        """The most points a run queries a map of this size at, at once: its evaluation
+        grid (``run.evaluation_spacing_m``) or, when it records map snapshots, its snapshot
+        grid (``run.snapshot_spacing_m``). For a :class:`Size` of what a query allocates."""
+        spacings = [getattr(self.run, "evaluation_spacing_m", None)]
+        if getattr(self.run, "record", False) and getattr(self.run, "snapshot_rate_hz", 0):
+            spacings.append(getattr(self.run, "snapshot_spacing_m", None))
+        counts = [grid_points(width_m, height_m, s) for s in spacings
+                  if isinstance(s, float) and s > 0]
+        return max(counts, default=1)
+
+
+def grid_points(width_m: float, height_m: float, spacing_m: float) -> int:
+    """Cells of a grid of ``spacing_m`` over ``width_m x height_m``, as
+    :func:`hapticframe.geometry.sample_grid` lays them (at least one a side)."""
+    nx = max(1, math.ceil(width_m / spacing_m - 1e-9))
+    ny = max(1, math.ceil(height_m / spacing_m - 1e-9))
+    return nx * ny
+
+
+def validator_results(
+    validator: Any, config: Any, context: ValidationContext, name: str = "the plugin"
+) -> tuple[list[Finding], list[Size]]:
+    """What ``validator`` yields for ``config``: its findings, and the sizes it declares.
+
+    Raises
+    ------
+    TypeError
+        It yielded something that is neither a :class:`Finding` nor a :class:`Size`.
+    """
+    findings: list[Finding] = []
+    sizes: list[Size] = []
+    for result in validator(config, context) or ():
+        if isinstance(result, Finding):
+            findings.append(result)
+        elif isinstance(result, Size):
+            sizes.append(result)
+        else:
+            raise TypeError(
+                f"the validator of {name} yielded {type(result).__name__}, not a "
+                "hapticframe.Finding or hapticframe.Size"
+            )
+    return findings, sizes
+
+
+def size_findings(sizes: Iterable[Size]) -> list[Finding]:
+    """An error finding for every size over the limits, located at its field."""
+    return [Finding(problem, field=size.field) for size in sizes
+            if (problem := size.problem()) is not None]
+
 
 def run_validators(
     entries: Iterable[ComponentEntry], model: Any, loaded: LoadedFile, command: str = "run"
@@ -125,12 +178,10 @@ def run_validators(
             run=getattr(model, "run", None),
             extra={"command": command},
         )
-        for finding in validator(entry.config, context) or ():
-            if not isinstance(finding, Finding):
-                raise TypeError(
-                    f"the validator of {spec.kind} plugin {spec.name!r} yielded "
-                    f"{type(finding).__name__}, not a hapticframe.Finding"
-                )
+        findings, sizes = validator_results(
+            validator, entry.config, context, f"{spec.kind} plugin {spec.name!r}"
+        )
+        for finding in [*findings, *size_findings(sizes)]:
             path = f"{entry.path}.config.{finding.field}" if finding.field else entry.path
             line = loaded.line_of(path) or loaded.line_of(entry.path)
             issue = Issue(path, finding.message, line)
@@ -413,9 +464,44 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
             if points > MAX_EVALUATION_POINTS:
                 report.error("run.evaluation_spacing_m", (
                     f"scoring map {entry.id!r} on its {width:.4g} x {height:.4g} m region at "
-                    f"{spacing:g} m spacing takes {points:.3g} grid points; the limit is "
+                    f"{spacing:g} m spacing takes {points:.3g} grid points (about "
+                    f"{format_bytes(points * GRID_POINT_BYTES)}); the limit is "
                     f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
                 ))
+    _check_snapshots(entries, run, scene, report)
+
+
+#: Bytes a map query on a grid holds per point: its coordinates, mean and std (float64),
+#: and the recorded grid message.
+GRID_POINT_BYTES = 48
+
+
+def _check_snapshots(entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
+                     ) -> None:
+    """Each map snapshot that ``run.mcap`` records queries its map on a grid of
+    ``run.snapshot_spacing_m``: at most :data:`MAX_EVALUATION_POINTS` points."""
+    if not (run.record and run.snapshot_rate_hz > 0):
+        return
+    by_id = {e.id: e for e in entries}
+    spacing = run.snapshot_spacing_m
+    worst: tuple[int, ComponentEntry, float, float] | None = None
+    for entry in _of(entries, Kind.MAP):
+        found = _region_of(entry, by_id, scene)
+        if found is None:
+            continue
+        width, height = _sides(found[0])
+        points = grid_points(width, height, spacing)
+        if worst is None or points > worst[0]:
+            worst = (points, entry, width, height)
+    if worst is not None and worst[0] > MAX_EVALUATION_POINTS:
+        points, entry, width, height = worst
+        report.error("run.snapshot_spacing_m", (
+            f"a snapshot of map {entry.id!r} on its {width:.4g} x {height:.4g} m region at "
+            f"{spacing:g} m spacing takes {points:.3g} grid points (about "
+            f"{format_bytes(points * GRID_POINT_BYTES)} a snapshot); the limit is "
+            f"{MAX_EVALUATION_POINTS:.3g}: raise run.snapshot_spacing_m, or set "
+            "run.snapshot_rate_hz: 0 to record no snapshots"
+        ))
 
 
 def _evaluated_map(entries: list[ComponentEntry], run: Any) -> ComponentEntry | None:
