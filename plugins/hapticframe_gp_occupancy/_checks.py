@@ -6,7 +6,7 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from hapticframe import Finding, ValidationContext
+from hapticframe import Finding, Size, ValidationContext
 
 __all__ = ["check", "inducing_count"]
 
@@ -21,8 +21,22 @@ def inducing_count(width_m: float, height_m: float, spacing_m: float) -> int:
     return nx * ny
 
 
-def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
-    """Refuse an inducing grid larger than ``max_inducing_points``."""
+#: Dense matrices of the kernel's size a fit holds at once (the kernel, its Cholesky
+#: factor, a solve's product).
+_DENSE_COPIES = 3
+
+
+def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
+    """Refuse an inducing grid larger than ``max_inducing_points``; declare the dense
+    matrices of the exact and the inducing fits."""
+    n = config.exact_max_observations if config.method != "inducing" else 0
+    yield Size("exact_max_observations",
+               f"the exact fit's {n} x {n} kernel matrices", bytes=_DENSE_COPIES * 8.0 * n * n,
+               remedy="lower exact_max_observations (method auto then switches to inducing "
+               "points sooner)")
+    m = config.max_inducing_points if config.method != "exact" else 0
+    yield Size("max_inducing_points", f"the inducing fit's {m} x {m} matrices",
+               bytes=_DENSE_COPIES * 8.0 * m * m, remedy="lower max_inducing_points")
     if config.method == "exact":
         return
     if config.region is not None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from hapticframe import Finding, ValidationContext
+from hapticframe import Finding, Size, ValidationContext
 
 from ._config import ELECTRODE_FRAMES, PDC_FRAMES, feature_channel, input_channel
 
@@ -30,8 +30,30 @@ _CHANNELS: dict[str, frozenset[str]] = {
 MAX_DICTIONARY = 100_000_000
 
 
-def check_emd(config: Any, context: ValidationContext) -> Iterator[Finding]:
-    """Refuse ``emd-features`` whose inputs are all known not to deliver its channels."""
+#: Arrays of the window's length that one sift holds (the signal, its two envelopes, their
+#: mean, the extrema and their mirrored copies).
+_SIFT_ARRAYS = 6
+
+
+def _emd_sizes(config: Any) -> Iterator[Size]:
+    """One frame's decomposition: imfs x sifts passes over each window."""
+    for modality, imfs, window in (
+        ("pac", config.pac_imfs, config.pac_window_samples),
+        ("pdc", config.pdc_imfs, config.pdc_window_samples),
+    ):
+        if modality not in config.modalities:
+            continue
+        work = float(imfs) * config.max_sifts * window
+        yield Size("max_sifts", f"{imfs} {modality} IMFs of up to {config.max_sifts} sifts over "
+                   f"a {window}-sample window, per frame",
+                   bytes=8.0 * _SIFT_ARRAYS * window * (imfs + 1), iterations=work,
+                   remedy=f"lower max_sifts or {modality}_window_samples")
+
+
+def check_emd(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
+    """Refuse ``emd-features`` whose inputs are all known not to deliver its channels;
+    declare what a frame's decomposition iterates over."""
+    yield from _emd_sizes(config)
     known = {i: _CHANNELS.get(v.type) for i, v in context.inputs.items()}
     if not known or any(c is None for c in known.values()):
         return
@@ -54,7 +76,7 @@ def _emd_shapes(view: Any) -> dict[str, tuple[int, int]]:
     }
 
 
-def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding]:
+def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     """Refuse untrained dictionaries, unreadable inputs and shapes its input does not emit."""
     if (config.dictionary_file is None and context.extra.get("command") != "train"
             and not getattr(context.run, "train_from", None)):
@@ -65,7 +87,10 @@ def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding]:
         )
     for modality in config.modalities:
         rows, cols = getattr(config, f"{modality}_shape")
-        entries = getattr(config, f"{modality}_atoms") * rows * cols
+        atoms = getattr(config, f"{modality}_atoms")
+        entries = atoms * rows * cols
+        yield Size(f"{modality}_atoms", f"the {modality} dictionary of {atoms} atoms of "
+                   f"{rows} x {cols}", bytes=8.0 * entries, remedy=f"lower {modality}_atoms")
         if entries > MAX_DICTIONARY:
             yield Finding(
                 f"the {modality} dictionary would hold {entries:.3g} values "
