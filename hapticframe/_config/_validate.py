@@ -239,6 +239,9 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
     i = 0
     while i < len(loc):
         key = loc[i]
+        if isinstance(key, str) and isinstance(raw, list | str | int | float):
+            i += 1  # the label of a union's member (``tuple[...]``, a tag): not in the file
+            continue
         parts.append(key)
         raw = raw.get(key) if isinstance(raw, dict) and isinstance(key, str) else (
             raw[key] if isinstance(raw, list) and isinstance(key, int) and key < len(raw) else None
@@ -255,6 +258,8 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
         dotted = join_path(dotted, part)
     kind = error["type"]
     message = str(error["msg"])
+    if kind == "value_error":  # a validator's own sentence: pydantic's prefix adds nothing
+        message = message.removeprefix("Value error, ")
     if kind == "extra_forbidden":
         message = f"unknown key {parts[-1]!r}" + _key_suggestion(parts, loaded, registry)
     elif kind == "missing":

@@ -18,7 +18,16 @@ The guide is ``docs/devices.md``.
 from ._clock import Clock, ClockSync, FakeClock, MonotonicClock
 from ._crc import append_crc16, check_crc16, crc16_modbus
 from ._emulator import DeviceModel, EmulatedTransport, PtyEmulator
-from ._faults import FaultEvent, FaultSchedule, FaultSetting, InjectedFault
+from ._faults import (
+    BYTE_FAULT_KINDS,
+    FaultEvent,
+    FaultKind,
+    FaultParam,
+    FaultSchedule,
+    FaultSetting,
+    InjectedFault,
+    fault_setting,
+)
 from ._framing import FixedFrameParser, LineFramer, ParserStats
 from ._health import DeviceHealth
 from ._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
@@ -31,6 +40,7 @@ from ._transport import (
 )
 
 __all__ = [
+    "BYTE_FAULT_KINDS",
     "Backoff",
     "ByteTransport",
     "Clock",
@@ -42,6 +52,8 @@ __all__ = [
     "EmulatedTransport",
     "FakeClock",
     "FaultEvent",
+    "FaultKind",
+    "FaultParam",
     "FaultSchedule",
     "FaultSetting",
     "FixedFrameParser",
@@ -56,5 +68,6 @@ __all__ = [
     "append_crc16",
     "check_crc16",
     "crc16_modbus",
+    "fault_setting",
     "open_transport",
 ]

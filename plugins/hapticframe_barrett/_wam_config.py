@@ -8,9 +8,14 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import fault_setting
+
+from ._hand_config import PUCK_FAULT_KINDS
 
 __all__ = ["BarrettWamConfig", "DHRow"]
+
+#: The type of the ``faults`` setting: the CAN bus's kinds (no byte harness on CAN).
+_FAULTS = fault_setting(PUCK_FAULT_KINDS, byte_faults=False)
 
 
 class DHRow(BaseModel):
@@ -161,7 +166,7 @@ class BarrettWamConfig(PluginConfig):
         True, description="Emulator: the operator presses Shift-Activate when the robot "
         "activates (false: the pucks stay IDLE and activation fails)."
     )
-    faults: FaultSetting = Field(
+    faults: _FAULTS = Field(
         "none", description="Emulator only: 'none', 'standard' (rare puck faults), or a list "
         "of fault events ({kind, at_s | rate_hz, duration_s, params}) of PuckBus."
     )
