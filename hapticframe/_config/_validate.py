@@ -22,6 +22,7 @@ from .._registry import Registered, Registry
 from .._scene import NAME_PATTERN
 from ._checks import core_checks, run_validators
 from ._load import LoadedFile, join_path, load_file
+from ._strict import bool_issues
 from ._model import (
     CHANNEL_PATTERN,
     ID_PATTERN,
@@ -158,11 +159,17 @@ def validate_data(
     issues, flagged = _check_types(loaded, registry)
     model_cls = build_experiment_model(registry)
     model = None
+    booleans = [b for b in bool_issues(model_cls, loaded)
+                if not any(b.path == f or b.path.startswith(f + ".") for f in flagged)]
+    issues.extend(booleans)
     try:
         model = model_cls.model_validate(data)
     except ValidationError as exc:
+        refused = {b.path for b in booleans}
         for error in exc.errors(include_url=False):
             issue = _issue_from_pydantic(error, loaded, registry)
+            if issue.path in refused:
+                continue  # said once: the boolean where a number belongs
             if not any(issue.path == f or issue.path.startswith(f + ".") for f in flagged):
                 issues.append(issue)
     if model is not None and not issues:
