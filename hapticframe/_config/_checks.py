@@ -202,6 +202,9 @@ COARSE_STEP_FRACTION = 0.1
 NEEDS_ROBOT = "needs-robot"
 #: The capability of a planner that reads a map (it plans on it).
 READS_MAP = "reads-map"
+#: The capability of a plugin that simulates the scene (a simulated robot in its sand):
+#: ``validate`` refuses an experiment without one (``scene: null`` included).
+NEEDS_SCENE = "needs-scene"
 
 
 def declared_channels(config: Any) -> frozenset[str] | None:
@@ -251,7 +254,7 @@ def core_checks(
         for path, message in scene.problems():
             report.error(f"scene.{path}", message)
     _check_loop(entries, model.run, report)
-    _check_inputs(entries, model.run, report)
+    _check_inputs(entries, model.run, scene, report)
     _check_run_settings(entries, model.run, scene, report)
     _check_pace(entries, model.run, scene, report)
     return report.errors, report.warnings
@@ -295,8 +298,11 @@ def _check_loop(entries: list[ComponentEntry], run: Any, report: _Report) -> Non
         ))
 
 
-def _check_inputs(entries: list[ComponentEntry], run: Any, report: _Report) -> None:
-    """What each component needs among its inputs, as the run loop reads them."""
+def _check_inputs(
+    entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
+) -> None:
+    """What each component needs among its inputs (and the scene), as the run loop reads
+    them."""
     by_id = {e.id: e for e in entries}
     training = set(run.train_from.values())
     streamed = [e for e in _of(entries, Kind.SENSOR) if e.id not in training]
@@ -306,6 +312,11 @@ def _check_inputs(entries: list[ComponentEntry], run: Any, report: _Report) -> N
         named = f"{entry.kind} {entry.id!r} ({entry.type})"
         if NEEDS_ROBOT in entry.registered.spec.capabilities and Kind.ROBOT not in kinds:
             report.error(where, f"{named} needs a robot among its inputs: name one")
+        if NEEDS_SCENE in entry.registered.spec.capabilities and scene is None:
+            report.error(entry.path, (
+                f"{named} simulates the scene, and the experiment has none: add a 'scene' "
+                "section (region, material, objects)"
+            ))
         if entry.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER) and not entry.inputs:
             report.error(where, (
                 f"{named} reads sensors or feature extractors: name at least one in inputs"
@@ -453,6 +464,8 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                         f"the smallest object's width ({width:.4g} m): the fingertip meets "
                         "it in few steps"
                     ))
+    if len(planners) == 1:
+        _check_workspaces(planners[0], robots, by_id, scene, report)
     evaluated = _evaluated_map(entries, run)
     if objects and evaluated is not None:
         found = _region_of(evaluated, by_id, scene)
@@ -469,6 +482,30 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                     f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
                 ))
     _check_snapshots(entries, run, scene, report)
+
+
+def _check_workspaces(planner: ComponentEntry, robots: list[ComponentEntry],
+                      by_id: Mapping[str, ComponentEntry], scene: Any, report: _Report) -> None:
+    """A robot whose ``workspace`` misses the planner's region entirely could carry out no
+    movement: every line starts outside it."""
+    found = _region_of(planner, by_id, scene)
+    if found is None:
+        return
+    region, where = found
+    for robot in robots:
+        space = getattr(robot.config, "workspace", None)
+        if space is None or not hasattr(space, "x_max_m"):
+            continue
+        width = min(space.x_max_m, region.x_max_m) - max(space.x_min_m, region.x_min_m)
+        height = min(space.y_max_m, region.y_max_m) - max(space.y_min_m, region.y_min_m)
+        if width <= 0 or height <= 0:
+            report.error(f"{robot.path}.config.workspace", (
+                f"the workspace of robot {robot.id!r} (x {space.x_min_m:g} to "
+                f"{space.x_max_m:g} m, y {space.y_min_m:g} to {space.y_max_m:g} m) lies "
+                f"outside the region planner {planner.id!r} searches ({where}: x "
+                f"{region.x_min_m:g} to {region.x_max_m:g} m, y {region.y_min_m:g} to "
+                f"{region.y_max_m:g} m): every movement would be refused; make them overlap"
+            ))
 
 
 #: Bytes a map query on a grid holds per point: its coordinates, mean and std (float64),
