@@ -19,11 +19,12 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 (each declared knob names a config field and its values validate), ``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
-  times; a ``finite`` sensor is read to its end, bounded by reads and by seconds of its
-  own clock, a live one 30 times), ``check_sensor_valid_samples_finite`` (no NaN or
+  times; every sensor is read until it ends, bounded by reads and by seconds of its own
+  clock, and one that ends without declaring ``finite`` is told to declare it),
+  ``check_sensor_valid_samples_finite`` (no NaN or
   infinity in a sample the batch marks valid), ``check_sensor_read_all_matches_reads``
-  (a finite sensor's ``read_all()`` and joined ``iter_recordings()`` equal what successive
-  ``read()`` calls deliver), ``check_rewind``;
+  (the ``read_all()`` and joined ``iter_recordings()`` of a sensor that ends equal what
+  successive ``read()`` calls deliver), ``check_rewind``;
 - feature extractors and classifiers: ``check_stream_contract``,
   ``check_streaming_matches_batch``, ``check_aligned_inputs_stream_as_batch`` (a consumer
   whose ``input_alignment`` is ``hold`` or ``linear`` gets two inputs on different clocks,

@@ -419,7 +419,7 @@ GOOD = [
                 check_config={"spacing_m": 0.005}),
     # A device that can be read only while active: the kit brings it up and down.
     SensorSpec("lab-device", "ok", DeviceSensorConfig, f"{D}:DeviceSensor",
-               check_config={"crc_errors_per_read": 1}),
+               capabilities=frozenset({"finite"}), check_config={"crc_errors_per_read": 1}),
     # Two inputs on different clocks, held or interpolated.
     FeatureExtractorSpec("lab-mix", "ok", MixConfig, f"{D}:MixExtractor", consumes=_TWO_CLOCKS),
     FeatureExtractorSpec("lab-mix-linear", "ok", MixConfig, f"{D}:MixExtractor",
