@@ -14,13 +14,13 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
-from .._errors import Issue, PluginImportError
-from .._kind import Kind
-from ._load import LoadedFile
-from ._sizes import Size, format_bytes
+from hapticframe._config._load import LoadedFile
+from hapticframe._config._sizes import Size, format_bytes
+from hapticframe._errors import Issue, PluginImportError
+from hapticframe._kind import Kind
 
 if TYPE_CHECKING:
-    from ._validate import ComponentEntry
+    from hapticframe._config._model import ComponentEntry
 
 __all__ = [
     "ComponentView",
@@ -542,7 +542,7 @@ def _check_snapshots(entries: list[ComponentEntry], run: Any, scene: Any, report
 
 
 def _evaluated_map(entries: list[ComponentEntry], run: Any) -> ComponentEntry | None:
-    """The map a run scores against the scene, as :mod:`hapticframe._evaluate` picks it."""
+    """The map a run scores against the scene, as :mod:`hapticframe.run._evaluate` picks it."""
     maps = {e.id: e for e in _of(entries, Kind.MAP)}
     if run.evaluation_map is not None:
         return maps.get(run.evaluation_map)

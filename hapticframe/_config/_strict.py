@@ -15,8 +15,8 @@ from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel
 
-from .._errors import Issue
-from ._load import LoadedFile, join_path
+from hapticframe._config._load import LoadedFile, join_path
+from hapticframe._errors import Issue
 
 __all__ = ["bool_issues"]
 
