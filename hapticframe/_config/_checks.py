@@ -34,6 +34,11 @@ __all__ = [
 ]
 
 
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
+
 @dataclass(frozen=True)
 class Finding:
     """One result of a plugin's validator.
@@ -96,7 +101,7 @@ class ValidationContext:
     run: Any
     extra: Mapping[str, Any] = field(default_factory=dict)
 
-    def query_grid_points(self, width_m: float, height_m: float) -> int:
+    def query_grid_points(self, width_m: float, height_m: float) -> float:
         """The most points a run queries a map of this size at, at once: its evaluation
         grid (``run.evaluation_spacing_m``) or, when it records map snapshots, its snapshot
         grid (``run.snapshot_spacing_m``). For a :class:`Size` of what a query allocates."""
@@ -105,14 +110,14 @@ class ValidationContext:
             spacings.append(getattr(self.run, "snapshot_spacing_m", None))
         counts = [grid_points(width_m, height_m, s) for s in spacings
                   if isinstance(s, float) and s > 0]
-        return max(counts, default=1)
+        return max(counts, default=1.0)
 
 
-def grid_points(width_m: float, height_m: float, spacing_m: float) -> int:
+def grid_points(width_m: float, height_m: float, spacing_m: float) -> float:
     """Cells of a grid of ``spacing_m`` over ``width_m x height_m``, as
     :func:`hapticframe.geometry.sample_grid` lays them (at least one a side)."""
-    nx = max(1, math.ceil(width_m / spacing_m - 1e-9))
-    ny = max(1, math.ceil(height_m / spacing_m - 1e-9))
+    nx = max(1, _ceil(width_m / spacing_m - 1e-9))
+    ny = max(1, _ceil(height_m / spacing_m - 1e-9))
     return nx * ny
 
 
@@ -439,7 +444,7 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
             if found is not None:
                 region, _ = found
                 length = math.hypot(*_sides(region))
-                steps = math.ceil(length * rate / speed)
+                steps = _ceil(length * rate / speed)
                 if steps > run.max_steps_per_movement:
                     report.error("run.max_steps_per_movement", (
                         f"a line across the planner's region (its diagonal, {length:.4g} m) "
@@ -521,7 +526,7 @@ def _check_snapshots(entries: list[ComponentEntry], run: Any, scene: Any, report
         return
     by_id = {e.id: e for e in entries}
     spacing = run.snapshot_spacing_m
-    worst: tuple[int, ComponentEntry, float, float] | None = None
+    worst: tuple[float, ComponentEntry, float, float] | None = None
     for entry in _of(entries, Kind.MAP):
         found = _region_of(entry, by_id, scene)
         if found is None:

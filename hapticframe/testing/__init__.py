@@ -16,7 +16,10 @@ extremes (zero, constant, huge, tiny and NaN input give finite output or a clear
 
 What each kind is held to, beyond the checks every plugin gets (``check_spec_record``,
 ``check_config_round_trip``, ``check_lazy_import``, ``check_builds``, ``check_knobs``
-(each declared knob names a config field and its values validate), ``check_deterministic``):
+(each declared knob names a config field and its values validate),
+``check_declared_sizes`` (each field the validator declares with a ``hapticframe.Size`` is
+refused at the extremes of its range, or built and driven there within the memory limit),
+``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
   times; every sensor is read until it ends, bounded by reads and by seconds of its own
@@ -51,7 +54,13 @@ never ends fails a check instead of hanging it; no check is timed.
 """
 
 # _knobs first: its spec-level check runs beside the other checks every plugin gets.
-from hapticframe.testing import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
+from hapticframe.testing import (  # noqa: F401  (registers the kind checks)
+    _knobs,
+    _rewind,
+    _sizes,
+    _spatial,
+    _streams,
+)
 from hapticframe.testing._common import (
     CHECKS,
     HEAVY_MODULES,
@@ -69,6 +78,7 @@ from hapticframe.testing._harness import (
     synthetic_batch,
 )
 from hapticframe.testing._knobs import check_knobs
+from hapticframe.testing._sizes import check_declared_sizes
 from hapticframe.testing._rewind import check_rewind
 from hapticframe.testing._runner import (
     CheckResult,
@@ -118,6 +128,7 @@ __all__ = [
     "check_aligned_inputs_stream_as_batch",
     "check_builds",
     "check_config_round_trip",
+    "check_declared_sizes",
     "check_deterministic",
     "check_knobs",
     "check_lazy_import",

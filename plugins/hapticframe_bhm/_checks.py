@@ -10,6 +10,11 @@ from hapticframe import Finding, Size, ValidationContext
 
 __all__ = ["check"]
 
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
 #: Largest weight-vector length (the map's precision is a dense D x D matrix; as _map).
 MAX_WEIGHTS = 5000
 #: The thesis's 75 x 50 cm search area: the region when neither config nor scene gives one.
@@ -18,7 +23,7 @@ _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
 
 def _hinges(low: float, high: float, spacing: float) -> float:
     """Hinges along one axis as hinge_axis places them: the span, both edges, one padding."""
-    return max(1.0, math.ceil((high - low) / spacing - 1e-9)) + 3.0
+    return max(1.0, _ceil((high - low) / spacing - 1e-9)) + 3.0
 
 
 def _tile_sides(config: Any, hinges: float) -> tuple[float, float]:
@@ -30,12 +35,12 @@ def _tile_sides(config: Any, hinges: float) -> tuple[float, float]:
     if config.automorphing_kernels:
         scale *= config.automorphing_range[1]
     # window_half_width of _windowed: features beyond it are below 1e-6.
-    reach = max(0, math.ceil(math.sqrt(-2.0 * math.log(1e-6)) * scale / config.hinge_spacing_m
+    reach = max(0, _ceil(math.sqrt(-2.0 * math.log(1e-6)) * scale / config.hinge_spacing_m
                              - 0.5))
     if config.tile_size_m is None:
         core = max(1, 4 * reach)
     else:
-        core = max(1, round(config.tile_size_m / config.hinge_spacing_m))
+        core = max(1, _ceil(config.tile_size_m / config.hinge_spacing_m - 0.5))
     return float(core), float(min(hinges, core + 4 * reach))
 
 
@@ -71,7 +76,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     else:
         (core_x, side_x), (core_y, side_y) = _tile_sides(config, nx), _tile_sides(config, ny)
         tile = side_x * side_y + int(config.bias)
-        tiles = math.ceil(nx / core_x) * math.ceil(ny / core_y)
+        tiles = _ceil(nx / core_x) * _ceil(ny / core_y)
         if tile > MAX_WEIGHTS:
             gib = 8.0 * weights * weights / 2**30
             yield Finding(
@@ -93,7 +98,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     points = context.query_grid_points(x1 - x0, y1 - y0)
     yield Size(
         "monte_carlo_samples",
-        f"std_method {config.std_method}: {samples} weight samples at the {points} points of "
+        f"std_method {config.std_method}: {samples} weight samples at the {points:.4g} points of "
         "the run's largest map query (run.evaluation_spacing_m, run.snapshot_spacing_m)",
         bytes=8.0 * samples * (_MC_COPIES * points + min(weights, config.dense_weights_max)),
         remedy="lower monte_carlo_samples, use std_method: surrogate, or coarsen the run's "

@@ -16,6 +16,11 @@ from hapticframe import Finding, Kind, Size, ValidationContext
 
 __all__ = ["check"]
 
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
 #: The thesis's 75 x 50 cm search area: the region when neither config, map nor scene gives one.
 _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
 #: Most map samples the two-phase planner's centroid grid and line scores may take.
@@ -101,7 +106,7 @@ _DIRECTION_BYTES = 48
 
 def _lines(width: float, height: float, spacing: float) -> float:
     """Lines of ``spacing`` across the rectangle at the worst angle (its diagonal)."""
-    return max(1.0, math.ceil(math.hypot(width, height) / spacing - 1e-9))
+    return max(1.0, _ceil(math.hypot(width, height) / spacing - 1e-9))
 
 
 def _sizes(config: Any, width: float, height: float) -> Iterator[Size]:
@@ -118,7 +123,7 @@ def _sizes(config: Any, width: float, height: float) -> Iterator[Size]:
                f"{candidates:.3g} candidate lines across {region} per phase-2 movement",
                bytes=_LINE_BYTES * candidates, iterations=candidates,
                remedy="increase phase2_line_spacing_m")
-    directions = math.ceil(360.0 / config.gap_step_deg - 1e-9)
+    directions = _ceil(360.0 / config.gap_step_deg - 1e-9)
     yield Size("gap_step_deg", f"{directions:.3g} approach directions per phase-2 movement",
                bytes=_DIRECTION_BYTES * directions, iterations=directions,
                remedy="increase gap_step_deg")

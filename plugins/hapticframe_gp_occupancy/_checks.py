@@ -10,14 +10,19 @@ from hapticframe import Finding, Size, ValidationContext
 
 __all__ = ["check", "inducing_count"]
 
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
 #: The thesis's 75 x 50 cm search area: the region when neither config nor scene gives one.
 _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
 
 
-def inducing_count(width_m: float, height_m: float, spacing_m: float) -> int:
+def inducing_count(width_m: float, height_m: float, spacing_m: float) -> float:
     """Inducing points of a ``width x height`` region (as _functional.inducing_grid)."""
-    nx = max(1, math.ceil(width_m / spacing_m - 1e-9)) + 1
-    ny = max(1, math.ceil(height_m / spacing_m - 1e-9)) + 1
+    nx = max(1, _ceil(width_m / spacing_m - 1e-9)) + 1
+    ny = max(1, _ceil(height_m / spacing_m - 1e-9)) + 1
     return nx * ny
 
 
@@ -50,7 +55,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     count = inducing_count(x1 - x0, y1 - y0, config.inducing_spacing_m)
     if count > config.max_inducing_points:
         yield Finding(
-            f"inducing spacing {config.inducing_spacing_m:g} m gives {count} inducing points "
+            f"inducing spacing {config.inducing_spacing_m:g} m gives {count:.4g} inducing points "
             f"over the {x1 - x0:.3g} x {y1 - y0:.3g} m region; the limit is "
             f"max_inducing_points ({config.max_inducing_points}): increase inducing_spacing_m",
             field="inducing_spacing_m",

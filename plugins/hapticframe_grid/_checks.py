@@ -10,6 +10,11 @@ from hapticframe import Finding, Size, ValidationContext
 
 __all__ = ["check"]
 
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
 #: Most cells of one grid (as _grid refuses at build: 8 bytes each, 400 MB).
 MAX_CELLS = 50_000_000
 #: The thesis's 75 x 50 cm search area: the region when neither config nor scene gives one.
@@ -24,7 +29,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     else:
         width, height = region.x_max_m - region.x_min_m, region.y_max_m - region.y_min_m
     size = config.cell_size_m
-    cells = max(1, math.ceil(width / size - 1e-9)) * max(1, math.ceil(height / size - 1e-9))
+    cells = max(1, _ceil(width / size - 1e-9)) * max(1, _ceil(height / size - 1e-9))
     yield Size("cell_size_m", f"{cells:.3g} cells of log-odds over the {width:.3g} x "
                f"{height:.3g} m region", bytes=8.0 * cells, iterations=cells,
                remedy="increase cell_size_m")

@@ -43,9 +43,11 @@ def _emd_sizes(config: Any) -> Iterator[Size]:
     ):
         if modality not in config.modalities:
             continue
-        work = float(imfs) * config.max_sifts * window
+        # A streaming extractor must keep up with its input: the work of one second of it.
+        work = float(imfs) * config.max_sifts * window * config.frame_rate_hz
         yield Size("max_sifts", f"{imfs} {modality} IMFs of up to {config.max_sifts} sifts over "
-                   f"a {window}-sample window, per frame",
+                   f"a {window}-sample window, for each of {config.frame_rate_hz:g} frames a "
+                   "second (sample updates per second of input)",
                    bytes=8.0 * _SIFT_ARRAYS * window * (imfs + 1), iterations=work,
                    remedy=f"lower max_sifts or {modality}_window_samples")
 
