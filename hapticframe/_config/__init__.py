@@ -2,7 +2,6 @@
 
 from hapticframe._config._checks import ComponentView, Finding, ValidationContext
 from hapticframe._config._load import LoadedFile, load_file, load_text
-from hapticframe._config._sizes import ITERATION_LIMIT, MEMORY_LIMIT_BYTES, Size
 from hapticframe._config._model import (
     SCHEMA_VERSION,
     ComponentEntry,
@@ -11,6 +10,7 @@ from hapticframe._config._model import (
     RunSettings,
     build_experiment_model,
 )
+from hapticframe._config._sizes import ITERATION_LIMIT, MEMORY_LIMIT_BYTES, Size
 from hapticframe._config._validate import (
     validate_data,
     validate_file,

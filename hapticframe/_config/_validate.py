@@ -16,7 +16,6 @@ from pydantic import BaseModel, ValidationError
 
 from hapticframe._config._checks import core_checks, run_validators
 from hapticframe._config._load import LoadedFile, join_path, load_file
-from hapticframe._config._strict import bool_issues
 from hapticframe._config._model import (
     CHANNEL_PATTERN,
     ID_PATTERN,
@@ -25,6 +24,7 @@ from hapticframe._config._model import (
     Experiment,
     build_experiment_model,
 )
+from hapticframe._config._strict import bool_issues
 from hapticframe._errors import ExperimentError, Issue
 from hapticframe._kind import Kind
 from hapticframe._manager import PluginManager, get_plugin_manager, make_plugin_manager

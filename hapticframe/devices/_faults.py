@@ -22,6 +22,7 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    GetCoreSchemaHandler,
     Tag,
     field_validator,
     model_validator,
@@ -33,9 +34,11 @@ __all__ = [
     "MAX_FAULT_TIME_S",
     "FaultEvent",
     "FaultKind",
+    "FaultKinds",
     "FaultParam",
     "FaultSchedule",
     "FaultSetting",
+    "FaultValue",
     "InjectedFault",
     "fault_setting",
 ]
@@ -409,13 +412,33 @@ def fault_setting(kinds: Mapping[str, FaultKind], *, byte_faults: bool = True) -
     })
     # Tagged by the value's type, so that a bad list is reported entry by entry and not
     # also as "not 'none' or 'standard'".
-    setting: Any = Annotated[
-        Annotated[Literal["none", "standard"], Tag("name")] | Annotated[tuple[entry, ...], Tag("list")],
-        Discriminator(_setting_tag),
-    ]
+    named: Any = Annotated[Literal["none", "standard"], Tag("name")]
+    listed: Any = Annotated[tuple[entry, ...], Tag("list")]  # type: ignore[valid-type]
+    setting: Any = Annotated[named | listed, Discriminator(_setting_tag)]
     return Annotated[setting, BeforeValidator(_as_tuple), AfterValidator(_entries)]
 
 
+#: What a validated ``faults`` setting holds: a schedule's name, or plain entries.
+FaultValue = Literal["none", "standard"] | tuple[dict[str, Any], ...]
+
+
+@dataclass(frozen=True, eq=False)
+class FaultKinds:
+    """Marks a ``faults`` field with the kinds its device's emulator applies::
+
+        faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field("none", ...)
+
+    validates as :func:`fault_setting` (``byte_faults=False`` for a device not behind the
+    byte harness), and reads as a plain annotation to a type checker.
+    """
+
+    kinds: Mapping[str, FaultKind]
+    byte_faults: bool = True
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: GetCoreSchemaHandler) -> Any:
+        return handler.generate_schema(fault_setting(self.kinds, byte_faults=self.byte_faults))
+
+
 #: The ``faults`` setting of an emulated device with only the harness's byte-level faults
-#: (:data:`BYTE_FAULT_KINDS`); a device with kinds of its own uses :func:`fault_setting`.
-FaultSetting = fault_setting({})
+#: (:data:`BYTE_FAULT_KINDS`); a device with kinds of its own uses :class:`FaultKinds`.
+FaultSetting = Annotated[FaultValue, FaultKinds({})]

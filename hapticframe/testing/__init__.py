@@ -78,7 +78,6 @@ from hapticframe.testing._harness import (
     synthetic_batch,
 )
 from hapticframe.testing._knobs import check_knobs
-from hapticframe.testing._sizes import check_declared_sizes
 from hapticframe.testing._rewind import check_rewind
 from hapticframe.testing._runner import (
     CheckResult,
@@ -87,6 +86,7 @@ from hapticframe.testing._runner import (
     parametrize_with_checks,
     run_checks,
 )
+from hapticframe.testing._sizes import check_declared_sizes
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,

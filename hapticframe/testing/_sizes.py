@@ -74,16 +74,15 @@ def range_extremes(info: FieldInfo) -> list[int | float]:
     low: int | float | None = None
     high: int | float | None = None
     for item in info.metadata:
+        bound: Any = getattr(item, type(item).__name__.lower(), None)
         if isinstance(item, at.Ge):
-            low = item.ge  # type: ignore[assignment]
+            low = bound
         elif isinstance(item, at.Gt):
-            gt = item.gt
-            low = int(gt) + 1 if integer else math.nextafter(float(gt), math.inf)  # type: ignore[arg-type]
+            low = int(bound) + 1 if integer else math.nextafter(float(bound), math.inf)
         elif isinstance(item, at.Le):
-            high = item.le  # type: ignore[assignment]
+            high = bound
         elif isinstance(item, at.Lt):
-            lt = item.lt
-            high = int(lt) - 1 if integer else math.nextafter(float(lt), -math.inf)  # type: ignore[arg-type]
+            high = int(bound) - 1 if integer else math.nextafter(float(bound), -math.inf)
     if high is None:
         high = _UNBOUNDED_INT if integer else _UNBOUNDED_FLOAT
     return [v for v in (low, high) if v is not None]

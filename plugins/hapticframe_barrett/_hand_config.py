@@ -24,12 +24,12 @@ palm) and on over the palm (140°, the limit).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultKind, FaultParam, fault_setting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
 __all__ = ["PUCK_FAULT_KINDS", "BarrettHandRobotConfig", "FingerGeometryConfig"]
 
@@ -51,9 +51,6 @@ PUCK_FAULT_KINDS: dict[str, FaultKind] = {
                              {"count": FaultParam(1, 1000, integer=True)}),
     "bus_off": FaultKind("the CAN controller goes bus-off"),
 }
-#: The type of the ``faults`` setting: the kinds above.
-_FAULTS = fault_setting(PUCK_FAULT_KINDS, byte_faults=False)
-
 #: Inner-joint angle at which the default fingertip link points straight down (the
 #: dissertation's "vertical orientation"): inner + inner / 3 + 50° = 90°, i.e. 30°.
 VERTICAL_TIP_RAD = math.radians(30.0)
@@ -184,7 +181,7 @@ class BarrettHandRobotConfig(PluginConfig):
         None, description="Emulator: the pucks on the bus (default 11-14; leave one out "
         "to emulate a missing puck)."
     )
-    faults: _FAULTS = Field(
+    faults: Annotated[FaultValue, FaultKinds(PUCK_FAULT_KINDS, byte_faults=False)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (rare reply faults and error frames), "
         "or a list of PuckBus fault events ({kind, at_s | rate_hz, duration_s, params}).",

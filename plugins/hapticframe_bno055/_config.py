@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultKind, FaultParam, fault_setting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
 __all__ = ["FAULT_KINDS", "EMULATED_PORT", "Bno055SensorConfig"]
 
@@ -34,9 +34,6 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "bad_gravity": FaultKind("the gravity vector scaled by params.scale for duration_s",
                              {"scale": FaultParam(-10.0, 10.0)}),
 }
-#: The type of the ``faults`` setting: the kinds above.
-_FAULTS = fault_setting(FAULT_KINDS)
-
 #: The ``port`` value that runs the built-in emulator behind a pseudo-terminal.
 EMULATED_PORT = "emulated"
 
@@ -115,7 +112,7 @@ class Bno055SensorConfig(PluginConfig):
     accel_noise_std_m_per_s2: float = Field(
         0.015, ge=0, le=10.0, description="Emulated only: accelerometer noise per axis."
     )
-    faults: _FAULTS = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulated only: no faults, the 'standard' schedule, or a list of "
         "FaultEvent entries ({kind, at_s | rate_hz, duration_s, params}).",

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
-from hapticframe.devices import FaultKind, FaultParam, fault_setting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
 __all__ = [
     "FAULT_KINDS",
@@ -44,9 +44,6 @@ FAULT_KINDS: dict[str, FaultKind] = {
                                {**_SERVO, "amps": FaultParam(-100.0, 100.0)}),
     "power_loss": FaultKind("a servo loses its supply for an instant", _SERVO),
 }
-#: The type of the ``faults`` setting: the kinds above.
-_FAULTS = fault_setting(FAULT_KINDS)
-
 
 class AxisConfig(BaseModel):
     """One gantry axis: a servo driving a lead screw or a pulley.
@@ -220,7 +217,7 @@ class DynamixelRobotConfig(PluginConfig):
         None, description="Emulator: the servo IDs on the emulated bus (default: the "
         "kinematics' IDs; leave one out to emulate a missing servo)."
     )
-    faults: _FAULTS = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (rare status faults), or a list of "
         "fault events ({kind, at_s | rate_hz, duration_s, params}) of DynamixelBus.",

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultKind, FaultParam, fault_setting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
 __all__ = ["FAULT_KINDS", "EMULATED_PORT", "Ft300Config"]
 
@@ -31,9 +33,6 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "missing_echo": FaultKind("the function 16 echo is missing while the stream starts"),
     "dead": FaultKind("the sensor falls silent to everything for duration_s"),
 }
-#: The type of the ``faults`` setting: the kinds above.
-_FAULTS = fault_setting(FAULT_KINDS)
-
 #: The ``port`` that runs the sensor's emulator behind a pseudo-terminal.
 EMULATED_PORT = "emulated"
 
@@ -121,7 +120,7 @@ class Ft300Config(PluginConfig):
     )
 
     # -- emulator (port: emulated) -----------------------------------------------------------
-    faults: _FAULTS = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (a mix of the fault matrix at moderate "
         "rates for long runs), or a list of fault events ({kind, at_s | rate_hz, duration_s, "

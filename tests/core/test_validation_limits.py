@@ -171,17 +171,22 @@ def test_every_device_declares_the_kinds_its_emulator_applies() -> None:
 def test_the_standard_schedules_validate() -> None:
     from pydantic import TypeAdapter
 
+    from hapticframe.devices import fault_setting
+    from hapticframe_barrett._hand_config import PUCK_FAULT_KINDS
     from hapticframe_barrett._hand_robot import STANDARD_FAULTS as hand
     from hapticframe_barrett._wam import STANDARD_FAULTS as wam
-    from hapticframe_barrett._wam_config import _FAULTS as can_faults
     from hapticframe_dynamixel._bus import STANDARD_FAULTS as dynamixel
-    from hapticframe_dynamixel._config import _FAULTS as dynamixel_faults
-    from hapticframe_robotiq._config import _FAULTS as robotiq_faults
+    from hapticframe_dynamixel._config import FAULT_KINDS as dynamixel_kinds
+    from hapticframe_robotiq._config import FAULT_KINDS as robotiq_kinds
     from hapticframe_robotiq._emulator import STANDARD_FAULTS as robotiq
 
-    for setting, schedule in ((robotiq_faults, robotiq), (dynamixel_faults, dynamixel),
-                              (can_faults, hand), (can_faults, wam)):
+    can = fault_setting(PUCK_FAULT_KINDS, byte_faults=False)
+    for setting, schedule in ((fault_setting(robotiq_kinds), robotiq),
+                              (fault_setting(dynamixel_kinds), dynamixel),
+                              (can, hand), (can, wam)):
         assert len(TypeAdapter(setting).validate_python(list(schedule))) == len(schedule)
+    with pytest.raises(ValueError, match="no fault kind 'disconnect'"):
+        TypeAdapter(can).validate_python([{"kind": "disconnect", "at_s": 1.0}])
 
 
 # --- numbers, booleans, the scene, the workspace --------------------------------------------
