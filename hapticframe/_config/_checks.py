@@ -146,10 +146,12 @@ def validator_results(
     return findings, sizes
 
 
-def size_findings(sizes: Iterable[Size]) -> list[Finding]:
-    """An error finding for every size over the limits, located at its field."""
+def size_findings(sizes: Iterable[Size], findings: Iterable[Finding] = ()) -> list[Finding]:
+    """An error finding for every size over the limits, located at its field; none for a
+    field the validator's own ``findings`` already refuse (its words come first)."""
+    refused = {f.field for f in findings if f.severity == "error"}
     return [Finding(problem, field=size.field) for size in sizes
-            if (problem := size.problem()) is not None]
+            if size.field not in refused and (problem := size.problem()) is not None]
 
 
 def run_validators(
@@ -186,7 +188,7 @@ def run_validators(
         findings, sizes = validator_results(
             validator, entry.config, context, f"{spec.kind} plugin {spec.name!r}"
         )
-        for finding in [*findings, *size_findings(sizes)]:
+        for finding in [*findings, *size_findings(sizes, findings)]:
             path = f"{entry.path}.config.{finding.field}" if finding.field else entry.path
             line = loaded.line_of(path) or loaded.line_of(entry.path)
             issue = Issue(path, finding.message, line)

@@ -13,7 +13,7 @@ __all__ = ["FAULT_KINDS", "EMULATED_PORT", "Bno055SensorConfig"]
 
 #: The emulator's own fault kinds (hapticframe_bno055._emulator.MODEL_FAULT_KINDS); the
 #: harness adds the byte-level ones. ``validate`` refuses any other kind and parameter.
-_TIMES = {"count": FaultParam(1, 1000, integer=True)}
+_TIMES = {"count": FaultParam(1, 10**9, integer=True)}  # a counter: 1e9 = never answers
 FAULT_KINDS: dict[str, FaultKind] = {
     "bus_overrun": FaultKind("params.count requests answered BUS_OVER_RUN_ERROR", _TIMES),
     "status": FaultKind("params.count requests answered with status params.code",
