@@ -331,6 +331,13 @@ class _FaultEntry(BaseModel):
         default_factory=dict, description="The kind's parameters (see the device's kinds)."
     )
 
+    @model_validator(mode="before")
+    @classmethod
+    def _a_mapping(cls, value: Any) -> Any:
+        if not isinstance(value, Mapping):
+            raise ValueError(f"a fault is a mapping with at least a 'kind', got {value!r}")
+        return value
+
     @field_validator("at_s", "rate_hz", "duration_s", mode="before")
     @classmethod
     def _numbers(cls, value: Any) -> Any:
@@ -352,7 +359,8 @@ class _FaultEntry(BaseModel):
     @model_validator(mode="after")
     def _timing_and_params(self) -> _FaultEntry:
         if (self.at_s is None) == (self.rate_hz is None):
-            raise ValueError("give exactly one of at_s (one occurrence) and rate_hz (random)")
+            raise ValueError("give exactly one of at_s and rate_hz (one occurrence at a time, "
+                             "or random ones at a mean rate)")
         kinds = self.allowed_kinds
         declared = kinds[self.kind].params
         for name, value in self.params.items():

@@ -36,10 +36,9 @@ def test_streaming_untrained_models_is_refused() -> None:
 
 
 def test_hapticframe_train_may_fit_them() -> None:
+    from hapticframe import Finding
     from hapticframe_sfrnn._checks import check
     from hapticframe_sfrnn._config import SFRNNConfig
-
-    from hapticframe import Finding
 
     context = ValidationContext("sf-rnn", {}, {}, None, None, extra={"command": "train"})
     found = list(check(SFRNNConfig(), context))
