@@ -94,10 +94,11 @@ def _sizes(config: Any) -> Iterator[Size]:
                bytes=8.0 * _PARAMETER_COPIES * parameters,
                remedy=f"fewer units or layers ({field})")
     activations = config.batch_size * config.window_frames * (total + _ACTIVATION_COPIES * width)
-    yield Size("window_frames", f"activations of a training batch of {config.batch_size} "
-               f"windows of {config.window_frames} frames", bytes=8.0 * activations,
-               iterations=float(config.window_frames),
-               remedy="lower window_frames or batch_size")
+    for field in ("window_frames", "batch_size"):
+        yield Size(field, f"activations of a training batch of {config.batch_size} windows of "
+                   f"{config.window_frames} frames", bytes=8.0 * activations,
+                   iterations=float(config.window_frames),
+                   remedy="lower window_frames or batch_size")
 
 
 def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:

@@ -45,11 +45,13 @@ def _emd_sizes(config: Any) -> Iterator[Size]:
             continue
         # A streaming extractor must keep up with its input: the work of one second of it.
         work = float(imfs) * config.max_sifts * window * config.frame_rate_hz
-        yield Size("max_sifts", f"{imfs} {modality} IMFs of up to {config.max_sifts} sifts over "
-                   f"a {window}-sample window, for each of {config.frame_rate_hz:g} frames a "
-                   "second (sample updates per second of input)",
-                   bytes=8.0 * _SIFT_ARRAYS * window * (imfs + 1), iterations=work,
-                   remedy=f"lower max_sifts or {modality}_window_samples")
+        what = (f"{imfs} {modality} IMFs of up to {config.max_sifts} sifts over a "
+                f"{window}-sample window, for each of {config.frame_rate_hz:g} frames a second "
+                "(sample updates per second of input)")
+        remedy = f"lower max_sifts or {modality}_window_samples"
+        memory = 8.0 * _SIFT_ARRAYS * window * (imfs + 1)
+        for field in ("max_sifts", f"{modality}_window_samples", f"{modality}_imfs"):
+            yield Size(field, what, bytes=memory, iterations=work, remedy=remedy)
 
 
 def check_emd(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
@@ -93,6 +95,19 @@ def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding | 
         entries = atoms * rows * cols
         yield Size(f"{modality}_atoms", f"the {modality} dictionary of {atoms} atoms of "
                    f"{rows} x {cols}", bytes=8.0 * entries, remedy=f"lower {modality}_atoms")
+        # Fitting holds a batch of tensors, their codes and the dictionary's gradient.
+        batch = float(config.fit_batch_size) * (rows * cols + atoms)
+        yield Size("fit_batch_size", f"a fitting batch of {config.fit_batch_size} {modality} "
+                   "tensors and their codes", bytes=8.0 * (batch + 2 * entries),
+                   remedy="lower fit_batch_size")
+    # Coding sweeps over the atoms for each frame until it converges: per second of input.
+    yield Size("encode_max_iter", f"up to {config.encode_max_iter} coding sweeps for each of "
+               f"{config.frame_rate_hz:g} frames a second",
+               iterations=float(config.encode_max_iter) * config.frame_rate_hz,
+               remedy="lower encode_max_iter")
+    for modality in config.modalities:
+        rows, cols = getattr(config, f"{modality}_shape")
+        entries = getattr(config, f"{modality}_atoms") * rows * cols
         if entries > MAX_DICTIONARY:
             yield Finding(
                 f"the {modality} dictionary would hold {entries:.3g} values "
