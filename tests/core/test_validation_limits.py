@@ -240,3 +240,40 @@ def test_a_workspace_outside_the_region_is_refused(
                    "arm.workspace={x_min_m: 2, x_max_m: 3, y_min_m: 0, y_max_m: 0.5}")
     assert "robots[0].config.workspace: the workspace of robot 'arm'" in err
     assert "lies outside the region planner 'planner' searches" in err
+
+
+# --- every plugin declares what its settings cost ---------------------------------------------
+
+#: The fields of the bundled plugins that size an allocation or a loop: each must be declared
+#: by its validator with a Size (so that validate estimates it and the kit probes its range).
+SIZED_FIELDS = {
+    ("map", "bayesian-hilbert-map"): {"hinge_spacing_m", "monte_carlo_samples"},
+    ("map", "belief-map"): {"max_points", "max_snapshots"},
+    ("map", "gp-occupancy"): {"exact_max_observations", "max_inducing_points"},
+    ("map", "occupancy-grid"): {"cell_size_m"},
+    ("planner", "coverage"): {"line_spacing_m"},
+    ("planner", "two-phase-coverage"): {"line_spacing_m", "phase2_line_spacing_m",
+                                        "gap_step_deg", "score_step_m", "grid_spacing_m"},
+    ("sensor_model", "failure-zone-kernel"): {"sector_spacing_m"},
+    ("feature_extractor", "emd-features"): {"max_sifts", "pac_window_samples",
+                                            "pdc_window_samples", "pac_imfs", "pdc_imfs"},
+    ("feature_extractor", "sparse-coding"): {"pac_atoms", "pdc_atoms", "electrodes_atoms",
+                                             "fit_batch_size", "encode_max_iter"},
+    ("classifier", "sf-rnn"): {"gru_units", "window_frames", "batch_size"},
+    ("classifier", "fusion-rnn"): {"branch_units", "window_frames", "batch_size"},
+    ("classifier", "linear-svm"): {"inputs", "max_iter"},
+    ("sensor", "biotac"): {"frames_per_read", "n_trials", "emulator_frames"},
+}
+
+
+def test_every_bundled_plugin_declares_the_fields_that_size_its_work() -> None:
+    from hapticframe import get_registry
+    from hapticframe._config._checks import validator_results
+    from hapticframe.testing._sizes import kit_context
+
+    registry = get_registry()
+    for (kind, name), fields in SIZED_FIELDS.items():
+        spec = registry.get(kind, name).spec
+        config = spec.config.model_validate(spec.check_config or {})
+        _, sizes = validator_results(spec.load_validator(), config, kit_context(spec))
+        assert fields <= {size.field for size in sizes}, (name, fields)
