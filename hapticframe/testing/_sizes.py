@@ -100,15 +100,19 @@ def _with(base: Mapping[str, Any], dotted: str, value: Any) -> dict[str, Any]:
     return data
 
 
-def _refused(spec: PluginSpec, validator: Any, data: Mapping[str, Any]) -> str | None:
-    """Why the kit's validation refuses ``data`` (None when it is accepted)."""
+def _refused(
+    spec: PluginSpec, validator: Any, data: Mapping[str, Any], name: str
+) -> str | None:
+    """Why validation refuses field ``name`` of ``data`` (None when it is accepted): the
+    config model, or an error of the validator (a finding or a size) located at that field
+    or naming it. Other errors (a lone component lacks its inputs) do not refuse it."""
     try:
         config = spec.config.model_validate(dict(data))
     except ValidationError as exc:
         return f"the config model: {exc.errors()[0]['msg']}"
     findings, sizes = validator_results(validator, config, kit_context(spec), repr(spec.name))
-    errors = [f.message for f in findings if f.severity == "error"]
-    errors += [f.message for f in size_findings(sizes)]
+    errors = [f.message for f in [*findings, *size_findings(sizes, findings)]
+              if f.severity == "error" and (f.field == name or name in f.message)]
     return errors[0] if errors else None
 
 
@@ -161,7 +165,7 @@ def check_declared_sizes(spec: PluginSpec, *, registry: Registry | None = None) 
             continue
         for value in range_extremes(info):
             data = _with(base, name, value)
-            if _refused(spec, validator, data) is not None:
+            if _refused(spec, validator, data, name) is not None:
                 continue
             try:
                 peak = _peak_bytes(spec, data, registry)

@@ -93,18 +93,19 @@ def check_sparse(config: Any, context: ValidationContext) -> Iterator[Finding | 
         rows, cols = getattr(config, f"{modality}_shape")
         atoms = getattr(config, f"{modality}_atoms")
         entries = atoms * rows * cols
-        yield Size(f"{modality}_atoms", f"the {modality} dictionary of {atoms} atoms of "
-                   f"{rows} x {cols}", bytes=8.0 * entries, remedy=f"lower {modality}_atoms")
+        # Coding sweeps over every atom until a frame converges: per second of input.
+        sweeps = float(config.encode_max_iter) * atoms * config.frame_rate_hz
+        coding = (f"the {modality} dictionary of {atoms} atoms of {rows} x {cols}, and up to "
+                  f"{config.encode_max_iter} coding sweeps over its atoms for each of "
+                  f"{config.frame_rate_hz:g} frames a second (atom updates per second of input)")
+        for field in (f"{modality}_atoms", "encode_max_iter"):
+            yield Size(field, coding, bytes=8.0 * entries, iterations=sweeps,
+                       remedy=f"lower {modality}_atoms or encode_max_iter")
         # Fitting holds a batch of tensors, their codes and the dictionary's gradient.
         batch = float(config.fit_batch_size) * (rows * cols + atoms)
         yield Size("fit_batch_size", f"a fitting batch of {config.fit_batch_size} {modality} "
                    "tensors and their codes", bytes=8.0 * (batch + 2 * entries),
                    remedy="lower fit_batch_size")
-    # Coding sweeps over the atoms for each frame until it converges: per second of input.
-    yield Size("encode_max_iter", f"up to {config.encode_max_iter} coding sweeps for each of "
-               f"{config.frame_rate_hz:g} frames a second",
-               iterations=float(config.encode_max_iter) * config.frame_rate_hz,
-               remedy="lower encode_max_iter")
     for modality in config.modalities:
         rows, cols = getattr(config, f"{modality}_shape")
         entries = getattr(config, f"{modality}_atoms") * rows * cols
