@@ -641,6 +641,9 @@ def _parser() -> argparse.ArgumentParser:
     _add_out_options(p, "the recording (run.mcap) and import.json", "an earlier import")
     p.set_defaults(func=cmd_import_bag)
 
+    from ._cli_import import register as register_import
+    register_import(sub, _add_out_options)
+
     p = sub.add_parser("replay", help="re-run a recorded run's perception and mapping with "
                        "an experiment's classifiers, sensor models and maps")
     p.add_argument("target", metavar="DIR",
