@@ -1,0 +1,124 @@
+"""The real raking trials (Chen, Versace & Jamone, IROS 2024) and the paper's input sets.
+
+The 100 trials ship with this package (``data/training.npz``: 80, ``data/testing.npz``: 20),
+as ``hapticframe import`` wrote them from the authors' workbooks (``data/SOURCE.md``).
+:func:`load_trials` reads either split, or any trace an import of the same layout wrote.
+
+The paper's four input sets take from the 4 x 3 taxel forces (taxel i's x, y, z in the
+authors' rows 3i-2, 3i-1, 3i): one taxel's normal force (``1_norm``), its three axes
+(``1_3-axis``), the four normal forces (``4_norm``) or all twelve (``4_3-axis``), in the
+order the authors' ``test_main.py`` slices their rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hapticframe.bounded_io import BoundedReadError, open_regular, read_npz
+
+__all__ = [
+    "DIRECTION_CLASSES",
+    "DEPTH_CLASSES",
+    "INPUT_SETS",
+    "RakingTrial",
+    "data_path",
+    "input_columns",
+    "load_trials",
+    "select_inputs",
+    "windows",
+]
+
+#: (taxel, axis) pairs of each input set, in the authors' row order.
+INPUT_SETS: dict[str, tuple[tuple[int, int], ...]] = {
+    "1_norm": ((0, 2),),
+    "1_3-axis": ((0, 0), (0, 1), (0, 2)),
+    "4_norm": ((0, 2), (1, 2), (2, 2), (3, 2)),
+    "4_3-axis": tuple((t, a) for t in range(4) for a in range(3)),
+}
+InputSet = Literal["1_norm", "1_3-axis", "4_norm", "4_3-axis"]
+DIRECTION_CLASSES = ("class_0", "class_1", "class_2")
+DEPTH_CLASSES = ("class_0", "class_1")
+
+
+@dataclass(frozen=True)
+class RakingTrial:
+    """One trial: forces ``(n, 4, 3)`` (normalized 0..1), labels and tool positions."""
+
+    name: str
+    force: NDArray[np.float64]
+    distance_mm: NDArray[np.float64]
+    direction: NDArray[np.int64]
+    depth: NDArray[np.int64]
+    position_m: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return int(self.force.shape[0])
+
+
+def data_path(split: Literal["training", "testing"]) -> Path:
+    """The shipped trace of one split."""
+    return Path(str(resources.files("hapticframe_raking") / "data" / f"{split}.npz"))
+
+
+def load_trials(source: str | Path, sensor: str = "tactile",
+                robot: str = "tool") -> list[RakingTrial]:
+    """Trials from ``source`` (``'training'``, ``'testing'`` or a trace.npz path)."""
+    path = data_path(source) if source in ("training", "testing") else Path(source)  # type: ignore[arg-type]
+    try:
+        with open_regular(path) as handle:
+            arrays = read_npz(handle)
+    except (BoundedReadError, OSError) as exc:
+        raise ValueError(f"cannot read raking trials from {path}: {exc}") from None
+    s = f"sensor/{sensor}"
+    try:
+        force = np.asarray(arrays[f"{s}/taxel_force"], dtype=np.float64)
+        distance = np.asarray(arrays[f"{s}/distance_mm"], dtype=np.float64)
+        direction = np.asarray(arrays[f"{s}/direction_class"]).astype(np.int64)
+        depth = np.asarray(arrays[f"{s}/depth_class"]).astype(np.int64)
+        position = np.asarray(arrays[f"robot/{robot}/position_m"], dtype=np.float64)
+        names = [str(n) for n in arrays["import/trial_names"]]
+        starts = [int(i) for i in arrays["import/trial_starts"]]
+    except KeyError as exc:
+        raise ValueError(f"{path}: not a raking import (missing {exc})") from None
+    if force.ndim != 3 or force.shape[1:] != (4, 3):
+        raise ValueError(f"{path}: taxel_force has shape {force.shape}, expected (n, 4, 3)")
+    bounds = list(zip(starts, starts[1:] + [force.shape[0]], strict=True))
+    return [RakingTrial(name, force[a:b], distance[a:b], direction[a:b], depth[a:b],
+                        position[a:b]) for name, (a, b) in zip(names, bounds, strict=True)]
+
+
+def input_columns(input_set: str) -> tuple[tuple[int, int], ...]:
+    try:
+        return INPUT_SETS[input_set]
+    except KeyError:
+        raise ValueError(f"input set {input_set!r} is not one of "
+                         f"{', '.join(INPUT_SETS)}") from None
+
+
+def select_inputs(force: NDArray[np.float64], input_set: str) -> NDArray[np.float64]:
+    """``(n, d)`` inputs of one input set from forces ``(n, 4, 3)``."""
+    cols = input_columns(input_set)
+    return np.stack([force[:, t, a] for t, a in cols], axis=1)
+
+
+def windows(x: NDArray[np.float64], steps: int, *, pad: bool) -> NDArray[np.float64]:
+    """Sliding windows ``(m, steps, d)`` ending at each step of ``x (n, d)``.
+
+    ``pad=False``: the authors' windows, ending at steps ``steps-1 .. n-1`` (``m = n -
+    steps + 1``). ``pad=True``: one window per step, the first sample repeated before the
+    trial's start (what a streaming estimator sees at its first steps).
+    """
+    if pad:
+        x = np.concatenate([np.repeat(x[:1], steps - 1, axis=0), x])
+    n = x.shape[0] - steps + 1
+    if n <= 0:
+        return np.empty((0, steps, x.shape[1]))
+    index = np.arange(steps)[None, :] + np.arange(n)[:, None]
+    out: NDArray[np.float64] = x[index]
+    return out
