@@ -19,6 +19,7 @@ BUNDLED = {
     ("classifier", "fusion-rnn"),
     ("classifier", "linear-svm"),
     ("classifier", "sf-rnn"),
+    ("classifier", "raking-estimator"),
     ("sensor_model", "contact-point"),
     ("sensor_model", "failure-zone-kernel"),
     ("map", "bayesian-hilbert-map"),

@@ -74,6 +74,14 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint=_LEARN_HINT,
     )
     yield BenchSpec(
+        name="raking-real",
+        summary="Real raking data (Chen et al., IROS 2024): our raking-estimator against the "
+        "authors' trained LSTMs on their 20 test trials, per input set (issue 27).",
+        factory="hapticframe_bench._raking_real:run_raking_real",
+        install_hint="pip install 'hapticframe[learn,tables]'  (torch trains ours; h5py reads "
+        "theirs)",
+    )
+    yield BenchSpec(
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "

@@ -17,24 +17,41 @@ from ._data import (
     select_inputs,
     windows,
 )
+from ._config import RakingEstimatorConfig
+from ._estimator import RakingEstimator, pretrained_model_dir
 from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_keras_model
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
+from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
+from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
 
 __all__ = [
     "DEPTH_CLASSES",
     "DIRECTION_CLASSES",
     "INPUT_SETS",
+    "AuthorsModels",
     "DenseLayer",
+    "EstimatorSettings",
     "KerasModelError",
     "KerasSequential",
     "LSTMLayer",
+    "ObjectEstimate",
+    "RakingEstimator",
+    "RakingEstimatorConfig",
+    "RakingModel",
     "RakingTrial",
+    "TrainingTrial",
+    "TrialScores",
+    "authors_models_dir",
     "data_path",
+    "fit_model",
     "load_keras_model",
     "load_trials",
+    "pretrained_model_dir",
+    "score_trials",
     "select_inputs",
     "sigmoid",
     "softmax",
     "strip_keras_model",
+    "summarize",
     "windows",
 ]
