@@ -7,6 +7,7 @@ Real data: the 100 trials of Chen, Versace & Jamone (IROS 2024), shipped in ``da
 
 from __future__ import annotations
 
+from ._config import RakingEstimatorConfig
 from ._data import (
     DEPTH_CLASSES,
     DIRECTION_CLASSES,
@@ -17,7 +18,6 @@ from ._data import (
     select_inputs,
     windows,
 )
-from ._config import RakingEstimatorConfig
 from ._estimator import RakingEstimator, pretrained_model_dir
 from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_keras_model
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax

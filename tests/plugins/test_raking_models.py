@@ -142,8 +142,13 @@ def test_shipped_trials_and_what_the_positions_are() -> None:
         assert 1.0 < np.median(-np.diff(y) * 1000) < 1.7
         # The labelled distance is the tool's distance in the plane, in mm, to one point
         # per trial: the positions are metres in the frame of the labels.
-        fit = least_squares(lambda p: np.hypot(y - p[0], x - p[1]) * 1000 - trial.distance_mm,
-                            [y[-1] - trial.distance_mm[-1] / 1000, x.mean()])
+        d = trial.distance_mm
+
+        def residual(p: np.ndarray, x: np.ndarray = x, y: np.ndarray = y,
+                     d: np.ndarray = d) -> np.ndarray:
+            return np.hypot(y - p[0], x - p[1]) * 1000 - d
+
+        fit = least_squares(residual, [y[-1] - d[-1] / 1000, x.mean()])
         assert np.abs(fit.fun).max() < 0.1, trial.name
 
 
