@@ -82,6 +82,13 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "theirs)",
     )
     yield BenchSpec(
+        name="raking-jamming",
+        summary="The force/force-rate jamming rule on real raking data: calibrated on 80 "
+        "trials, first-flag distance and far false alarms on 20, force against distance.",
+        factory="hapticframe_bench._raking_jamming:run_raking_jamming",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "
