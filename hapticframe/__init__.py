@@ -18,59 +18,59 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 # Public names resolve on first use (PEP 562), so that `hapticframe --help` and the light
 # commands pay only for what they touch.
 _LAZY = {
-    "BenchOptions": "._bench",
-    "BenchSpec": "._specs",
-    "BrokenPlugin": "._registry",
-    "Circle": "._scene",
-    "ClassifierSpec": "._specs",
-    "Ellipse": "._scene",
-    "ComponentView": "._config",
-    "Experiment": "._config",
-    "ExperimentError": "._errors",
-    "Finding": "._config",
-    "OutputError": "._results",
-    "apply_overrides": "._overrides",
-    "validate_with_overrides": "._overrides",
-    "atomic_path": "._results",
-    "atomic_write": "._results",
-    "save_npz": "._results",
-    "ValidationContext": "._config",
-    "FeatureExtractorSpec": "._specs",
-    "HapticframeError": "._errors",
-    "Issue": "._errors",
-    "Kind": "._kind",
-    "Knob": "._specs",
-    "MapSpec": "._specs",
-    "Material": "._scene",
-    "PlannerSpec": "._specs",
-    "PluginConfig": "._specs",
-    "PluginConflictError": "._errors",
-    "PluginError": "._errors",
-    "PluginImportError": "._errors",
-    "PluginSpec": "._specs",
-    "Polygon": "._scene",
-    "RegionConfig": "._scene",
-    "Registered": "._registry",
-    "Registry": "._registry",
-    "RobotSpec": "._specs",
-    "RunError": "._errors",
-    "RunSettings": "._config",
-    "RunInterrupted": "._errors",
-    "RunSummary": "._results",
-    "Scene": "._scene",
-    "SensorModelSpec": "._specs",
-    "SensorSpec": "._specs",
-    "SessionView": "._session",
-    "Source": "._registry",
-    "UsageError": "._errors",
-    "__version__": "._version",
-    "get_plugin_manager": "._manager",
-    "get_registry": "._manager",
+    "BenchOptions": "hapticframe.cli._bench",
+    "BenchSpec": "hapticframe._specs",
+    "BrokenPlugin": "hapticframe._registry",
+    "Circle": "hapticframe._scene",
+    "ClassifierSpec": "hapticframe._specs",
+    "Ellipse": "hapticframe._scene",
+    "ComponentView": "hapticframe._config",
+    "Experiment": "hapticframe._config",
+    "ExperimentError": "hapticframe._errors",
+    "Finding": "hapticframe._config",
+    "OutputError": "hapticframe._atomic",
+    "apply_overrides": "hapticframe._config._overrides",
+    "validate_with_overrides": "hapticframe._config._overrides",
+    "atomic_path": "hapticframe._atomic",
+    "atomic_write": "hapticframe._atomic",
+    "save_npz": "hapticframe._atomic",
+    "ValidationContext": "hapticframe._config",
+    "FeatureExtractorSpec": "hapticframe._specs",
+    "HapticframeError": "hapticframe._errors",
+    "Issue": "hapticframe._errors",
+    "Kind": "hapticframe._kind",
+    "Knob": "hapticframe._specs",
+    "MapSpec": "hapticframe._specs",
+    "Material": "hapticframe._scene",
+    "PlannerSpec": "hapticframe._specs",
+    "PluginConfig": "hapticframe._specs",
+    "PluginConflictError": "hapticframe._errors",
+    "PluginError": "hapticframe._errors",
+    "PluginImportError": "hapticframe._errors",
+    "PluginSpec": "hapticframe._specs",
+    "Polygon": "hapticframe._scene",
+    "RegionConfig": "hapticframe._scene",
+    "Registered": "hapticframe._registry",
+    "Registry": "hapticframe._registry",
+    "RobotSpec": "hapticframe._specs",
+    "RunError": "hapticframe._errors",
+    "RunSettings": "hapticframe._config",
+    "RunInterrupted": "hapticframe._errors",
+    "RunSummary": "hapticframe.run._results",
+    "Scene": "hapticframe._scene",
+    "SensorModelSpec": "hapticframe._specs",
+    "SensorSpec": "hapticframe._specs",
+    "SessionView": "hapticframe._session_view",
+    "Source": "hapticframe._registry",
+    "UsageError": "hapticframe._errors",
+    "__version__": "hapticframe._version",
+    "get_plugin_manager": "hapticframe._manager",
+    "get_registry": "hapticframe._manager",
     "hookimpl": ".hookspecs",
-    "make_plugin_manager": "._manager",
-    "run_experiment": "._run",
-    "validate_file": "._config",
-    "validate_mapping": "._config",
+    "make_plugin_manager": "hapticframe._manager",
+    "run_experiment": "hapticframe.run._run",
+    "validate_file": "hapticframe._config",
+    "validate_mapping": "hapticframe._config",
 }
 
 __all__ = [
@@ -144,9 +144,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # static type checkers see the real imports
-    from ._bench import BenchOptions
-    from ._config import Experiment, RunSettings, validate_file, validate_mapping
-    from ._errors import (
+    from hapticframe._config import Experiment, RunSettings, validate_file, validate_mapping
+    from hapticframe._errors import (
         ExperimentError,
         HapticframeError,
         Issue,
@@ -157,14 +156,12 @@ if TYPE_CHECKING:  # static type checkers see the real imports
         RunInterrupted,
         UsageError,
     )
-    from ._kind import Kind
-    from ._manager import get_plugin_manager, get_registry, make_plugin_manager
-    from ._registry import BrokenPlugin, Registered, Registry, Source
-    from ._results import RunSummary
-    from ._run import run_experiment
-    from ._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
-    from ._session import SessionView
-    from ._specs import (
+    from hapticframe._kind import Kind
+    from hapticframe._manager import get_plugin_manager, get_registry, make_plugin_manager
+    from hapticframe._registry import BrokenPlugin, Registered, Registry, Source
+    from hapticframe._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
+    from hapticframe._session_view import SessionView
+    from hapticframe._specs import (
         BenchSpec,
         ClassifierSpec,
         FeatureExtractorSpec,
@@ -177,5 +174,8 @@ if TYPE_CHECKING:  # static type checkers see the real imports
         SensorModelSpec,
         SensorSpec,
     )
-    from ._version import __version__
-    from .hookspecs import hookimpl
+    from hapticframe._version import __version__
+    from hapticframe.cli._bench import BenchOptions
+    from hapticframe.hookspecs import hookimpl
+    from hapticframe.run._results import RunSummary
+    from hapticframe.run._run import run_experiment

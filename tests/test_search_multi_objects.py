@@ -11,8 +11,8 @@ import pytest
 from scipy.special import expit
 
 from hapticframe import Scene, run_experiment, validate_with_overrides
-from hapticframe._evaluate import evaluate_objects
 from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region
+from hapticframe.run._evaluate import evaluate_objects
 from hapticframe_bench._placements import L_SHAPE_VERTICES_M, STAR_VERTICES_M, Placement
 from hapticframe_bench._template import search_experiment
 

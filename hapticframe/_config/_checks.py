@@ -14,12 +14,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
-from .._errors import Issue, PluginImportError
-from .._kind import Kind
-from ._load import LoadedFile
+from hapticframe._config._load import LoadedFile
+from hapticframe._errors import Issue, PluginImportError
+from hapticframe._kind import Kind
 
 if TYPE_CHECKING:
-    from ._validate import ComponentEntry
+    from hapticframe._config._model import ComponentEntry
 
 __all__ = [
     "ComponentView",
@@ -419,7 +419,7 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
 
 
 def _evaluated_map(entries: list[ComponentEntry], run: Any) -> ComponentEntry | None:
-    """The map a run scores against the scene, as :mod:`hapticframe._evaluate` picks it."""
+    """The map a run scores against the scene, as :mod:`hapticframe.run._evaluate` picks it."""
     maps = {e.id: e for e in _of(entries, Kind.MAP)}
     if run.evaluation_map is not None:
         return maps.get(run.evaluation_map)

@@ -30,7 +30,7 @@ from typing import Any
 
 import yaml
 
-from .._errors import ExperimentError, Issue
+from hapticframe._errors import ExperimentError, Issue
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -15,14 +15,14 @@
 The guide is ``docs/devices.md``.
 """
 
-from ._clock import Clock, ClockSync, FakeClock, MonotonicClock
-from ._crc import append_crc16, check_crc16, crc16_modbus
-from ._emulator import DeviceModel, EmulatedTransport, PtyEmulator
-from ._faults import FaultEvent, FaultSchedule, FaultSetting, InjectedFault
-from ._framing import FixedFrameParser, LineFramer, ParserStats
-from ._health import DeviceHealth
-from ._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
-from ._transport import (
+from hapticframe.devices._clock import Clock, ClockSync, FakeClock, MonotonicClock
+from hapticframe.devices._crc import append_crc16, check_crc16, crc16_modbus
+from hapticframe.devices._emulator import DeviceModel, EmulatedTransport, PtyEmulator
+from hapticframe.devices._faults import FaultEvent, FaultSchedule, FaultSetting, InjectedFault
+from hapticframe.devices._framing import FixedFrameParser, LineFramer, ParserStats
+from hapticframe.devices._health import DeviceHealth
+from hapticframe.devices._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
+from hapticframe.devices._transport import (
     Backoff,
     ByteTransport,
     SerialTransport,

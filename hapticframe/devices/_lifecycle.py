@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from enum import Enum
 
-from ._health import DeviceHealth
+from hapticframe.devices._health import DeviceHealth
 
 __all__ = ["DeviceError", "DeviceLifecycle", "LifecycleState"]
 

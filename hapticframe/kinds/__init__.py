@@ -6,8 +6,8 @@ What only some components can do (train, persist, evaluate on a grid) is declare
 :mod:`hapticframe.kinds.capabilities`.
 """
 
-from ._base import BuildContext, Component, InputAlignment, RunOutcome
-from ._records import (
+from hapticframe.kinds._base import BuildContext, Component, InputAlignment, RunOutcome
+from hapticframe.kinds._records import (
     ChannelInfo,
     ClassProbabilities,
     ExploratoryMovement,
@@ -21,7 +21,7 @@ from ._records import (
     SampleBatch,
     concatenate_batches,
 )
-from .capabilities import (
+from hapticframe.kinds.capabilities import (
     Device,
     EnvironmentCoupled,
     GridQueryable,
@@ -30,13 +30,13 @@ from .capabilities import (
     RobotFollower,
     Trainable,
 )
-from .classifier import Classifier
-from .feature_extractor import FeatureExtractor
-from .map import Map
-from .planner import Planner
-from .robot import Robot
-from .sensor import Sensor
-from .sensor_model import SensorModel
+from hapticframe.kinds.classifier import Classifier
+from hapticframe.kinds.feature_extractor import FeatureExtractor
+from hapticframe.kinds.map import Map
+from hapticframe.kinds.planner import Planner
+from hapticframe.kinds.robot import Robot
+from hapticframe.kinds.sensor import Sensor
+from hapticframe.kinds.sensor_model import SensorModel
 
 __all__ = [
     "BuildContext",

@@ -11,11 +11,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 
-from .._kind import Kind
-from ._records import ChannelInfo, MovementResult, Region
+from hapticframe._kind import Kind
+from hapticframe.kinds._records import ChannelInfo, MovementResult, Region
 
 if TYPE_CHECKING:
-    from .._scene import RegionConfig, Scene
+    from hapticframe._scene import RegionConfig, Scene
 
 #: The dissertation's search area (section 3.5.1, 75 x 50 cm): a map's region when neither
 #: its config nor the experiment's scene gives one.

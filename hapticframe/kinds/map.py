@@ -17,9 +17,9 @@ from typing import ClassVar
 
 from numpy.typing import ArrayLike
 
-from .._kind import Kind
-from ._base import Component
-from ._records import MapEstimate, Observations, Region
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import MapEstimate, Observations, Region
 
 __all__ = ["Map"]
 

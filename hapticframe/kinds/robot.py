@@ -29,9 +29,9 @@ from __future__ import annotations
 from abc import abstractmethod
 from typing import ClassVar
 
-from .._kind import Kind
-from ._base import Component
-from ._records import ExploratoryMovement, Region, RobotState
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import ExploratoryMovement, Region, RobotState
 
 __all__ = ["Robot"]
 

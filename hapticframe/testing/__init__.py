@@ -50,8 +50,8 @@ never ends fails a check instead of hanging it; no check is timed.
 """
 
 # _knobs first: its spec-level check runs beside the other checks every plugin gets.
-from . import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
-from ._common import (
+from hapticframe.testing import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
+from hapticframe.testing._common import (
     CHECKS,
     HEAVY_MODULES,
     check_builds,
@@ -59,7 +59,7 @@ from ._common import (
     check_lazy_import,
     check_spec_record,
 )
-from ._harness import (
+from hapticframe.testing._harness import (
     DEFAULT_SCENE,
     CheckFailure,
     KitMap,
@@ -67,10 +67,16 @@ from ._harness import (
     release_component,
     synthetic_batch,
 )
-from ._knobs import check_knobs
-from ._rewind import check_rewind
-from ._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
-from ._spatial import (
+from hapticframe.testing._knobs import check_knobs
+from hapticframe.testing._rewind import check_rewind
+from hapticframe.testing._runner import (
+    CheckResult,
+    checks_for,
+    iter_checks,
+    parametrize_with_checks,
+    run_checks,
+)
+from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
     check_map_extremes,
@@ -90,7 +96,7 @@ from ._spatial import (
     map_observations,
     planner_episode,
 )
-from ._streams import (
+from hapticframe.testing._streams import (
     check_aligned_inputs_stream_as_batch,
     check_numerical_extremes,
     check_sensor_contract,
@@ -144,6 +150,7 @@ __all__ = [
     "parametrize_with_checks",
     "planner_episode",
     "release_component",
+    "iter_checks",
     "run_checks",
     "synthetic_batch",
 ]

@@ -10,12 +10,12 @@ from typing import Any, TypeVar, overload
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._kind import Kind
-from .._manager import get_registry
-from .._registry import Registry
-from .._scene import Circle, Scene
-from .._specs import PluginSpec
-from ..kinds import (
+from hapticframe._kind import Kind
+from hapticframe._manager import get_registry
+from hapticframe._registry import Registry
+from hapticframe._scene import Circle, Scene
+from hapticframe._specs import PluginSpec
+from hapticframe.kinds import (
     BuildContext,
     Component,
     Device,

@@ -7,12 +7,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._components import INTERFACES
-from .._kind import Kind
-from .._registry import Registry
-from .._scene import RegionConfig, Scene
-from .._specs import PluginSpec
-from ..kinds import (
+from hapticframe._kind import Kind
+from hapticframe._registry import Registry
+from hapticframe._scene import RegionConfig, Scene
+from hapticframe._specs import PluginSpec
+from hapticframe.kinds import (
     Classifier,
     ExploratoryMovement,
     FeatureExtractor,
@@ -28,8 +27,9 @@ from ..kinds import (
     Sensor,
     SensorModel,
 )
-from ._common import check, outputs_equal
-from ._harness import (
+from hapticframe.run._components import INTERFACES
+from hapticframe.testing._common import check, outputs_equal
+from hapticframe.testing._harness import (
     DEFAULT_SCENE,
     CheckFailure,
     KitMap,
@@ -38,7 +38,7 @@ from ._harness import (
     raised_by_record_validation,
     release_component,
 )
-from ._streams import exercise_stream, sensor_outputs
+from hapticframe.testing._streams import exercise_stream, sensor_outputs
 
 __all__ = [
     "TINY_SCENE",

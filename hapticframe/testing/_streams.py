@@ -7,11 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from .._kind import Kind
-from .._registry import Registry
-from .._specs import PluginSpec
-from .._streams import InputAligner, merge_batches
-from ..kinds import (
+from hapticframe._kind import Kind
+from hapticframe._registry import Registry
+from hapticframe._specs import PluginSpec
+from hapticframe.kinds import (
     Classifier,
     ClassProbabilities,
     FeatureExtractor,
@@ -21,8 +20,9 @@ from ..kinds import (
     Sensor,
     concatenate_batches,
 )
-from ._common import check
-from ._harness import (
+from hapticframe.run._streams import InputAligner, merge_batches
+from hapticframe.testing._common import check
+from hapticframe.testing._harness import (
     CheckFailure,
     crossing_movement,
     make_component,

@@ -172,7 +172,8 @@ class OccupancyGrid(Map):
                 self.config.cell_size_m,
                 values.reshape(self._shape),
                 (self._log_low, self._log_high),
-                title=f"Occupancy log odds{f' at the end of {phase}' if phase else ''}",
+                title=(f"Map {self.id!r} (occupancy grid): log odds"
+                       f"{f' at the end of {phase}' if phase else ''}"),
                 outlines=outlines,
                 movements=shown,
             )

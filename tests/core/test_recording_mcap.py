@@ -12,10 +12,10 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from hapticframe._cli import main
-from hapticframe._recording import RECORDING, RunRecording, read_recording, recover
-from hapticframe._results import STAGING
+from hapticframe.cli._cli import main
 from hapticframe.kinds import ClassProbabilities, SampleBatch
+from hapticframe.record._recording import RECORDING, RunRecording, read_recording, recover
+from hapticframe.run._results import STAGING
 from tests.core.test_outputs_atomic import kill_self, killed_at, needs_fork, record, run
 
 ROOT = Path(__file__).resolve().parents[2]

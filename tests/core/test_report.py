@@ -8,17 +8,17 @@ import shutil
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
-from hapticframe._recording import RECORDING, RunRecording
-from hapticframe._report import (
+from hapticframe.cli._cli import main
+from hapticframe.kinds import SampleBatch
+from hapticframe.record._recording import RECORDING, RunRecording
+from hapticframe.record._report import (
     load_recording,
     paths_figure,
     signals_figure,
     trace_arrays,
     truth_of,
 )
-from hapticframe._results import STAGING
-from hapticframe.kinds import SampleBatch
+from hapticframe.run._results import STAGING
 from tests.core import test_recording_snapshots
 
 #: The short search, run once per session (a fixture shared with the snapshot tests).

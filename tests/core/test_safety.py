@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
-from hapticframe._dataflow import Dataflow
+from hapticframe.cli._cli import main
 from hapticframe.kinds import ChannelInfo, SampleBatch
+from hapticframe.run._dataflow import Dataflow
 from hapticframe.testing import check_robot_refuses_outside_workspace, check_robot_stops_at_once
 from hapticframe_sandbox import plugin as sandbox_plugin
 

@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
-from hapticframe._recording import read_recording
-from hapticframe._tables import column_letters
+from hapticframe.cli._cli import main
+from hapticframe.record._recording import read_recording
+from hapticframe.record._tables import column_letters
 
 openpyxl = pytest.importorskip("openpyxl")
 

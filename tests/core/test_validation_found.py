@@ -13,8 +13,8 @@ import pytest
 from numpy.typing import ArrayLike
 
 from hapticframe import RunSettings, Scene
-from hapticframe._evaluate import evaluate_map
 from hapticframe.kinds import MapEstimate, Region
+from hapticframe.run._evaluate import evaluate_map
 
 
 class BlobMap:
