@@ -21,6 +21,7 @@ and the ``force-rate-jamming`` classifier calibrated and scored on them.
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -40,7 +41,7 @@ __all__ = ["FAR_MM", "JAMMING_MM", "jamming_labels", "run_raking_jamming", "tria
 JAMMING_MM = 40.0
 FAR_MM = 80.0
 RATE_HZ = 10.0
-BIN_EDGES_MM = np.arange(0.0, 200.0, 10.0)
+BIN_EDGES_MM = np.arange(0.0, 210.0, 10.0)
 
 
 def trial_batch(trial: RakingTrial, t0: float = 0.0) -> SampleBatch:
@@ -60,7 +61,7 @@ def _classifier(config: ForceRateJammingConfig) -> ForceRateJammingClassifier:
 
 def _binned(distance: np.ndarray, values: np.ndarray) -> list[dict[str, float]]:
     rows = []
-    for lo, hi in zip(BIN_EDGES_MM[:-1], BIN_EDGES_MM[1:], strict=True):
+    for lo, hi in itertools.pairwise(BIN_EDGES_MM):
         v = values[(distance >= lo) & (distance < hi) & np.isfinite(values)]
         if v.size:
             rows.append({"from_mm": float(lo), "to_mm": float(hi), "n": int(v.size),
