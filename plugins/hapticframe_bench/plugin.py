@@ -89,6 +89,13 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint="pip install 'hapticframe[plots]'  (the figure)",
     )
     yield BenchSpec(
+        name="raking-map",
+        summary="Where the 20 real raking test trials place the object: the distance-estimate "
+        "sensor model against the fixed distance of the failure zone's rule.",
+        factory="hapticframe_bench._raking_map:run_raking_map",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "

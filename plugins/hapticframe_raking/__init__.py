@@ -7,7 +7,7 @@ Real data: the 100 trials of Chen, Versace & Jamone (IROS 2024), shipped in ``da
 
 from __future__ import annotations
 
-from ._config import RakingEstimatorConfig
+from ._config import DistanceEstimateConfig, RakingEstimatorConfig
 from ._data import (
     DEPTH_CLASSES,
     DIRECTION_CLASSES,
@@ -15,6 +15,7 @@ from ._data import (
     RakingTrial,
     data_path,
     load_trials,
+    object_point,
     select_inputs,
     windows,
 )
@@ -23,6 +24,7 @@ from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_ke
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
 from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
 from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
+from ._sensor_model import DistanceEstimateSensorModel, place_observations
 
 __all__ = [
     "DEPTH_CLASSES",
@@ -30,6 +32,8 @@ __all__ = [
     "INPUT_SETS",
     "AuthorsModels",
     "DenseLayer",
+    "DistanceEstimateConfig",
+    "DistanceEstimateSensorModel",
     "EstimatorSettings",
     "KerasModelError",
     "KerasSequential",
@@ -46,6 +50,8 @@ __all__ = [
     "fit_model",
     "load_keras_model",
     "load_trials",
+    "object_point",
+    "place_observations",
     "pretrained_model_dir",
     "score_trials",
     "select_inputs",

@@ -8,7 +8,7 @@ from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
 
-__all__ = ["RakingEstimatorConfig"]
+__all__ = ["DistanceEstimateConfig", "RakingEstimatorConfig"]
 
 
 class RakingEstimatorConfig(PluginConfig):
@@ -59,3 +59,24 @@ class RakingEstimatorConfig(PluginConfig):
         if self.pretrained and self.input_set != "4_3-axis":
             raise ValueError("the shipped model reads input_set '4_3-axis'")
         return self
+
+
+class DistanceEstimateConfig(PluginConfig):
+    """Place each observation at the estimated distance and direction ahead of the tool."""
+
+    direction_bearings_deg: tuple[float, float, float] = Field(
+        (-20.0, 0.0, 20.0), description="Bearing of each direction class from the heading "
+        "(counter-clockwise, degrees). The raking data set does not say what its classes "
+        "mean: these are an assumption.")
+    max_range_m: float = Field(0.1, gt=0, le=10, allow_inf_nan=False,
+                               description="Estimates farther than this place no object.")
+    reference_std_m: float = Field(0.01, gt=0, le=10, allow_inf_nan=False,
+                                   description="A standard deviation that halves a weight.")
+    free_points: int = Field(3, ge=0, le=100, description="Free observations per sample "
+                             "between the tool and the estimate less two deviations.")
+    min_weight: float = Field(1e-3, ge=0, le=1, allow_inf_nan=False,
+                              description="Observations lighter than this are dropped.")
+    fallback_distance_m: float = Field(
+        0.03, gt=0, le=10, allow_inf_nan=False, description="Without an estimate (a "
+        "classifier that is not an estimator): the fixed distance ahead, as the failure "
+        "zone's rupture distance.")

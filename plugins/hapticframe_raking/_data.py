@@ -30,6 +30,7 @@ __all__ = [
     "data_path",
     "input_columns",
     "load_trials",
+    "object_point",
     "select_inputs",
     "windows",
 ]
@@ -122,3 +123,26 @@ def windows(x: NDArray[np.float64], steps: int, *, pad: bool) -> NDArray[np.floa
     index = np.arange(steps)[None, :] + np.arange(n)[:, None]
     out: NDArray[np.float64] = x[index]
     return out
+
+
+def object_point(trial: RakingTrial) -> NDArray[np.float64]:
+    """The point ``(x0, y0)`` (m) the trial's distance labels are measured to.
+
+    Least squares of ``1000 · hypot(x − x0, y − y0) = distance_mm`` over the trial's steps
+    (the labels fit it within 0.06 mm on all 100 trials).
+    """
+    from scipy.optimize import least_squares
+
+    x, y, d = trial.position_m[:, 0], trial.position_m[:, 1], trial.distance_mm / 1000.0
+
+    def residual(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        out: NDArray[np.float64] = np.hypot(x - p[0], y - p[1]) - d
+        return out
+
+    # Start beyond the trial's end along its direction of travel.
+    travel = trial.position_m[-1, :2] - trial.position_m[0, :2]
+    unit = travel / max(float(np.hypot(*travel)), 1e-12)
+    start = trial.position_m[-1, :2] + unit * d[-1]
+    fit = least_squares(residual, start)
+    point: NDArray[np.float64] = fit.x
+    return point

@@ -204,6 +204,27 @@ class RakingEstimator(Classifier):
             np.concatenate([x.direction_proba for x in e]),
             np.concatenate([x.depth_proba for x in e]))
 
+    def estimate_at(self, times_s: NDArray[np.float64]) -> ObjectEstimate:
+        """The estimates made at ``times_s`` (rows NaN where none was made at that time).
+
+        A sensor model reads them for the located measurements this classifier's output
+        became (``distance-estimate``).
+        """
+        times = np.asarray(times_s, dtype=np.float64)
+        t, est = self.estimates
+        n = len(times)
+        out = ObjectEstimate(np.full(n, np.nan), np.full(n, np.nan), np.zeros((n, 3)),
+                             np.zeros((n, 2)))
+        if not len(t) or not n:
+            return out
+        index = np.clip(np.searchsorted(t, times), 0, len(t) - 1)
+        hit = np.abs(t[index] - times) <= 1e-9
+        out.distance_mm[hit] = est.distance_mm[index[hit]]
+        out.distance_std_mm[hit] = est.distance_std_mm[index[hit]]
+        out.direction_proba[hit] = est.direction_proba[index[hit]]
+        out.depth_proba[hit] = est.depth_proba[index[hit]]
+        return out
+
     def finalize(self, outcome: RunOutcome) -> Mapping[str, Any]:
         """Write ``estimates.npz`` (and a figure); metrics against labels streamed with it."""
         t, est = self.estimates

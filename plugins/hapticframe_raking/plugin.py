@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, Knob, hookimpl
+from hapticframe import ClassifierSpec, Knob, SensorModelSpec, hookimpl
 
-from ._config import RakingEstimatorConfig
+from ._config import DistanceEstimateConfig, RakingEstimatorConfig
 
-__all__ = ["SPECS", "hapticframe_classifiers"]
+__all__ = ["SENSOR_MODEL_SPECS", "SPECS", "hapticframe_classifiers", "hapticframe_sensor_models"]
 
 SPECS = (
     ClassifierSpec(
@@ -35,3 +35,20 @@ SPECS = (
 @hookimpl
 def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
     yield from SPECS
+
+
+SENSOR_MODEL_SPECS = (
+    SensorModelSpec(
+        name="distance-estimate",
+        summary="Each observation at the raking-estimator's distance and direction ahead of "
+        "the tool, weighted by the estimate's certainty (the failure zone's fixed distance "
+        "without an estimator).",
+        config=DistanceEstimateConfig,
+        factory="hapticframe_raking._sensor_model:DistanceEstimateSensorModel",
+    ),
+)
+
+
+@hookimpl
+def hapticframe_sensor_models() -> Iterator[SensorModelSpec]:
+    yield from SENSOR_MODEL_SPECS
