@@ -15,10 +15,14 @@ position estimate is the weighted mean of its object observations (target 1):
   calibrated on the training trials too: the median labelled distance of their flagged
   samples (``FIXED_DISTANCE_M`` only where none is flagged).
 
+Each model's observations, with the tool's path as free observations (the tool went
+through there), also build a Bayesian Hilbert Map per trial (a 10 x 12 cm region around the
+rake's end, hinges every 1 cm); the map's most probable point is its object estimate.
+
 The truth is the point the trial's distance labels are measured to
-(:func:`hapticframe_raking.object_point`). Scores per trial: the 2-D error, its component
-along the rake and across it, and whether the model placed anything. This is a point
-estimate from the observations, not an occupancy map.
+(:func:`hapticframe_raking.object_point`). Scores per trial and model: the error of the
+observations' weighted mean (2-D, along the rake and across it), whether the model placed
+anything, and the error of the map's most probable point.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe import BenchOptions, atomic_write
-from hapticframe.kinds import Observations
+from hapticframe import BenchOptions, RegionConfig, atomic_write
+from hapticframe.kinds import BuildContext, Observations
+from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 from hapticframe_raking import (
     DistanceEstimateConfig,
     RakingModel,
@@ -87,9 +92,35 @@ def _errors(estimate: np.ndarray | None, truth: np.ndarray, heading: float
     return {"error_m": float(np.hypot(*delta)), "along_m": along, "across_m": across}
 
 
+#: A map whose largest occupancy mean is below this found no object.
+FOUND_LEVEL = 0.5
+
+
+def trial_map(trial: RakingTrial, obs: Observations
+              ) -> tuple[BayesianHilbertMap, np.ndarray, float]:
+    """A map of one trial from ``obs`` and the tool's path (free), its most probable point
+    and the occupancy mean there."""
+    path = trial.position_m[:, :2]
+    x0, y_end = float(path[:, 0].mean()), float(path[-1, 1])
+    region = RegionConfig(x_min_m=x0 - 0.05, x_max_m=x0 + 0.05, y_min_m=y_end - 0.06,
+                          y_max_m=y_end + 0.06)
+    bhm = BayesianHilbertMap(
+        BayesianHilbertMapConfig(region=region, hinge_spacing_m=0.01,
+                                 length_scale_free_m=0.0066),
+        BuildContext("map", np.random.default_rng(0)))
+    bhm.update(Observations.concatenate([obs, Observations(path, np.zeros(len(path)))]))
+    xs, ys, mean, _ = bhm.probability_grid(0.002)
+    row, col = np.unravel_index(int(np.argmax(mean)), mean.shape)
+    return bhm, np.array([xs[col], ys[row]]), float(mean[row, col])
+
+
+def _map_error(trial: RakingTrial, obs: Observations, truth: np.ndarray) -> float | None:
+    _, best, level = trial_map(trial, obs)
+    return float(np.hypot(*(best - truth))) if level >= FOUND_LEVEL else None
+
+
 def run_raking_map(options: BenchOptions) -> dict[str, Any]:
     """Score both sensor models' object positions on the 20 test trials."""
-    from hapticframe.kinds import BuildContext
     from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 
     training, testing = load_trials("training"), load_trials("testing")
@@ -120,10 +151,12 @@ def run_raking_map(options: BenchOptions) -> dict[str, Any]:
         row = {"trial": trial.name, "truth_m": truth.tolist(),
                "ours": _errors(_point(ours), truth, float(heading[0])),
                "fixed": _errors(_point(fixed), truth, float(heading[0])),
+               "ours_map_error_m": _map_error(trial, ours, truth),
+               "fixed_map_error_m": _map_error(trial, fixed, truth),
                "ours_points": int((ours.targets > 0.5).sum()),
                "fixed_points": len(fixed)}
         rows.append(row)
-        if drawn is None:
+        if drawn is None and len(fixed):
             drawn = (trial, truth, ours, fixed)
     summary = {}
     for who in ("ours", "fixed"):
@@ -136,7 +169,11 @@ def run_raking_map(options: BenchOptions) -> dict[str, Any]:
             "error_mm_mean": 1e3 * float(np.mean(errors)) if errors else None,
             "error_mm_max": 1e3 * float(np.max(errors)) if errors else None,
             "along_mm_median": 1e3 * float(np.median(along)) if along else None,
-            "across_mm_median": 1e3 * float(np.median(across)) if across else None}
+            "across_mm_median": 1e3 * float(np.median(across)) if across else None,
+            "map_found": len(mapped := [r[f"{who}_map_error_m"] for r in rows
+                                        if r[f"{who}_map_error_m"] is not None]),
+            "map_error_mm_median": 1e3 * float(np.median(mapped)) if mapped else None,
+            "map_error_mm_max": 1e3 * float(np.max(mapped)) if mapped else None}
     results: dict[str, Any] = {"bearings_deg": list(bearings), "fixed_distance_m": fixed_m,
                "jamming_label_mm": JAMMING_MM, "summary": summary, "per_trial": rows,
                "machine": {"load_average_1min": load_average()}}
@@ -148,7 +185,9 @@ def run_raking_map(options: BenchOptions) -> dict[str, Any]:
         s = summary[who]
         options.echo(f"{label}: placed in {s['trials_placed']}/{len(rows)} trials; error "
                      f"median {_mm(s['error_mm_median'])} (along {_mm(s['along_mm_median'])}, "
-                     f"across {_mm(s['across_mm_median'])})")
+                     f"across {_mm(s['across_mm_median'])}); map found it in "
+                     f"{s['map_found']}/{len(rows)}, most probable point off by median "
+                     f"{_mm(s['map_error_mm_median'])}")
     options.echo(load_note(results["machine"]["load_average_1min"]))
     return {who: summary[who]["error_mm_median"] for who in summary}
 
@@ -163,12 +202,15 @@ def _markdown(results: Mapping[str, Any]) -> str:
              f"{', '.join(f'{b:.1f}°' for b in results['bearings_deg'])}; fixed distance "
              f"{1e3 * results['fixed_distance_m']:.0f} mm.", "",
              "| sensor model | trials placed | error median (mm) | mean | max | "
-             "along the rake, median | across, median |", "|---|---|---|---|---|---|---|"]
+             "along the rake, median | across, median | map: found | map: error median | "
+             "map: max |", "|---|---|---|---|---|---|---|---|---|---|"]
     for who, label in (("ours", "distance-estimate"), ("fixed", "fixed distance (jamming)")):
         s = results["summary"][who]
         lines.append(f"| {label} | {s['trials_placed']} | {_mm(s['error_mm_median'])} | "
                      f"{_mm(s['error_mm_mean'])} | {_mm(s['error_mm_max'])} | "
-                     f"{_mm(s['along_mm_median'])} | {_mm(s['across_mm_median'])} |")
+                     f"{_mm(s['along_mm_median'])} | {_mm(s['across_mm_median'])} | "
+                     f"{s['map_found']} | {_mm(s['map_error_mm_median'])} | "
+                     f"{_mm(s['map_error_mm_max'])} |")
     return "\n".join(lines) + "\n"
 
 
@@ -181,27 +223,31 @@ def _figure(path: Path, trial: RakingTrial, truth: np.ndarray, ours: Observation
         import matplotlib.pyplot as plt
     except ImportError:
         return False
-    fig, ax = plt.subplots(figsize=(5, 7))
+    fig, axes = plt.subplots(1, 2, figsize=(9, 6), sharey=True)
     p = trial.position_m
-    ax.plot(1e3 * p[:, 0], 1e3 * p[:, 1], "k-", lw=1, label="tool path (recorded)")
-    obj = ours.targets > 0.5
-    sc = ax.scatter(1e3 * ours.points_m[obj, 0], 1e3 * ours.points_m[obj, 1],
-                    c=ours.weights[obj], s=8, cmap="viridis",
-                    label="distance-estimate: object observations")
-    fig.colorbar(sc, ax=ax, label="observation weight")
-    free = ~obj
-    ax.scatter(1e3 * ours.points_m[free, 0], 1e3 * ours.points_m[free, 1], s=2, c="0.7",
-               label="distance-estimate: free observations")
-    ax.scatter(1e3 * fixed.points_m[:, 0], 1e3 * fixed.points_m[:, 1], marker="x", s=20,
-               c="tab:red", label="fixed distance: object observations")
-    ax.plot(1e3 * truth[0], 1e3 * truth[1], "*", ms=14, c="tab:orange",
-            label="object point of the labels (truth)")
-    ax.set_xlabel("x (mm, robot frame)")
-    ax.set_ylabel("y (mm, robot frame)")
-    ax.set_title(f"test trial {trial.name}")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
+    for ax, obs, title in ((axes[0], ours, "distance-estimate"),
+                           (axes[1], fixed, "fixed distance (jamming rule)")):
+        bhm, best, _ = trial_map(trial, obs)
+        xs, ys, mean, _ = bhm.probability_grid(0.002)
+        image = ax.pcolormesh(1e3 * xs, 1e3 * ys, mean, vmin=0, vmax=1, cmap="viridis",
+                              shading="auto")
+        ax.plot(1e3 * p[:, 0], 1e3 * p[:, 1], "w-", lw=1.5, label="tool path (recorded)")
+        obj = obs.targets > 0.5
+        ax.scatter(1e3 * obs.points_m[obj, 0], 1e3 * obs.points_m[obj, 1], s=6, c="tab:red",
+                   label="object observations")
+        ax.plot(1e3 * truth[0], 1e3 * truth[1], "*", ms=15, c="tab:orange", mec="k",
+                label="object point of the labels (truth)")
+        ax.plot(1e3 * best[0], 1e3 * best[1], "P", ms=11, c="white", mec="k",
+                label="map's most probable point")
+        ax.set_title(f"{title}, test trial {trial.name}\n(found where the mean ≥ "
+                     f"{FOUND_LEVEL:g})", fontsize=9)
+        ax.set_xlabel("x (mm, robot frame)")
+        ax.set_xlim(1e3 * xs[0], 1e3 * xs[-1])
+        ax.set_ylim(1e3 * ys[0], 1e3 * ys[-1])
+        ax.set_aspect("equal")
+        ax.legend(fontsize=6, loc="upper right")
+    axes[0].set_ylabel("y (mm, robot frame)")
+    fig.colorbar(image, ax=axes, label="occupancy probability (map mean)", shrink=0.8)
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return True

@@ -91,3 +91,7 @@ def test_raking_map_suite_places_and_scores(tmp_path: Path) -> None:
     ours = report["summary"]["ours"]
     assert ours["trials_placed"] == 20 and ours["error_mm_median"] > 0
     assert 0.005 < report["fixed_distance_m"] < 0.05
+    assert 0 <= ours["map_found"] <= 20
+    for row in report["per_trial"]:
+        error = row["ours_map_error_m"]
+        assert error is None or 0 <= error < 0.2
