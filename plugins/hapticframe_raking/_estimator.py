@@ -197,12 +197,15 @@ class RakingEstimator(Classifier):
         if not self._estimates:
             return np.empty(0), ObjectEstimate(np.empty(0), np.empty(0), np.empty((0, 3)),
                                                np.empty((0, 2)))
-        e = self._estimates
-        return np.concatenate(self._times), ObjectEstimate(
-            np.concatenate([x.distance_mm for x in e]),
-            np.concatenate([x.distance_std_mm for x in e]),
-            np.concatenate([x.direction_proba for x in e]),
-            np.concatenate([x.depth_proba for x in e]))
+        if len(self._estimates) > 1:  # joined once, so that lookups stay linear in a run
+            e = self._estimates
+            self._estimates = [ObjectEstimate(
+                np.concatenate([x.distance_mm for x in e]),
+                np.concatenate([x.distance_std_mm for x in e]),
+                np.concatenate([x.direction_proba for x in e]),
+                np.concatenate([x.depth_proba for x in e]))]
+            self._times = [np.concatenate(self._times)]
+        return self._times[0], self._estimates[0]
 
     def estimate_at(self, times_s: NDArray[np.float64]) -> ObjectEstimate:
         """The estimates made at ``times_s`` (rows NaN where none was made at that time).
@@ -211,7 +214,10 @@ class RakingEstimator(Classifier):
         became (``distance-estimate``).
         """
         times = np.asarray(times_s, dtype=np.float64)
-        t, est = self.estimates
+        if self._times and len(times) and np.all(np.isin(times, self._times[-1])):
+            t, est = self._times[-1], self._estimates[-1]  # the latest update: the usual case
+        else:
+            t, est = self.estimates
         n = len(times)
         out = ObjectEstimate(np.full(n, np.nan), np.full(n, np.nan), np.zeros((n, 3)),
                              np.zeros((n, 2)))
