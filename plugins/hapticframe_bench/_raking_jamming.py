@@ -33,6 +33,7 @@ from hapticframe import BenchOptions, atomic_write
 from hapticframe.kinds import BuildContext, SampleBatch
 from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_raking import RakingTrial, load_trials
+from hapticframe_raking import jamming_labels as raking_jamming_labels
 
 from ._targets import load_average, load_note
 
@@ -52,7 +53,7 @@ def trial_batch(trial: RakingTrial, t0: float = 0.0) -> SampleBatch:
 
 def jamming_labels(trial: RakingTrial, jamming_mm: float = JAMMING_MM) -> np.ndarray:
     """0 free, 1 jamming (labelled distance at most ``jamming_mm``)."""
-    return (trial.distance_mm <= jamming_mm).astype(np.int64)
+    return raking_jamming_labels(trial, jamming_mm)
 
 
 def _classifier(config: ForceRateJammingConfig) -> ForceRateJammingClassifier:

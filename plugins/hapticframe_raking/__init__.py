@@ -14,10 +14,12 @@ from ._data import (
     INPUT_SETS,
     RakingTrial,
     data_path,
+    jamming_labels,
     load_trials,
     object_point,
     select_inputs,
     windows,
+    write_jamming_labels,
 )
 from ._estimator import RakingEstimator, pretrained_model_dir
 from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_keras_model
@@ -48,6 +50,7 @@ __all__ = [
     "authors_models_dir",
     "data_path",
     "fit_model",
+    "jamming_labels",
     "load_keras_model",
     "load_trials",
     "object_point",
@@ -60,4 +63,5 @@ __all__ = [
     "strip_keras_model",
     "summarize",
     "windows",
+    "write_jamming_labels",
 ]

@@ -29,8 +29,10 @@ __all__ = [
     "RakingTrial",
     "data_path",
     "input_columns",
+    "jamming_labels",
     "load_trials",
     "object_point",
+    "write_jamming_labels",
     "select_inputs",
     "windows",
 ]
@@ -146,3 +148,23 @@ def object_point(trial: RakingTrial) -> NDArray[np.float64]:
     fit = least_squares(residual, start)
     point: NDArray[np.float64] = fit.x
     return point
+
+
+def jamming_labels(trial: RakingTrial, jamming_mm: float) -> NDArray[np.int64]:
+    """Per step: 1 (jamming) where the labelled distance is at most ``jamming_mm``, else 0
+    (free). The trials end before contact, so there is no contact class."""
+    out: NDArray[np.int64] = (trial.distance_mm <= jamming_mm).astype(np.int64)
+    return out
+
+
+def write_jamming_labels(source: str | Path, jamming_mm: float, path: str | Path,
+                         sensor: str = "tactile") -> None:
+    """A labels file for the ``trace-recording`` sensor (``timestamps_s`` and ``state``):
+    :func:`jamming_labels` of every trial of ``source``, at the trace's times."""
+    trace = data_path(source) if source in ("training", "testing") else Path(source)  # type: ignore[arg-type]
+    with open_regular(trace) as handle:
+        t = np.asarray(read_npz(handle, keep=lambda k: k == f"sensor/{sensor}/timestamps_s")[
+            f"sensor/{sensor}/timestamps_s"], dtype=np.float64)
+    state = np.concatenate([jamming_labels(trial, jamming_mm)
+                            for trial in load_trials(source, sensor)])
+    np.savez_compressed(path, timestamps_s=t, state=state)

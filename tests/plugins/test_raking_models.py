@@ -180,3 +180,17 @@ def test_stripped_models_keep_the_weights_bit_for_bit(tmp_path: Path) -> None:
         np.testing.assert_array_equal(x.bias, y.bias)
     with h5py.File(tmp_path / "m.h5") as f:
         assert "optimizer_weights" not in f
+
+
+def test_the_shipped_jamming_labels_are_the_distance_rule(tmp_path: Path) -> None:
+    from hapticframe_raking import data_path, jamming_labels, write_jamming_labels
+
+    write_jamming_labels("training", 40.0, tmp_path / "labels.npz")
+    shipped = data_path("training").with_name("training-jamming-labels.npz")
+    with np.load(tmp_path / "labels.npz") as fresh, np.load(shipped) as committed:
+        np.testing.assert_array_equal(fresh["state"], committed["state"])
+        np.testing.assert_array_equal(fresh["timestamps_s"], committed["timestamps_s"])
+    trial = load_trials("training")[0]
+    labels = jamming_labels(trial, 40.0)
+    assert labels[0] == 0 and labels[-1] == 1
+    assert np.all((trial.distance_mm <= 40.0) == (labels == 1))
