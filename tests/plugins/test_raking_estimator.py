@@ -160,3 +160,25 @@ def test_score_trials_counts_a_perfect_and_a_wrong_estimate() -> None:
     wrong = score_trials(perfect_for(1), trials, "4_norm")
     np.testing.assert_allclose(wrong.depth_accuracy, 0.0)
     np.testing.assert_allclose(wrong.final_depth_correct, 0.0)
+
+
+@pytest.mark.slow
+def test_the_shipped_model_is_what_the_training_example_trains(tmp_path: Path,
+                                                              monkeypatch: pytest.MonkeyPatch
+                                                              ) -> None:
+    pytest.importorskip("torch")
+    from hapticframe.cli._cli import main
+    from hapticframe_raking import pretrained_model_dir
+
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(root)  # the example's paths are relative to the repository's root
+    assert main(["train", "examples/raking-train.yaml", "--out", str(tmp_path / "t")]) == 0
+    fresh = RakingModel.load(tmp_path / "t" / "estimator")
+    shipped = RakingModel.load(pretrained_model_dir())
+    assert fresh.settings == shipped.settings
+    # Same seed, one thread, float64: the same model up to the CPU's rounding, which a
+    # different machine may let drift over the epochs; the estimates must still agree.
+    x = select_inputs(load_trials("testing")[0].force, "4_3-axis")
+    a, b = fresh.estimate_trial(x), shipped.estimate_trial(x)
+    assert np.median(np.abs(a.distance_mm - b.distance_mm)) < 5.0
+    assert np.mean(a.direction_proba.argmax(1) == b.direction_proba.argmax(1)) > 0.9
