@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING, Annotated, Any, Union, get_args, get_origin
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from ._specs import Knob
+from hapticframe._specs import Knob
 
 if TYPE_CHECKING:
-    from ._config import Experiment
+    from hapticframe._config import Experiment
 
 __all__ = [
     "RUN_KNOBS",
@@ -73,7 +73,7 @@ def declared_knobs(experiment: Experiment, *, run: bool = True) -> list[tuple[st
         In the experiment's build order, each component's knobs in declaration order; the
         override path of a pair is ``f"{id}.{knob.field}"``.
     """
-    from ._kind import Kind
+    from hapticframe._kind import Kind
 
     pairs = [
         (entry.id, knob) for entry in experiment.components for knob in entry.registered.spec.knobs

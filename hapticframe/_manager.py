@@ -25,11 +25,11 @@ from typing import Any
 
 import pluggy
 
-from . import hookspecs
-from ._errors import PluginImportError
-from ._kind import Kind
-from ._registry import BrokenPlugin, Registry, Source
-from ._specs import SPEC_TYPES, BenchSpec, add_local_module_dir
+from hapticframe import hookspecs
+from hapticframe._errors import PluginImportError
+from hapticframe._kind import Kind
+from hapticframe._registry import BrokenPlugin, Registry, Source
+from hapticframe._specs import SPEC_TYPES, BenchSpec, add_local_module_dir
 
 __all__ = [
     "AUTOLOAD_ENV",

@@ -8,9 +8,9 @@ import importlib.util
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
-from ._errors import PluginConflictError, PluginError
-from ._kind import Kind
-from ._specs import BenchSpec, PluginSpec
+from hapticframe._errors import PluginConflictError, PluginError
+from hapticframe._kind import Kind
+from hapticframe._specs import BenchSpec, PluginSpec
 
 __all__ = ["BrokenPlugin", "Conflict", "Registered", "Registry", "Source"]
 
@@ -137,7 +137,7 @@ class Registry:
 
     def unknown_message(self, kind: Kind, name: str) -> str:
         """Why ``name`` is not a usable plugin of ``kind`` and what is close to it."""
-        from ._errors import shown
+        from hapticframe._errors import shown
 
         parts = [f"unknown {kind} type {shown(name)}"]
         for broken in self.broken:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from .kinds._records import Region
+from hapticframe.kinds._records import Region
 
 __all__ = [
     "MAX_COORDINATE_M",

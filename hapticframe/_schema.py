@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ._config import build_experiment_model
-from ._registry import Registry
+from hapticframe._config import build_experiment_model
+from hapticframe._registry import Registry
 
 __all__ = ["SHIPPED_DISTRIBUTION", "render_schemas", "schema_diff", "shipped", "write_schemas"]
 

@@ -15,8 +15,8 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
-from ._errors import PluginImportError
-from ._kind import Kind
+from hapticframe._errors import PluginImportError
+from hapticframe._kind import Kind
 
 __all__ = [
     "BenchSpec",

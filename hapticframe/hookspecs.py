@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 import pluggy
 
 if TYPE_CHECKING:
-    from ._session import SessionView
-    from ._specs import (
+    from hapticframe._session_view import SessionView
+    from hapticframe._specs import (
         BenchSpec,
         ClassifierSpec,
         FeatureExtractorSpec,

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from .kinds import MovementResult, Region
+    from hapticframe.kinds import MovementResult, Region
 
 __all__ = [
     "DPI",
@@ -140,7 +140,7 @@ def save_figure(figure: Figure, path: str | Path) -> Path:
     there. Raises :class:`~hapticframe.RunError` naming ``path`` when it cannot be written
     (disk full, no permission).
     """
-    from ._results import atomic_path, output_error
+    from hapticframe._atomic import atomic_path, output_error
 
     path = Path(path)
     try:
@@ -188,7 +188,7 @@ def draw_level_outline(
 ) -> bool:
     """Draw the ``level`` curve of ``values`` (``(len(ys), len(xs))``) as lines; False when
     the values never cross ``level`` (nothing drawn, no legend entry)."""
-    from .geometry import level_outlines
+    from hapticframe.geometry import level_outlines
 
     rings = [r for r in level_outlines(xs, ys, values, level) if len(r) > 1]
     for index, ring in enumerate(rings):

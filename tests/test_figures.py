@@ -21,8 +21,8 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from hapticframe import Circle, Scene, plotting, run_experiment, validate_file
-from hapticframe._evaluate import draw_label_figure
 from hapticframe.kinds import BuildContext, Observations, Region, RunOutcome
+from hapticframe.run._evaluate import draw_label_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 SEARCH_FIGURES = {"bhm_mean.png", "bhm_std.png", "forces.png", "logodds_phase1.png",
@@ -206,7 +206,7 @@ def test_belief_snapshots_show_the_truth_and_the_fingertip_path(tmp_path) -> Non
 
 def test_an_open_loop_outline_figure_draws_the_fingertip_path() -> None:
     # A run with no exploratory movements (the perception example) draws the streamed path.
-    from hapticframe._evaluate import draw_outline_figure
+    from hapticframe.run._evaluate import draw_outline_figure
 
     scene = Scene(objects=[Circle(center_m=(0.02, 0.0), radius_m=0.02)],
                   region={"x_min_m": -0.06, "x_max_m": 0.1, "y_min_m": -0.04, "y_max_m": 0.04})
@@ -215,7 +215,7 @@ def test_an_open_loop_outline_figure_draws_the_fingertip_path() -> None:
     angles = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
     outline = np.column_stack([0.02 + 0.018 * np.cos(angles), 0.018 * np.sin(angles)])
     region = Region(-0.06, 0.1, -0.04, 0.04)
-    figure = draw_outline_figure(region, scene, (), outline, (0.02, 0.0), 0.6, path)
+    figure = draw_outline_figure(region, scene, (), outline, [(0.02, 0.0)], 0.6, path)
     labels = check_figure(figure, "outline.png")
     assert {"true object", "fingertip path", "fingertip", "estimated outline (p = 0.6)"} <= set(
         labels

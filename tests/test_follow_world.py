@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 
 from hapticframe import Circle, PluginConfig, RunError, Scene, run_experiment, validate_mapping
-from hapticframe._dataflow import Dataflow
-from hapticframe._robots import RobotTeam
 from hapticframe.kinds import (
     BuildContext,
     ClassProbabilities,
@@ -23,6 +21,8 @@ from hapticframe.kinds import (
     RobotFollower,
     RobotState,
 )
+from hapticframe.run._dataflow import Dataflow
+from hapticframe.run._robots import RobotTeam
 from hapticframe_sandbox import SandboxRobot, SandboxRobotConfig
 
 ROOT = Path(__file__).resolve().parents[1]

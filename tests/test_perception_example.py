@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hapticframe import get_registry
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "perception-belief-map.yaml"

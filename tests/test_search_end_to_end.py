@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUIRED = {

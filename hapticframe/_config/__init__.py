@@ -1,9 +1,21 @@
 """Experiment files: loading, the registry-built model, and validation."""
 
-from ._checks import ComponentView, Finding, ValidationContext
-from ._load import LoadedFile, load_file, load_text
-from ._model import SCHEMA_VERSION, ExperimentRoot, RunSettings, build_experiment_model
-from ._validate import ComponentEntry, Experiment, validate_data, validate_file, validate_mapping
+from hapticframe._config._checks import ComponentView, Finding, ValidationContext
+from hapticframe._config._load import LoadedFile, load_file, load_text
+from hapticframe._config._model import (
+    SCHEMA_VERSION,
+    ComponentEntry,
+    Experiment,
+    ExperimentRoot,
+    RunSettings,
+    build_experiment_model,
+)
+from hapticframe._config._sizes import ITERATION_LIMIT, MEMORY_LIMIT_BYTES, Size
+from hapticframe._config._validate import (
+    validate_data,
+    validate_file,
+    validate_mapping,
+)
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -11,9 +23,12 @@ __all__ = [
     "ComponentView",
     "Experiment",
     "ExperimentRoot",
+    "ITERATION_LIMIT",
+    "MEMORY_LIMIT_BYTES",
     "Finding",
     "LoadedFile",
     "RunSettings",
+    "Size",
     "ValidationContext",
     "build_experiment_model",
     "load_file",

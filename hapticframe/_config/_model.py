@@ -4,16 +4,23 @@ from __future__ import annotations
 
 import functools
 import operator
+from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
+import pluggy
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
-from .._kind import Kind
-from .._registry import Registry
-from .._scene import NAME_PATTERN, Scene
-from .._specs import PluginSpec
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._defaults import OUTLINE_LEVEL
+from hapticframe._errors import Issue
+from hapticframe._kind import Kind
+from hapticframe._registry import Registered, Registry
+from hapticframe._scene import NAME_PATTERN, Scene
+from hapticframe._specs import PluginSpec
 
 __all__ = [
+    "ComponentEntry",
+    "Experiment",
     "ID_PATTERN",
     "SCHEMA_VERSION",
     "ExperimentRoot",
@@ -69,7 +76,8 @@ class RunSettings(BaseModel):
         "at a time.",
     )
     outline_level: float = Field(
-        0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
+        OUTLINE_LEVEL, gt=0, lt=1,
+        description="Occupancy level of the estimated outline (thesis: 0.6).",
     )
     evaluation_map: _ComponentId | None = Field(
         None,
@@ -236,3 +244,48 @@ def build_experiment_model(registry: Registry) -> type[ExperimentRoot]:
     )
     _CACHE[key] = model
     return model
+
+
+@dataclass(frozen=True)
+class ComponentEntry:
+    """One validated component of an experiment."""
+
+    kind: Kind
+    id: str
+    type: str
+    config: BaseModel
+    inputs: tuple[str, ...]
+    registered: Registered
+    path: str  # dotted location in the file, e.g. "maps[0]"
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A validated experiment: the root model and its components in build order."""
+
+    file: str
+    model: ExperimentRoot
+    components: tuple[ComponentEntry, ...]
+    registry: Registry
+    plugin_manager: pluggy.PluginManager
+    #: Legal but suspicious: what plugin validators warned about (located).
+    warnings: tuple[Issue, ...] = ()
+    #: What ``--set`` changed of the file before validation: one JSON-ready record per
+    #: override (see :mod:`hapticframe._config._overrides`).
+    overrides: tuple[dict[str, Any], ...] = ()
+
+    @property
+    def seed(self) -> int:
+        return self.model.seed
+
+    def resolved_config(self) -> dict[str, Any]:
+        """The experiment with every default filled in, as JSON-ready data."""
+        return self.model.model_dump(mode="json")
+
+    def of_kind(self, kind: Kind) -> list[ComponentEntry]:
+        return [c for c in self.components if c.kind is kind]
+
+    def evaluated_map(self) -> str | None:
+        """The id of the map the run scores against the scene (``run.evaluation_map``, else
+        the first map a planner reads, else the last map; see :func:`evaluated_map_id`)."""
+        return evaluated_map_id(self.components, self.model.run.evaluation_map)

@@ -8,72 +8,33 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import UnionType
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
-from .._errors import ExperimentError, Issue
-from .._kind import Kind
-from .._manager import PluginManager, get_plugin_manager, make_plugin_manager
-from .._registry import Registered, Registry
-from .._scene import NAME_PATTERN
-from ._checks import core_checks, run_validators
-from ._load import LoadedFile, join_path, load_file
-from ._model import (
+from hapticframe._config._checks import core_checks, run_validators
+from hapticframe._config._load import LoadedFile, join_path, load_file
+from hapticframe._config._model import (
     CHANNEL_PATTERN,
     ID_PATTERN,
     TEXT_PATTERN,
-    ExperimentRoot,
+    ComponentEntry,
+    Experiment,
     build_experiment_model,
 )
+from hapticframe._config._strict import bool_issues
+from hapticframe._errors import ExperimentError, Issue
+from hapticframe._kind import Kind
+from hapticframe._manager import PluginManager, get_plugin_manager, make_plugin_manager
+from hapticframe._registry import Registry
+from hapticframe._scene import NAME_PATTERN
 
-__all__ = ["ComponentEntry", "Experiment", "validate_data", "validate_file", "validate_mapping"]
+__all__ = ["validate_data", "validate_file", "validate_mapping"]
 
 _SECTIONS = {kind.section: kind for kind in Kind}
 _DISCRIMINATORS = ("type", "shape")
-
-
-@dataclass(frozen=True)
-class ComponentEntry:
-    """One validated component of an experiment."""
-
-    kind: Kind
-    id: str
-    type: str
-    config: BaseModel
-    inputs: tuple[str, ...]
-    registered: Registered
-    path: str  # dotted location in the file, e.g. "maps[0]"
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """A validated experiment: the root model and its components in build order."""
-
-    file: str
-    model: ExperimentRoot
-    components: tuple[ComponentEntry, ...]
-    registry: Registry
-    plugin_manager: PluginManager
-    #: Legal but suspicious: what plugin validators warned about (located).
-    warnings: tuple[Issue, ...] = ()
-    #: What ``--set`` changed of the file before validation: one JSON-ready record per
-    #: override (see :mod:`hapticframe._overrides`).
-    overrides: tuple[dict[str, Any], ...] = ()
-
-    @property
-    def seed(self) -> int:
-        return self.model.seed
-
-    def resolved_config(self) -> dict[str, Any]:
-        """The experiment with every default filled in, as JSON-ready data."""
-        return self.model.model_dump(mode="json")
-
-    def of_kind(self, kind: Kind) -> list[ComponentEntry]:
-        return [c for c in self.components if c.kind is kind]
 
 
 def validate_file(
@@ -158,11 +119,17 @@ def validate_data(
     issues, flagged = _check_types(loaded, registry)
     model_cls = build_experiment_model(registry)
     model = None
+    booleans = [b for b in bool_issues(model_cls, loaded)
+                if not any(b.path == f or b.path.startswith(f + ".") for f in flagged)]
+    issues.extend(booleans)
     try:
         model = model_cls.model_validate(data)
     except ValidationError as exc:
+        refused = {b.path for b in booleans}
         for error in exc.errors(include_url=False):
             issue = _issue_from_pydantic(error, loaded, registry)
+            if issue.path in refused:
+                continue  # said once: the boolean where a number belongs
             if not any(issue.path == f or issue.path.startswith(f + ".") for f in flagged):
                 issues.append(issue)
     if model is not None and not issues:
@@ -239,6 +206,9 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
     i = 0
     while i < len(loc):
         key = loc[i]
+        if isinstance(key, str) and isinstance(raw, list | str | int | float):
+            i += 1  # the label of a union's member (``tuple[...]``, a tag): not in the file
+            continue
         parts.append(key)
         raw = raw.get(key) if isinstance(raw, dict) and isinstance(key, str) else (
             raw[key] if isinstance(raw, list) and isinstance(key, int) and key < len(raw) else None
@@ -255,6 +225,8 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
         dotted = join_path(dotted, part)
     kind = error["type"]
     message = str(error["msg"])
+    if kind == "value_error":  # a validator's own sentence: pydantic's prefix adds nothing
+        message = message.removeprefix("Value error, ")
     if kind == "extra_forbidden":
         message = f"unknown key {parts[-1]!r}" + _key_suggestion(parts, loaded, registry)
     elif kind == "missing":

@@ -26,10 +26,10 @@ from types import TracebackType
 
 import numpy as np
 
-from . import _ptysync
-from ._clock import Clock, FakeClock
-from ._faults import FaultSchedule
-from ._transport import ByteTransport, TransportError
+from hapticframe.devices import _ptysync
+from hapticframe.devices._clock import Clock, FakeClock
+from hapticframe.devices._faults import FaultSchedule
+from hapticframe.devices._transport import ByteTransport, TransportError
 
 __all__ = ["DeviceModel", "EmulatedTransport", "PtyEmulator"]
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ._crc import check_crc16
+from hapticframe.devices._crc import check_crc16
 
 __all__ = ["FixedFrameParser", "LineFramer", "ParserStats"]
 

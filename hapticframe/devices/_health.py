@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from ._framing import ParserStats
+from hapticframe.devices._framing import ParserStats
 
 __all__ = ["DeviceHealth"]
 

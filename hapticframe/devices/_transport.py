@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
-from . import _ptysync
+from hapticframe.devices import _ptysync
 
 __all__ = ["Backoff", "ByteTransport", "SerialTransport", "TransportError", "open_transport"]
 

@@ -6,8 +6,14 @@ What only some components can do (train, persist, evaluate on a grid) is declare
 :mod:`hapticframe.kinds.capabilities`.
 """
 
-from ._base import BuildContext, Component, InputAlignment, RunOutcome
-from ._records import (
+from hapticframe.kinds._base import (
+    OUTLINE_LEVEL,
+    BuildContext,
+    Component,
+    InputAlignment,
+    RunOutcome,
+)
+from hapticframe.kinds._records import (
     ChannelInfo,
     ClassProbabilities,
     ExploratoryMovement,
@@ -21,7 +27,7 @@ from ._records import (
     SampleBatch,
     concatenate_batches,
 )
-from .capabilities import (
+from hapticframe.kinds.capabilities import (
     Device,
     EnvironmentCoupled,
     GridQueryable,
@@ -30,13 +36,13 @@ from .capabilities import (
     RobotFollower,
     Trainable,
 )
-from .classifier import Classifier
-from .feature_extractor import FeatureExtractor
-from .map import Map
-from .planner import Planner
-from .robot import Robot
-from .sensor import Sensor
-from .sensor_model import SensorModel
+from hapticframe.kinds.classifier import Classifier
+from hapticframe.kinds.feature_extractor import FeatureExtractor
+from hapticframe.kinds.map import Map, query_points
+from hapticframe.kinds.planner import Planner
+from hapticframe.kinds.robot import Robot
+from hapticframe.kinds.sensor import Sensor
+from hapticframe.kinds.sensor_model import SensorModel
 
 __all__ = [
     "BuildContext",
@@ -54,6 +60,7 @@ __all__ = [
     "Map",
     "MapEstimate",
     "MovementResult",
+    "OUTLINE_LEVEL",
     "Observations",
     "Persistent",
     "PhysicalTruth",
@@ -69,4 +76,5 @@ __all__ = [
     "SensorModel",
     "Trainable",
     "concatenate_batches",
+    "query_points",
 ]

@@ -11,17 +11,18 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 
-from .._kind import Kind
-from ._records import ChannelInfo, MovementResult, Region
+from hapticframe._defaults import OUTLINE_LEVEL
+from hapticframe._kind import Kind
+from hapticframe.kinds._records import ChannelInfo, MovementResult, Region
 
 if TYPE_CHECKING:
-    from .._scene import RegionConfig, Scene
+    from hapticframe._scene import RegionConfig, Scene
 
 #: The dissertation's search area (section 3.5.1, 75 x 50 cm): a map's region when neither
 #: its config nor the experiment's scene gives one.
 DEFAULT_SEARCH_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
-__all__ = ["BuildContext", "Component", "InputAlignment", "RunOutcome"]
+__all__ = ["OUTLINE_LEVEL", "BuildContext", "Component", "InputAlignment", "RunOutcome"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,7 @@ class RunOutcome:
     components: Mapping[str, Component]
     wall_time_s: float
     figures: bool = True
-    outline_level: float = 0.6
+    outline_level: float = OUTLINE_LEVEL
 
 
 #: The ways a consumer's inputs can be aligned (see :class:`InputAlignment`).

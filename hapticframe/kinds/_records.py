@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..geometry import rotation_matrix_from_wxyz
+from hapticframe.geometry import rotation_matrix_from_wxyz
 
 __all__ = [
     "ChannelInfo",

@@ -36,10 +36,10 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import NDArray
 
-from ._records import ExploratoryMovement, PhysicalTruth, RobotState
+from hapticframe.kinds._records import ExploratoryMovement, PhysicalTruth, RobotState
 
 if TYPE_CHECKING:
-    from ..devices import DeviceHealth
+    from hapticframe.devices import DeviceHealth
 
 __all__ = [
     "Device",

@@ -20,9 +20,9 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .._kind import Kind
-from ._base import Component
-from ._records import ClassProbabilities, SampleBatch
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import ClassProbabilities, SampleBatch
 
 __all__ = ["Classifier"]
 

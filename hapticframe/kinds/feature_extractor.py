@@ -17,9 +17,9 @@ from abc import abstractmethod
 from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
-from .._kind import Kind
-from ._base import Component
-from ._records import ChannelInfo, SampleBatch
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import ChannelInfo, SampleBatch
 
 __all__ = ["FeatureExtractor"]
 

@@ -19,9 +19,9 @@ from abc import abstractmethod
 from collections.abc import Iterator, Mapping
 from typing import ClassVar
 
-from .._kind import Kind
-from ._base import Component
-from ._records import ChannelInfo, SampleBatch, concatenate_batches
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import ChannelInfo, SampleBatch, concatenate_batches
 
 __all__ = ["Sensor"]
 

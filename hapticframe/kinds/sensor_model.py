@@ -16,9 +16,9 @@ from __future__ import annotations
 from abc import abstractmethod
 from typing import ClassVar
 
-from .._kind import Kind
-from ._base import Component
-from ._records import LocatedMeasurement, Observations
+from hapticframe._kind import Kind
+from hapticframe.kinds._base import Component
+from hapticframe.kinds._records import LocatedMeasurement, Observations
 
 __all__ = ["SensorModel"]
 

@@ -8,12 +8,12 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from .._components import INTERFACES
-from .._kind import Kind
-from .._registry import Registry
-from .._specs import PluginSpec
-from ._harness import CheckFailure, make_component, release_component
-from ._import_probe import modules_loaded_by
+from hapticframe._kind import Kind
+from hapticframe._registry import Registry
+from hapticframe._specs import PluginSpec
+from hapticframe.run._components import INTERFACES
+from hapticframe.testing._harness import CheckFailure, make_component, release_component
+from hapticframe.testing._import_probe import modules_loaded_by
 
 __all__ = ["CHECKS", "HEAVY_MODULES", "check"]
 
@@ -111,7 +111,7 @@ def check_lazy_import(spec: PluginSpec, *, registry: Registry | None = None) -> 
     Each question is answered as a fresh interpreter would (see ``_import_probe``: a forked
     child of one helper that imported the core once) and cached for the process.
     """
-    from .._manager import get_registry
+    from hapticframe._manager import get_registry
 
     modules = [spec.config.__module__]
     registration = _registration_module(spec, registry or get_registry())

@@ -6,11 +6,11 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from .._knobs import knob_duplicates, knob_problems
-from .._registry import Registry
-from .._specs import PluginSpec
-from ._common import check
-from ._harness import CheckFailure
+from hapticframe._knobs import knob_duplicates, knob_problems
+from hapticframe._registry import Registry
+from hapticframe._specs import PluginSpec
+from hapticframe.testing._common import check
+from hapticframe.testing._harness import CheckFailure
 
 __all__ = ["check_knobs"]
 

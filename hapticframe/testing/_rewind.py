@@ -12,13 +12,13 @@ from typing import Any
 
 import numpy as np
 
-from .._components import INTERFACES
-from .._kind import Kind
-from .._registry import Registry
-from .._specs import PluginSpec
-from ..kinds import Component, Robot, Sensor
-from ._common import check, outputs_equal
-from ._harness import (
+from hapticframe._kind import Kind
+from hapticframe._registry import Registry
+from hapticframe._specs import PluginSpec
+from hapticframe.kinds import Component, Robot, Sensor
+from hapticframe.run._components import INTERFACES
+from hapticframe.testing._common import check, outputs_equal
+from hapticframe.testing._harness import (
     DEFAULT_SCENE,
     CheckFailure,
     crossing_movement,
@@ -26,7 +26,7 @@ from ._harness import (
     release_component,
     synthetic_batch,
 )
-from ._streams import _outputs
+from hapticframe.testing._streams import _outputs
 
 __all__ = ["check_rewind"]
 

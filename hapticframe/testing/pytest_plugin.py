@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
-from .._manager import make_plugin_manager
-from .._registry import Registry
-from ._harness import DEFAULT_SCENE, make_component
+from hapticframe._manager import make_plugin_manager
+from hapticframe._registry import Registry
+from hapticframe.testing._harness import DEFAULT_SCENE, make_component
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -49,7 +49,7 @@ def hapticframe_registry() -> Registry:
 @pytest.fixture
 def build_component(hapticframe_registry: Registry) -> Iterator[Callable[..., Any]]:
     """``build_component(kind, name, **overrides)`` builds a plugin as the kit does."""
-    from .._kind import Kind
+    from hapticframe._kind import Kind
 
     built: list[Any] = []
 

@@ -1,6 +1,6 @@
 """Reading one recorded sensor out of a run's ``trace.npz``, with trials and labels.
 
-The layout is the one the run loop writes (``hapticframe._streams.TraceRecorder``):
+The layout is the one the run loop writes (``hapticframe.run._streams.TraceRecorder``):
 
 - ``sensor/<id>/timestamps_s`` (n,) and ``sensor/<id>/<channel>`` (n, ...) per sensor, and
   ``sensor/<id>/<channel>/unit`` (a 0-d string); ``sensor/<id>/<channel>/valid`` (n,) bool

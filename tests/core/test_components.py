@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from hapticframe import Kind, RunError
-from hapticframe._components import INTERFACES, Components
 from hapticframe.kinds import BuildContext, Observations
+from hapticframe.run._components import INTERFACES, Components
 from hapticframe.testing import KitMap, make_component
 from tests.support.lab import lab_main
 

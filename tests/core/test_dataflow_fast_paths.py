@@ -14,9 +14,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from hapticframe._dataflow import Dataflow, _last_label
-from hapticframe._streams import PoseHistory, TraceRecorder
 from hapticframe.kinds import ChannelInfo, ClassProbabilities, LocatedMeasurement, SampleBatch
+from hapticframe.run._dataflow import Dataflow, _last_label
+from hapticframe.run._streams import PoseHistory, TraceRecorder
 
 
 class ReferencePoses:

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticframe import _loop
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from hapticframe.kinds import BuildContext, Device
+from hapticframe.run import _loop
 from tests.support import lab_devices
 
 SUPPORT = Path(__file__).resolve().parent.parent / "support"

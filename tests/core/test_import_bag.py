@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from hapticframe._bags import SUPPORTED_TYPES, biotac_types, import_bag, parse_map
-from hapticframe._cli import main
 from hapticframe._errors import UsageError
-from hapticframe._recording import read_recording
+from hapticframe.cli._cli import main
+from hapticframe.record._bags import SUPPORTED_TYPES, biotac_types, import_bag, parse_map
+from hapticframe.record._recording import read_recording
 
 pytest.importorskip("rosbags")
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
 from hapticframe._errors import RunError
-from hapticframe._streams import InputAligner, merge_batches
+from hapticframe.cli._cli import main
 from hapticframe.kinds import BuildContext, Component, InputAlignment, SampleBatch
+from hapticframe.run._streams import InputAligner, merge_batches
 from hapticframe.testing import run_checks
 from tests.support import lab_devices
 
@@ -264,7 +264,7 @@ def test_the_kit_checks_a_two_clock_consumer_streams_as_batch():
 
 
 def test_an_aligner_keeps_bounded_memory_while_its_first_input_is_silent():
-    from hapticframe._streams import MAX_KEPT_S
+    from hapticframe.run._streams import MAX_KEPT_S
 
     aligner = InputAligner(InputAlignment("hold"), "observer")
     silent = SampleBatch(np.empty(0), {"force_n": np.empty((0, 3))})

@@ -10,9 +10,9 @@ import pytest
 from pydantic import Field, model_validator
 
 from hapticframe import Kind, Knob, MapSpec, PluginConfig, RegionConfig, get_registry
-from hapticframe._cli import main
 from hapticframe._config import RunSettings, validate_file
 from hapticframe._knobs import RUN_KNOBS, declared_knobs, knob_problems, resolve_field
+from hapticframe.cli._cli import main
 from hapticframe.testing import CHECKS, CheckFailure, check_knobs, checks_for
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -1,4 +1,4 @@
-"""Scoring a classifier against per-sample labels (``hapticframe._evaluate.evaluate_labels``)."""
+"""Scoring a classifier against per-sample labels (``run._evaluate.evaluate_labels``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from hapticframe._evaluate import evaluate_labels, save_label_figure
+from hapticframe.run._evaluate import evaluate_labels, save_label_figure
 
 
 def _probabilities(decided: np.ndarray) -> np.ndarray:

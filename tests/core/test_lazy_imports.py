@@ -14,7 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """
 import json, sys
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 try:
     main(sys.argv[1:])
 except SystemExit:

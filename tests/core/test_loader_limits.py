@@ -179,7 +179,7 @@ def test_special_files_exit_2_through_the_cli(tmp_path):
     code = (
         "import resource, sys\n"
         "resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))\n"
-        "from hapticframe._cli import main\n"
+        "from hapticframe.cli._cli import main\n"
         "sys.exit(main(['validate', *sys.argv[1:]]))\n"
     )
     try:

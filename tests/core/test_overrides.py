@@ -9,14 +9,14 @@ from typing import Any
 import pytest
 
 from hapticframe import BenchOptions, ExperimentError, UsageError
-from hapticframe._cli import main
 from hapticframe._config import load_file
-from hapticframe._overrides import (
+from hapticframe._config._overrides import (
     apply_overrides,
     parse_override,
     parse_value_list,
     validate_with_overrides,
 )
+from hapticframe.cli._cli import main
 
 TINY = """\
 schema_version: 1

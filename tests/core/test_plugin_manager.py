@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from hapticframe import Kind, PluginImportError, get_plugin_manager, make_plugin_manager
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 PLUGIN = """
 from hapticframe import SensorSpec, PluginConfig, hookimpl
@@ -150,9 +150,9 @@ def hapticframe_benchmarks():
 
 
 def test_a_benchmark_registered_twice_is_a_conflict_and_a_non_spec_is_broken(site, monkeypatch):
-    from hapticframe._bench import BenchOptions, run_bench
     from hapticframe._errors import PluginConflictError
     from hapticframe._registry import BENCHMARK
+    from hapticframe.cli._bench import BenchOptions, run_bench
 
     for dist, version in (("lab-one", "1.0"), ("lab-two", "3.1")):
         module = dist.replace("-", "_") + "_bench"
@@ -164,7 +164,7 @@ def test_a_benchmark_registered_twice_is_a_conflict_and_a_non_spec_is_broken(sit
     assert "lab-one 1.0" in conflict.message() and "lab-two 3.1" in conflict.message()
     assert sum("expected BenchSpec" in b.error for b in registry.broken) == 2
     # Running the conflicted name is an error that names both, as for any plugin.
-    import hapticframe._bench as bench
+    import hapticframe.cli._bench as bench
 
     monkeypatch.setattr(bench, "get_registry", lambda: registry)
     with pytest.raises(PluginConflictError, match=r"lab-one 1\.0"):

@@ -13,12 +13,12 @@ import pytest
 import yaml
 from mcap.reader import make_reader
 
-from hapticframe import _foxglove
-from hapticframe._cli import main
-from hapticframe._dataflow import Dataflow
-from hapticframe._recording import RECORDING, SCHEMAS, RunRecording, read_recording
 from hapticframe._scene import Scene
+from hapticframe.cli._cli import main
 from hapticframe.kinds import MapEstimate, Region, RobotState
+from hapticframe.record import _foxglove
+from hapticframe.record._recording import RECORDING, SCHEMAS, RunRecording, read_recording
+from hapticframe.run._dataflow import Dataflow
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import yaml
 
-from hapticframe._cli import main
-from hapticframe._recording import RECORDING, RunRecording, read_recording
+from hapticframe.cli._cli import main
 from hapticframe.kinds import SampleBatch
+from hapticframe.record._recording import RECORDING, RunRecording, read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 

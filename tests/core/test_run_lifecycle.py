@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 SUPPORT = Path(__file__).resolve().parent.parent / "support"
 FAULTS = ("--plugin-module", "lab_faults")
@@ -109,7 +109,7 @@ def test_run_json_records_the_git_commit_and_the_scientific_dependencies(faults_
     import numpy
     import pydantic
 
-    from hapticframe._results import git_commit
+    from hapticframe.run._results import git_commit
 
     code, out = run(faults_dir, experiment())
     versions = json.loads((out / "run.json").read_text())["versions"]
@@ -122,8 +122,7 @@ def test_run_json_records_the_git_commit_and_the_scientific_dependencies(faults_
 
 
 def test_git_commit_is_none_outside_a_checkout(monkeypatch, tmp_path):
-    from hapticframe import _results
-
+    from hapticframe.run import _results
     _results.git_commit.cache_clear()
     monkeypatch.setattr(_results, "__file__", str(tmp_path / "hapticframe" / "_results.py"))
     try:

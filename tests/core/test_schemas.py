@@ -12,10 +12,10 @@ import pytest
 import yaml
 
 from hapticframe import get_registry
-from hapticframe._cli import main
 from hapticframe._kind import Kind
 from hapticframe._manager import get_plugin_manager
 from hapticframe._schema import render_schemas, schema_diff, shipped, write_schemas
+from hapticframe.cli._cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.yaml"))

@@ -13,10 +13,10 @@ from typing import Any
 import pytest
 
 from hapticframe import UsageError
-from hapticframe._cli import main
 from hapticframe._config import load_file
-from hapticframe._overrides import parse_overrides
-from hapticframe._sweep import (
+from hapticframe._config._overrides import parse_overrides
+from hapticframe.cli._cli import main
+from hapticframe.sweep._sweep import (
     Point,
     SweepOptions,
     TrialTask,
@@ -30,7 +30,7 @@ from hapticframe._sweep import (
     run_sweep,
     run_trial,
 )
-from hapticframe._sweep_report import render_markdown
+from hapticframe.sweep._sweep_report import render_markdown
 
 from .test_overrides import TINY
 
@@ -115,7 +115,7 @@ def test_a_trial_is_measured_and_reproducible(tiny: Path, tmp_path: Path) -> Non
 
 def test_an_exception_and_a_nan_metric_are_rows(tiny: Path, tmp_path: Path,
                                                 monkeypatch: Any) -> None:
-    import hapticframe._run as run_module
+    import hapticframe.run._run as run_module
 
     def broken(*args: Any, **kwargs: Any) -> Any:
         raise FloatingPointError("the fit diverged")
@@ -136,7 +136,7 @@ def test_a_trial_past_its_limit_is_a_timeout_row(tiny: Path, tmp_path: Path) -> 
 
 def test_a_worker_that_dies_or_hangs_is_a_row(tiny: Path, tmp_path: Path,
                                               monkeypatch: Any) -> None:
-    import hapticframe._sweep_trials as sweep
+    import hapticframe.sweep._sweep_trials as sweep
 
     release = threading.Event()
 
@@ -204,7 +204,7 @@ def test_a_sweep_whose_every_trial_times_out_still_reports(tiny: Path, tmp_path:
 
 
 def test_declared_knobs_are_swept(tiny: Path, tmp_path: Path, monkeypatch: Any) -> None:
-    import hapticframe._sweep as sweep
+    import hapticframe.sweep._sweep as sweep
 
     monkeypatch.setattr(sweep, "_declared", lambda experiment: [
         Vary("run.max_movements", (1, 2), "fewer movements: faster, may miss")])

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
 from hapticframe._errors import ExperimentError
+from hapticframe.cli._cli import main
 from tests.support.lab import lab_main, validate_lab
 
 EXPERIMENT = """\

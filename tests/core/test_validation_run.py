@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from hapticframe import ExperimentError, validate_file
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 

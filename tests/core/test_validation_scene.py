@@ -13,7 +13,7 @@ from typing import Any
 import pytest
 import yaml
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 HEAD = "schema_version: 1\nname: strict\n"
 BODY = "sensors:\n  - {id: wrist, type: trace-recording, config: {demo: true}}\n"

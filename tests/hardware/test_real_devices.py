@@ -24,7 +24,7 @@ import pytest
 import yaml
 
 from hapticframe import Kind, get_registry
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from hapticframe.kinds import SampleBatch, Sensor, concatenate_batches
 from hapticframe.testing import make_component, release_component
 

@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 import yaml
 
-from hapticframe import _cli
-from hapticframe._cli import main
-from hapticframe._live import RecordingTimeline
-from hapticframe._recording import read_recording
+from hapticframe.cli import _run as run_command
+from hapticframe.cli._cli import main
+from hapticframe.live import RecordingTimeline
+from hapticframe.record._recording import read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,7 +40,7 @@ def test_run_live_serves_the_finished_run_until_ctrl_c(
         assert url is not None, printed
         seen["frame"] = _get(url.group(1) + "frame")
 
-    monkeypatch.setattr(_cli, "_wait_for_interrupt", after_the_run)
+    monkeypatch.setattr(run_command, "wait_for_interrupt", after_the_run)
     assert main(["run", str(experiment), "--out", str(tmp_path / "out"), "--quiet",
                  "--live", "--port", "0"]) == 0
     frame = seen["frame"]

@@ -14,9 +14,9 @@ import pytest
 
 from hapticframe._config import load_file, validate_data
 from hapticframe._errors import RunError, RunInterrupted
-from hapticframe._live import evaluated_map, run_live
-from hapticframe._recording import RunRecording
 from hapticframe.kinds import SampleBatch
+from hapticframe.live import evaluated_map, run_live
+from hapticframe.record._recording import RunRecording
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 import yaml
 
-from hapticframe._foxglove import grid_message
-from hapticframe._live import (
+from hapticframe._scene import Scene
+from hapticframe.kinds import ClassProbabilities, MapEstimate, Region, SampleBatch
+from hapticframe.live import (
     LiveFeed,
     LiveServer,
     LiveState,
@@ -24,10 +25,9 @@ from hapticframe._live import (
     TimelineFeed,
     decode_grid,
 )
-from hapticframe._live._state import WINDOW_S
-from hapticframe._recording import RunRecording, listening, read_recording
-from hapticframe._scene import Scene
-from hapticframe.kinds import ClassProbabilities, MapEstimate, Region, SampleBatch
+from hapticframe.live._state import WINDOW_S
+from hapticframe.record._foxglove import grid_message
+from hapticframe.record._recording import RunRecording, listening, read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -320,7 +320,7 @@ def test_a_busy_port_is_a_usage_error() -> None:
 
 
 def test_view_and_live_refuse_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    from hapticframe._cli import main
+    from hapticframe.cli._cli import main
 
     assert main(["view", str(tmp_path / "nothing")]) == 2
     assert "no such file" in capsys.readouterr().err

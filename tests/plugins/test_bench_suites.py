@@ -276,7 +276,7 @@ def test_every_suite_is_registered_by_hapticframe_bench():
 
 
 def test_bench_without_a_name_lists_the_suites_one_line_each(capsys):
-    from hapticframe._cli import main
+    from hapticframe.cli._cli import main
 
     assert main(["bench"]) == 0
     lines = capsys.readouterr().out.splitlines()

@@ -109,7 +109,7 @@ def test_a_fifo_and_a_huge_file_are_not_read(model_dir: Path) -> None:
 def test_hapticframe_run_with_a_corrupt_model_dir_exits_2_naming_the_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from hapticframe._cli import main
+    from hapticframe.cli._cli import main
 
     examples = Path(__file__).resolve().parents[2] / "examples"
     text = (examples / "search-ellipse.yaml").read_text()

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import yaml
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 
 pytestmark = pytest.mark.slow  # 8-10 s: two runs through pty emulators and a fit
 

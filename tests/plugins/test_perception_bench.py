@@ -277,7 +277,7 @@ def test_bench_is_registered_and_plans_follow_the_options(tmp_path):
 def test_bench_device_is_checked_before_any_work(tmp_path, monkeypatch, capsys):
     import torch
 
-    from hapticframe._cli import main
+    from hapticframe.cli._cli import main
 
     out = tmp_path / "never"
     assert main(["bench", "perception", "--quick", "--device", "gpu", "--out", str(out)]) == 2

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from hapticframe.kinds import BuildContext, concatenate_batches
 from hapticframe.testing import run_checks
 from hapticframe_recording import (

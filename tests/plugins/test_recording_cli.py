@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hapticframe import Circle, Scene
-from hapticframe._cli import main
+from hapticframe.cli._cli import main
 from hapticframe.kinds import BuildContext, ExploratoryMovement, RunOutcome, SampleBatch
 from hapticframe_jamming import ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_recording import TraceRecordingConfig, TraceRecordingSensor

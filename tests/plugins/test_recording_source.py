@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import hapticframe_recording._mcap as mcap_sensor
-from hapticframe._recording import RECORDING, RunRecording
 from hapticframe.kinds import SampleBatch
+from hapticframe.record._recording import RECORDING, RunRecording
 from hapticframe.testing import make_component, run_checks
 from hapticframe_recording.plugin import SPECS
 

@@ -12,7 +12,7 @@ import yaml
 
 from hapticframe import ExperimentError, validate_mapping
 from hapticframe._config._load import load_file
-from hapticframe._overrides import Override, validate_with_overrides
+from hapticframe._config._overrides import Override, validate_with_overrides
 from hapticframe.kinds import BuildContext
 
 pytest.importorskip("torch")

@@ -6,8 +6,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from hapticframe._cli import main
 from hapticframe._config import validate_file
+from hapticframe.cli._cli import main
 
 #: The option that imports the test plugin module (from the current directory).
 LAB = ("--plugin-module", "labplugin")

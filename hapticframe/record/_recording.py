@@ -1,0 +1,668 @@
+"""``run.mcap``: every run recorded as it happens, and ``hapticframe recover``.
+
+A run writes its recording with the ``mcap`` library into its staging folder
+(``DIR/.hapticframe-partial/run.mcap``, see :class:`~hapticframe.run._results.OutputDir`),
+which moves to ``DIR/run.mcap`` with the other results when the run ends in any way. A run
+killed outright (``kill -9``, power loss) leaves the recording in the staging folder,
+complete up to its last sync; ``hapticframe recover DIR`` writes what it holds as a
+complete, indexed ``DIR/run.mcap`` (:mod:`hapticframe.record._recover`).
+
+Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``) hold arrays per
+block of samples, never one message per sample:
+
+=================================  ==================================  ===========================
+topic                              schema (``hapticframe.``)           content
+=================================  ==================================  ===========================
+``/sensor/ID``                     ``SampleBatch``                     timestamps, channels, units
+``/feature_extractor/ID``          ``SampleBatch``                     the extractor's output
+``/classifier/ID``                 ``ClassProbabilities``              classes, probabilities
+``/sensor_model/ID/located``       ``LocatedMeasurement``              where each sample was
+``/sensor_model/ID/observations``  ``Observations``                    the maps' input
+``/robot/ID/state``                ``RobotStates``                     poses, movement index
+``/movement``                      ``MovementResult``                  one per movement (halts)
+``/safety_halt``                   ``SafetyHalt``                      a safety check's halt
+``/device/ID/health``              ``DeviceHealth``                    the device's counters
+``/loop``                          ``LoopEvent``                       stream starts, map flushes
+``/metrics``                       ``RunMetrics``                      a finished run's metrics
+=================================  ==================================  ===========================
+
+The ``/loop`` events carry the cumulative counts of committed sensor samples and robot
+states at each stream start, locate and map flush: ``hapticframe replay`` re-cuts the
+recorded streams at exactly those points, whatever the blocks' sizes. The metadata record
+``hapticframe`` holds the experiment's resolved configuration (``config``, JSON).
+
+Foxglove's well-known schemas (:mod:`hapticframe.record._foxglove`), so that the file opens in
+Foxglove or Lichtblick: ``/map/ID/grid`` (``foxglove.Grid``: the map's occupancy mean and
+std on a grid, at ``run.snapshot_rate_hz`` of model time), ``/scene``
+(``foxglove.SceneUpdate``: the region and the true objects once at the start, the
+estimated outline with each snapshot) and ``/robot/ID/pose`` (``foxglove.PoseInFrame``,
+at the snapshot rate). docs/recording.md lists every channel.
+
+Timing: a message's log time is the run's model time (the samples' own clock, in ns) of
+its last sample. Samples of one channel gather into one message until the model time has
+advanced :data:`BLOCK_S` past the block's start; at least every :data:`SYNC_S` seconds of
+wall-clock time every open block is written out, the chunk in progress is closed (chunks
+are small, :data:`CHUNK_BYTES`) and the file is ``fsync``-ed, so a ``kill -9`` loses at
+most about that second. Non-finite floats are written as JSON ``null`` (read back as NaN).
+
+Listeners (:meth:`RunRecording.add_listener`, or :func:`listening` for every recording
+opened meanwhile) see each message right after it is written, decoded: the live view
+(:mod:`hapticframe.live`) is one. A listener must return at once; one that raises is
+logged once and dropped, never failing the run.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, BinaryIO
+
+import numpy as np
+
+from hapticframe._atomic import output_error
+from hapticframe._defaults import OUTLINE_LEVEL
+from hapticframe._errors import UsageError
+from hapticframe._version import __version__
+from hapticframe.record import _foxglove
+
+if TYPE_CHECKING:
+    from hapticframe._scene import Scene
+    from hapticframe.kinds import (
+        ClassProbabilities,
+        LocatedMeasurement,
+        Map,
+        MovementResult,
+        Observations,
+        RobotState,
+        SampleBatch,
+    )
+
+__all__ = [
+    "BLOCK_S",
+    "CHUNK_BYTES",
+    "RECORDING",
+    "SNAPSHOT_RATE_HZ",
+    "SNAPSHOT_SPACING_M",
+    "SYNC_S",
+    "RunRecording",
+    "find_recording",
+    "listening",
+    "open_run_recording",
+    "read_recording",
+]
+
+_log = logging.getLogger("hapticframe.recording")
+
+#: The recording's file name inside a run's directory.
+RECORDING = "run.mcap"
+#: Wall-clock seconds between two syncs (open blocks written, chunk closed, ``fsync``).
+SYNC_S = 1.0
+#: Model-time seconds of samples one message of a channel holds at most (about).
+BLOCK_S = 0.1
+#: The size at which a chunk is closed before a sync would close it (bytes, uncompressed).
+CHUNK_BYTES = 256 * 1024
+#: Map snapshots (and fingertip poses) per second of model time, unless the run says.
+SNAPSHOT_RATE_HZ = 5.0
+#: The snapshots' grid spacing (metres), unless the run says.
+SNAPSHOT_SPACING_M = 0.01
+#: Model times this close count as equal when snapshots are due (steps of 0.01 s add up
+#: to a little less than their sum).
+_EPS_S = 1e-6
+#: The first bytes of every MCAP file.
+MAGIC = b"\x89MCAP0\r\n"
+
+#: ``fn(topic, t_s, data)``: called with every message a recording writes (decoded).
+Listener = Callable[[str, float, Mapping[str, Any]], None]
+#: Listeners every :class:`RunRecording` gets when it opens (see :func:`listening`).
+_GLOBAL_LISTENERS: list[Listener] = []
+
+
+@contextmanager
+def listening(listener: Listener) -> Iterator[None]:
+    """Give ``listener`` to every :class:`RunRecording` opened inside the block (``hapticframe
+    run --live`` watches the run it starts without reaching into the orchestrator)."""
+    _GLOBAL_LISTENERS.append(listener)
+    try:
+        yield
+    finally:
+        _GLOBAL_LISTENERS.remove(listener)
+
+
+_ARRAY = {"type": "array"}
+_NUMBERS = {"type": "array", "items": {"type": ["number", "null", "array"]}}
+
+
+def _schema(title: str, properties: Mapping[str, Any], required: list[str]) -> dict[str, Any]:
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": title,
+            "type": "object", "properties": dict(properties), "required": required}
+
+
+_BY_NAME = {"type": "object", "additionalProperties": _ARRAY}
+#: The JSON schema of every message, by schema name.
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "hapticframe.SampleBatch": _schema(
+        "Samples of a sensor or feature extractor (arrays: one row per sample)",
+        {"timestamps_s": _NUMBERS, "channels": _BY_NAME, "valid": _BY_NAME,
+         "units": {"type": "object", "additionalProperties": {"type": "string"}},
+         "rates_hz": {"type": "object", "additionalProperties": {"type": "number"}}},
+        ["timestamps_s", "channels"]),
+    "hapticframe.ClassProbabilities": _schema(
+        "A classifier's output", {"timestamps_s": _NUMBERS, "probabilities": _NUMBERS,
+                                  "classes": {"type": "array", "items": {"type": "string"}}},
+        ["timestamps_s", "probabilities", "classes"]),
+    "hapticframe.LocatedMeasurement": _schema(
+        "Where each classified sample was taken", {
+            "timestamps_s": _NUMBERS, "positions_m": _NUMBERS, "headings_rad": _NUMBERS,
+            "depths_m": _NUMBERS},
+        ["timestamps_s", "positions_m", "headings_rad", "depths_m"]),
+    "hapticframe.Observations": _schema(
+        "A sensor model's observations, the maps' input",
+        {"points_m": _NUMBERS, "targets": _NUMBERS, "weights": _NUMBERS},
+        ["points_m", "targets", "weights"]),
+    "hapticframe.RobotStates": _schema(
+        "A robot's states", {"timestamps_s": _NUMBERS, "positions_m": _NUMBERS,
+                             "headings_rad": _NUMBERS, "depths_m": _NUMBERS,
+                             "movement_index": _NUMBERS},
+        ["timestamps_s", "positions_m", "headings_rad", "depths_m", "movement_index"]),
+    "hapticframe.MovementResult": _schema(
+        "An exploratory movement and how it ended", {
+            "index": {"type": "integer"}, "start_m": _ARRAY, "end_m": _ARRAY,
+            "speed_m_per_s": {"type": "number"}, "depth_m": {"type": ["number", "null"]},
+            "phase": {"type": "string"}, "label": {"type": "string"},
+            "halted": {"type": "boolean"}, "halt_reason": {"type": "string"},
+            "final_class": {"type": "string"}, "max_force_n": {"type": ["number", "null"]},
+            "final_position_m": {"type": ["array", "null"]}, "extra": {"type": "object"}},
+        ["index", "start_m", "end_m", "halted", "halt_reason"]),
+    "hapticframe.SafetyHalt": _schema(
+        "A halt of the run loop's safety checks (run.json: details.safety_halts)",
+        {"reason": {"type": "string"}}, ["reason"]),
+    "hapticframe.LoopEvent": _schema(
+        "A point of the run loop that replay must repeat (cumulative counts so far)", {
+            "event": {"enum": ["stream_start", "locate_from", "flush_maps"]},
+            "t_s": {"type": ["number", "null"]},
+            "counts": {"type": "object", "additionalProperties": {"type": "integer"}},
+            "keep_force": {"type": "boolean"}},
+        ["event", "t_s", "counts", "keep_force"]),
+    "hapticframe.RunMetrics": _schema(
+        "A finished run's metrics.json and each component's own finalize() metrics",
+        {"metrics": {"type": "object"}, "components": {
+            "type": "object", "additionalProperties": {"type": "object"}}},
+        ["metrics", "components"]),
+    "hapticframe.DeviceHealth": _schema(
+        "A device's health counters", {"counters": {
+            "type": "object", "additionalProperties": {"type": "integer"}}}, ["counters"]),
+    **_foxglove.SCHEMAS,
+}
+
+#: Colours (r, g, b, a) of the scene's lines: region, true objects, estimated outlines.
+_REGION_COLOUR = (0.5, 0.5, 0.5, 1.0)
+_TRUTH_COLOUR = (0.17, 0.63, 0.17, 1.0)  # matplotlib's tab:green, as on the figures
+_ESTIMATE_COLOUR = (1.0, 1.0, 1.0, 1.0)
+
+
+def _plain(array: np.ndarray) -> Any:
+    """``array`` as nested lists, non-finite floats as None (JSON has no NaN)."""
+    if array.dtype.kind == "f" and not np.isfinite(array).all():
+        objects = array.astype(object)
+        objects[~np.isfinite(array)] = None
+        return objects.tolist()
+    return array.tolist()
+
+
+def _nan_to_none(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _nan_to_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_nan_to_none(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value)
+    if isinstance(value, np.generic):
+        return _nan_to_none(value.item())
+    return value
+
+
+@dataclass
+class _Block:
+    """One channel's samples waiting to become a message."""
+
+    schema: str
+    #: Array fields (a key path into the message) and their parts, in arrival order.
+    parts: dict[tuple[str, ...], list[np.ndarray]] = field(default_factory=dict)
+    #: Rows of per-sample scalars (robot states), turned into arrays when written.
+    rows: list[tuple[Any, ...]] = field(default_factory=list)
+    row_fields: tuple[str, ...] = ()
+    constant: dict[str, Any] = field(default_factory=dict)
+    start_s: float = math.nan
+    end_s: float = 0.0
+
+
+class RunRecording:
+    """Writes ``run.mcap`` while the run runs; see the module's notes for its channels.
+
+    Parameters
+    ----------
+    path : Path
+        The file to write (the run's staging folder).
+    metadata : mapping of str to str
+        Written as the recording's ``hapticframe`` metadata record (name, seed, ...).
+    sync_s, block_s : float
+        Wall-clock seconds between syncs; model-time seconds a message's block spans.
+    clock : callable
+        The wall clock syncs are timed on (tests pass a fake one).
+    """
+
+    def __init__(self, path: Path, metadata: Mapping[str, str] | None = None, *,
+                 sync_s: float = SYNC_S, block_s: float = BLOCK_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        self.path = Path(path)
+        try:
+            self._file: BinaryIO = open(self.path, "wb")  # closed by close()
+        except OSError as exc:
+            raise output_error(self.path, exc) from exc
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES,
+                              compression=CompressionType.ZSTD)
+        self._sync_s = sync_s
+        self._block_s = block_s
+        self._clock = clock
+        self._last_sync = clock()
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._blocks: dict[str, _Block] = {}
+        # Events written with the next blocks, not now: a map flush must not cut every
+        # channel's block short (see later()).
+        self._deferred: list[tuple[str, str, float, dict[str, Any]]] = []
+        self._sequence = 0
+        self._now_s = 0.0  # the latest model time seen
+        self._emit_after_s = math.inf  # the earliest end of an open block
+        self.messages = 0
+        self._listeners: list[Listener] = list(_GLOBAL_LISTENERS)
+        #: How many of the session's safety halts are recorded (the loop keeps it).
+        self.halts_recorded = 0
+        self.closed = False
+        # Snapshots (contract B): set by configure_snapshots, the run's settings.
+        self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
+        self.snapshot_spacing_m = SNAPSHOT_SPACING_M
+        self.outline_level = OUTLINE_LEVEL
+        self._next_snapshot_s = -math.inf
+        self._next_pose_s: dict[str, float] = {}
+        self._scene_written = False
+        self._guard(lambda: self._writer.start(profile="", library=f"hapticframe {__version__}"))
+        if metadata:
+            self._guard(lambda: self._writer.add_metadata("hapticframe", dict(metadata)))
+        self.sync()
+
+    def add_listener(self, listener: Listener) -> None:
+        """Call ``listener(topic, t_s, data)`` with every message written from now on, after
+        it is written (``data`` the decoded message; do not change it). It must not block:
+        the run's thread calls it. One that raises is logged once and dropped."""
+        self._listeners.append(listener)
+
+    def remove_listener(self, listener: Listener) -> None:
+        """Stop calling ``listener`` (nothing happens when it is not listening)."""
+        if listener in self._listeners:
+            self._listeners.remove(listener)
+
+    def _tell(self, topic: str, t_s: float, data: Mapping[str, Any]) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener(topic, t_s, data)
+            except Exception as exc:  # a listener never fails the run
+                _log.warning("recording listener %r failed on %s and is dropped: %s: %s",
+                             getattr(listener, "__qualname__", listener), topic,
+                             type(exc).__name__, exc)
+                self.remove_listener(listener)
+
+    # --- what the run records ------------------------------------------------------------
+
+    def samples(self, kind: str, cid: str, batch: SampleBatch,
+                units: Mapping[str, str] | None = None,
+                rates_hz: Mapping[str, float] | None = None) -> None:
+        """A sensor's or feature extractor's batch (``kind``: ``sensor`` or
+        ``feature_extractor``); a sensor's channel units and nominal rates with it (a
+        replayed sensor declares the same rates: a filter designed on them must match)."""
+        if not len(batch):
+            return
+        block = self._block(f"/{kind}/{cid}", "hapticframe.SampleBatch")
+        if units and "units" not in block.constant:
+            block.constant["units"] = dict(units)
+        if rates_hz and "rates_hz" not in block.constant:
+            block.constant["rates_hz"] = {k: float(v) for k, v in rates_hz.items()}
+        self._add(block, batch.timestamps_s, {("timestamps_s",): batch.timestamps_s,
+                  **{("channels", n): a for n, a in batch.channels.items()},
+                  **{("valid", n): a for n, a in batch.valid.items()}})
+
+    def probabilities(self, cid: str, probs: ClassProbabilities) -> None:
+        if not len(probs):
+            return
+        topic = f"/classifier/{cid}"
+        block = self._block(topic, "hapticframe.ClassProbabilities")
+        classes = list(probs.classes)
+        if block.constant.get("classes", classes) != classes:
+            self._emit(topic)
+            block = self._block(topic, "hapticframe.ClassProbabilities")
+        block.constant["classes"] = classes
+        self._add(block, probs.timestamps_s, {("timestamps_s",): probs.timestamps_s,
+                                              ("probabilities",): probs.probabilities})
+
+    def located(self, sm_id: str, located: LocatedMeasurement) -> None:
+        block = self._block(f"/sensor_model/{sm_id}/located", "hapticframe.LocatedMeasurement")
+        self._add(block, located.timestamps_s, {
+            ("timestamps_s",): located.timestamps_s, ("positions_m",): located.positions_m,
+            ("headings_rad",): located.headings_rad, ("depths_m",): located.depth_m})
+
+    def observations(self, sm_id: str, obs: Observations, t_s: float) -> None:
+        block = self._block(f"/sensor_model/{sm_id}/observations", "hapticframe.Observations")
+        self._add(block, np.array([t_s]), {("points_m",): obs.points_m,
+                                           ("targets",): obs.targets,
+                                           ("weights",): obs.weights})
+
+    def robot_state(self, robot_id: str, state: RobotState, movement_index: int) -> None:
+        """One robot step: kept as a row (the closed loop takes some 20,000 of them)."""
+        topic = f"/robot/{robot_id}/state"
+        block = self._blocks.get(topic)
+        if block is None:
+            block = self._block(topic, "hapticframe.RobotStates")
+            block.row_fields = ("timestamps_s", "positions_m", "headings_rad", "depths_m",
+                                "movement_index")
+        t = float(state.timestamp_s)
+        position = state.position_m.tolist()
+        block.rows.append((t, position, float(state.heading_rad),
+                           float(state.depth_m), movement_index))
+        self._seen(block, t, t)
+        if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf) - _EPS_S:
+            self._next_pose_s[robot_id] = t + 1.0 / self.snapshot_rate_hz
+            self.event(f"/robot/{robot_id}/pose", _foxglove.POSE_IN_FRAME,
+                       _foxglove.pose_message(t, position, float(state.heading_rad),
+                                              float(state.depth_m)), t)
+
+    def movement(self, result: MovementResult) -> None:
+        """An exploratory movement's result (written at once, with every open block)."""
+        m = result.movement
+        final = result.final_state
+        self.event("/movement", "hapticframe.MovementResult", {
+            "index": result.index, "start_m": m.start_m, "end_m": m.end_m,
+            "speed_m_per_s": m.speed_m_per_s, "depth_m": m.depth_m, "phase": m.phase,
+            "label": m.label, "halted": result.halted, "halt_reason": result.halt_reason,
+            "final_class": result.final_class, "max_force_n": result.max_force_n,
+            "final_position_m": None if final is None else final.position_m,
+            "extra": {k: v if isinstance(v, (str, int, float, bool, list, tuple)) else repr(v)
+                      for k, v in result.extra.items()},
+        })
+
+    def event(self, topic: str, schema: str, data: Mapping[str, Any],
+              t_s: float | None = None) -> None:
+        """One message now (open blocks are written first, so the file stays in time order)."""
+        self.flush_blocks()
+        when = self._now_s if t_s is None else max(float(t_s), 0.0)
+        self._write(topic, schema, when, _nan_to_none(dict(data)))
+        self._maybe_sync()
+
+    def later(self, topic: str, schema: str, data: Mapping[str, Any], t_s: float) -> None:
+        """One message written with the next blocks (at the latest at the next sync or
+        close), so that frequent events do not cut the open blocks into small messages.
+        Its log time is ``t_s``; readers order such messages by their content, not by
+        their place in the file."""
+        self._deferred.append((topic, schema, max(float(t_s), 0.0), _nan_to_none(dict(data))))
+
+    def health(self, counters: Mapping[str, Mapping[str, int]]) -> None:
+        for cid, values in counters.items():
+            self.event(f"/device/{cid}/health", "hapticframe.DeviceHealth",
+                       {"counters": {k: int(v) for k, v in values.items()}})
+
+    # --- Foxglove: map snapshots, the scene ----------------------------------------------
+
+    @property
+    def now_s(self) -> float:
+        """The latest model time the recording has seen (seconds)."""
+        return self._now_s
+
+    def configure_snapshots(self, rate_hz: float, spacing_m: float,
+                            outline_level: float = OUTLINE_LEVEL) -> None:
+        """Snapshots and poses per second of model time (0: none), the snapshots' grid
+        spacing (metres) and the level of the estimated outline drawn with them."""
+        self.snapshot_rate_hz = float(rate_hz)
+        self.snapshot_spacing_m = float(spacing_m)
+        self.outline_level = float(outline_level)
+
+    def snapshot_due(self, t_s: float | None = None) -> bool:
+        """True when a map snapshot is due at ``t_s`` (default: now), and the next one is
+        then counted from ``t_s``."""
+        if self.snapshot_rate_hz <= 0:
+            return False
+        t = self._now_s if t_s is None else float(t_s)
+        if t < self._next_snapshot_s - _EPS_S:
+            return False
+        self._next_snapshot_s = t + 1.0 / self.snapshot_rate_hz
+        return True
+
+    def scene(self, scene: Scene | None) -> None:
+        """``/scene`` once, at model time 0: the region's rectangle and the true objects'
+        outlines (later calls write nothing)."""
+        if self._scene_written or scene is None:
+            return
+        self._scene_written = True
+        r = scene.region
+        entities = [_foxglove.line_entity(
+            "region", 0.0, [(r.x_min_m, r.y_min_m), (r.x_max_m, r.y_min_m),
+                            (r.x_max_m, r.y_max_m), (r.x_min_m, r.y_max_m)],
+            _REGION_COLOUR, thickness_m=0.002, metadata={"kind": "region"})]
+        for index, obj in enumerate(scene.objects):
+            entities.append(_foxglove.line_entity(
+                f"object/{index}", 0.0, obj.outline(128), _TRUTH_COLOUR,
+                metadata={"kind": "true object", "shape": str(obj.shape)}))
+        self.event("/scene", _foxglove.SCENE_UPDATE, _foxglove.scene_update(entities), 0.0)
+
+    def map_snapshot(self, map_id: str, the_map: Map, t_s: float) -> None:
+        """``/map/MAP_ID/grid``: the map's mean and std on a grid of
+        :attr:`snapshot_spacing_m` over its region, and on ``/scene`` its estimated outline
+        (the :attr:`outline_level` curve around the most occupied blob; removed while there
+        is none)."""
+        from hapticframe.geometry import main_outline, sample_grid
+
+        region = the_map.region
+        bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
+        xs, ys, points = sample_grid(bounds, self.snapshot_spacing_m)
+        estimate = the_map.query(points)
+        shape = (len(ys), len(xs))
+        mean, std = estimate.mean.reshape(shape), estimate.std.reshape(shape)
+        cell = ((bounds[1] - bounds[0]) / len(xs), (bounds[3] - bounds[2]) / len(ys))
+        self.event(f"/map/{map_id}/grid", _foxglove.GRID, _foxglove.grid_message(
+            t_s, (bounds[0], bounds[2]), cell, mean, std), t_s)
+        outline = main_outline(xs, ys, mean, self.outline_level)
+        entity_id = f"estimate/{map_id}"
+        if outline is None:
+            update = _foxglove.scene_update([], [entity_id], t_s)
+        else:
+            update = _foxglove.scene_update([_foxglove.line_entity(
+                entity_id, t_s, outline, _ESTIMATE_COLOUR, metadata={
+                    "kind": "estimated outline", "map": map_id,
+                    "level": f"{self.outline_level:g}"})])
+        self.event("/scene", _foxglove.SCENE_UPDATE, update, t_s)
+
+    # --- blocks, syncs -------------------------------------------------------------------
+
+    def _block(self, topic: str, schema: str) -> _Block:
+        block = self._blocks.get(topic)
+        if block is None:
+            block = self._blocks[topic] = _Block(schema)
+        return block
+
+    def _add(self, block: _Block, times: np.ndarray,
+             arrays: Mapping[tuple[str, ...], np.ndarray]) -> None:
+        for key, array in arrays.items():
+            block.parts.setdefault(key, []).append(np.asarray(array))
+        if len(times):
+            self._seen(block, float(times[0]), float(times[-1]))
+        self._maybe_sync()
+
+    def _seen(self, block: _Block, first: float, last: float) -> None:
+        if math.isnan(block.start_s):
+            block.start_s = first
+            self._emit_after_s = min(self._emit_after_s, first + self._block_s)
+        block.end_s = max(block.end_s, last)
+        if last > self._now_s:
+            self._now_s = last
+            if last >= self._emit_after_s:
+                self.flush_blocks()
+
+    def _maybe_sync(self) -> None:
+        if self._clock() - self._last_sync >= self._sync_s:
+            self.sync()
+
+    def flush_blocks(self) -> None:
+        """Write every open block as one message per channel."""
+        for topic in list(self._blocks):
+            self._emit(topic)
+        self._emit_after_s = math.inf
+        deferred, self._deferred = self._deferred, []
+        for topic, schema, t_s, data in deferred:
+            self._write(topic, schema, t_s, data)
+
+    def _emit(self, topic: str) -> None:
+        block = self._blocks.pop(topic, None)
+        if block is None or (not block.parts and not block.rows):
+            return
+        data: dict[str, Any] = dict(block.constant)
+        for key, parts in block.parts.items():
+            array = parts[0] if len(parts) == 1 else np.concatenate(parts)
+            target = data
+            for name in key[:-1]:
+                target = target.setdefault(name, {})
+            target[key[-1]] = _plain(array)
+        if block.rows:
+            for name, column in zip(block.row_fields, zip(*block.rows, strict=True),
+                                    strict=True):
+                data[name] = _plain(np.array(column))
+        self._write(topic, block.schema, block.end_s, data)
+
+    def _write(self, topic: str, schema: str, t_s: float, data: Mapping[str, Any]) -> None:
+        channel = self._channels.get(topic)
+        if channel is None:
+            schema_id = self._schemas.get(schema)
+            if schema_id is None:
+                schema_id = self._schemas[schema] = self._writer.register_schema(
+                    name=schema, encoding="jsonschema",
+                    data=json.dumps(SCHEMAS[schema]).encode())
+            channel = self._channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=schema_id)
+        stamp = round(max(t_s, 0.0) * 1e9)
+        payload = json.dumps(data, separators=(",", ":"), allow_nan=False).encode()
+        self._sequence += 1
+        self._guard(lambda: self._writer.add_message(
+            channel_id=channel, log_time=stamp, publish_time=stamp, data=payload,
+            sequence=self._sequence))
+        self.messages += 1
+        if self._listeners:
+            self._tell(topic, max(t_s, 0.0), data)
+
+    def sync(self) -> None:
+        """Write every open block, close the chunk in progress and ``fsync`` the file."""
+        self.flush_blocks()
+
+        def flush() -> None:
+            self._writer.flush()  # type: ignore[no-untyped-call]
+            os.fsync(self._file.fileno())
+
+        self._guard(flush)
+        self._last_sync = self._clock()
+
+    def close(self) -> None:
+        """Write what is left and the file's summary (indexes, statistics); idempotent."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self.flush_blocks()
+            self._guard(self._writer.finish)
+            self._guard(lambda: os.fsync(self._file.fileno()))
+        finally:
+            self._file.close()
+
+    def _guard(self, action: Callable[[], Any]) -> Any:
+        try:
+            return action()
+        except OSError as exc:
+            raise output_error(self.path, exc) from exc
+
+
+def open_run_recording(folder: Path, metadata: Mapping[str, str]) -> RunRecording:
+    """``folder/run.mcap``: the :class:`~hapticframe.run._scope.RecordingOpener` that the CLI,
+    sweep trials, replay and :func:`hapticframe.run_experiment` hand the run scope."""
+    return RunRecording(Path(folder) / RECORDING, metadata)
+
+
+# --- reading and recovering ------------------------------------------------------------------
+
+
+def find_recording(target: Path) -> Path:
+    """The recording ``target`` names: a file, or a run's directory (its ``run.mcap``, or
+    the one a killed run left in the staging folder)."""
+    from hapticframe.run._results import STAGING
+
+    if target.is_dir():
+        for candidate in (target / RECORDING, target / STAGING / RECORDING):
+            if candidate.is_file():
+                return candidate
+        raise UsageError(f"{target} holds no recording ({RECORDING}, or {STAGING}/{RECORDING} "
+                         "of a killed run); give a run's --out directory or an .mcap file")
+    if not target.is_file():
+        raise UsageError(f"{target}: no such file or directory")
+    return target
+
+
+def _check_magic(path: Path) -> None:
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(len(MAGIC))
+    except OSError as exc:
+        raise UsageError(f"{path} cannot be read: {exc.strerror or exc}") from exc
+    if head != MAGIC:
+        raise UsageError(f"{path} is not an MCAP recording (its first bytes are not the MCAP "
+                         "magic); give the run.mcap a run wrote")
+
+
+def _records(path: Path, stop: list[str]) -> Iterator[Any]:
+    """The records of ``path`` in file order, read as a stream until the end or a cut
+    (what stopped the reading goes into ``stop``)."""
+    from mcap.stream_reader import StreamReader
+
+    with open(path, "rb") as stream:
+        reader = StreamReader(stream, validate_crcs=True)
+        try:
+            yield from reader.records
+        except Exception as exc:  # a cut record (EndOfFile, a short chunk), or a damaged one
+            where = stream.tell()
+            if type(exc).__name__ in ("CRCValidationError", "ZstdError"):
+                stop.append(f"the file is damaged before byte {where}: a chunk fails its check "
+                            f"({exc}); `hapticframe recover` keeps what it can read past it")
+            else:
+                stop.append(f"the file ends inside a record, at byte {where} "
+                            f"({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})")
+
+
+def read_recording(path: Path) -> dict[str, list[tuple[int, dict[str, Any]]]]:
+    """Every message of a complete or cut recording, decoded, by topic: ``(log_time_ns,
+    data)`` in file order (read as a stream: a cut file gives what it holds)."""
+    from mcap.records import Channel, Message
+
+    _check_magic(path)
+    channels: dict[int, str] = {}
+    out: dict[str, list[tuple[int, dict[str, Any]]]] = {}
+    for record in _records(path, []):
+        if isinstance(record, Channel):
+            channels[record.id] = record.topic
+        elif isinstance(record, Message) and record.channel_id in channels:
+            out.setdefault(channels[record.channel_id], []).append(
+                (record.log_time, json.loads(record.data)))
+    return out
