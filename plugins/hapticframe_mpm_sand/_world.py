@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import BuildContext, ExploratoryMovement
+from hapticframe.kinds import BuildContext
 from hapticframe_sandbox import SandboxRobot
 
 from ._config import BUNDLED_LIBRARIES, MpmSandRobotConfig
@@ -105,22 +105,26 @@ class MpmSandRobot(SandboxRobot):
             np.asarray(obj.outline(512), dtype=np.float64) for obj in context.scene.objects
         ] if context.scene is not None else []
         self._frames: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+        self._frames_key: tuple[object, ...] | None = None
 
     @property
     def library(self) -> ResponseLibrary:
         """The response library the forces come from."""
         return self._library
 
-    def _start_movement(self, movement: ExploratoryMovement) -> None:
-        super()._start_movement(movement)
-        # Each object's outline in the movement's frame: along the heading from the start,
-        # and across it (+ to the left).
-        dx, dy = self._direction_xy
-        sx, sy = self._start_xy
-        self._frames = []
-        for outline in self._outlines:
-            rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
-            self._frames.append((rx * dx + ry * dy, -rx * dy + ry * dx))
+    def _movement_frames(self) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """Each object's outline in the current movement's frame: along the heading from the
+        start, and across it (+ to the left); computed once per movement (or part of one)."""
+        key = (self._index, self._start_xy, self._direction_xy)
+        if key != self._frames_key:
+            dx, dy = self._direction_xy
+            sx, sy = self._start_xy
+            frames = []
+            for outline in self._outlines:
+                rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
+                frames.append((rx * dx + ry * dy, -rx * dy + ry * dx))
+            self._frames, self._frames_key = frames, key
+        return self._frames
 
     def _interaction(
         self, position: tuple[float, float], advance: float
@@ -141,7 +145,7 @@ class MpmSandRobot(SandboxRobot):
         u_max = float(library.offsets_u[-1])
         excess_x = excess_y = 0.0
         penetration = 0.0
-        for a, c in self._frames:
+        for a, c in self._movement_frames():
             s_m = along - float(a.min())
             if along > float(a.max()) or s_m < float(library.s_m[0]):
                 continue  # past the object, or farther ahead than any engine run saw it
