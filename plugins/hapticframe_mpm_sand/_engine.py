@@ -93,9 +93,7 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
     import warp as wp
     from newton.solvers import SolverImplicitMPM
 
-    wp.config.quiet = True  # type: ignore[attr-defined]
-
-    wp.config.quiet = True  # type: ignore[attr-defined]
+    wp.config.quiet = True
     wp.init()
     s, c = settings, case
     builder = newton.ModelBuilder()
@@ -188,7 +186,7 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
         body_qd[plate][0] = c.speed_m_per_s if moving else 0.0
         state.body_q.assign(body_q)
         state.body_qd.assign(body_qd)
-        solver.step(state, state, None, None, dt)  # type: ignore[arg-type]
+        solver.step(state, state, None, None, dt)
         if moving:
             impulses, _pos, ids = solver.collect_collider_impulses(state)
             imp = impulses.numpy()
