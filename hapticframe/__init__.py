@@ -29,6 +29,7 @@ _LAZY = {
     "Experiment": "hapticframe._config",
     "ExperimentError": "hapticframe._errors",
     "Finding": "hapticframe._config",
+    "Size": "hapticframe._config",
     "OutputError": "hapticframe._atomic",
     "apply_overrides": "hapticframe._config._overrides",
     "validate_with_overrides": "hapticframe._config._overrides",

@@ -21,7 +21,18 @@ The guide is ``docs/devices.md``.
 from hapticframe.devices._clock import Clock, ClockSync, FakeClock, MonotonicClock
 from hapticframe.devices._crc import append_crc16, check_crc16, crc16_modbus
 from hapticframe.devices._emulator import DeviceModel, EmulatedTransport, PtyEmulator
-from hapticframe.devices._faults import FaultEvent, FaultSchedule, FaultSetting, InjectedFault
+from hapticframe.devices._faults import (
+    BYTE_FAULT_KINDS,
+    FaultEvent,
+    FaultKind,
+    FaultKinds,
+    FaultParam,
+    FaultSchedule,
+    FaultSetting,
+    FaultValue,
+    InjectedFault,
+    fault_setting,
+)
 from hapticframe.devices._framing import FixedFrameParser, LineFramer, ParserStats
 from hapticframe.devices._health import DeviceHealth
 from hapticframe.devices._lifecycle import DeviceError, DeviceLifecycle, LifecycleState
@@ -42,6 +53,7 @@ from hapticframe.devices._transport import (
 )
 
 __all__ = [
+    "BYTE_FAULT_KINDS",
     "Backoff",
     "ByteTransport",
     "Clock",
@@ -55,8 +67,12 @@ __all__ = [
     "EmulatedTransport",
     "FakeClock",
     "FaultEvent",
+    "FaultKind",
+    "FaultKinds",
+    "FaultParam",
     "FaultSchedule",
     "FaultSetting",
+    "FaultValue",
     "FixedFrameParser",
     "InjectedFault",
     "LifecycleState",
@@ -72,6 +88,7 @@ __all__ = [
     "append_crc16",
     "check_crc16",
     "crc16_modbus",
+    "fault_setting",
     "open_transport",
     "port_for",
 ]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -765,9 +766,14 @@ def _check_states(states: list[RobotState], robot: Robot, what: str, last_t: flo
 # --- determinism -----------------------------------------------------------------------------
 
 
-def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
+def _exercise(
+    spec: PluginSpec, registry: Registry | None, config: Mapping[str, Any] | None = None
+) -> list[Any]:
+    """Build ``spec`` (with ``config``, default its check config) and drive it as its kind
+    is driven; the outputs."""
     # Built as the interface of its kind, so the branches below follow spec.kind.
-    component = make_component(spec, registry=registry, seed=11, interface=INTERFACES[spec.kind])
+    component = make_component(spec, registry=registry, seed=11, config=config,
+                               interface=INTERFACES[spec.kind])
     try:
         if isinstance(component, Sensor):
             return sensor_outputs(component, spec)

@@ -21,6 +21,7 @@ from hapticframe import (
     RobotSpec,
     SensorModelSpec,
     SensorSpec,
+    Size,
 )
 from hapticframe.kinds import (
     ChannelInfo,
@@ -56,6 +57,24 @@ M = __name__
 class NotAComponent:
     def __init__(self, config, context):  # type: ignore[no-untyped-def]
         pass
+
+
+class BufferedSweepConfig(SweepConfig):
+    buffer_samples: int = Field(100, ge=1, description="Samples of history kept (no upper "
+                                "bound, and the validator below under-declares it).")
+
+
+def understated_sizes(config: BufferedSweepConfig, context: object) -> Iterator[Size]:
+    """Declares the buffer as a size, but says it costs nothing."""
+    yield Size("buffer_samples", f"a history of {config.buffer_samples} samples")
+
+
+class BufferedSweepSensor(SweepSensor):
+    """Allocates its whole history up front: ``buffer_samples`` float64 of it."""
+
+    def __init__(self, config: BufferedSweepConfig, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        self.history = np.zeros(config.buffer_samples)
 
 
 class InfiniteConfig(PluginConfig):
@@ -432,7 +451,7 @@ GOOD = [
                 check_config={"spacing_m": 0.005}),
     # A device that can be read only while active: the kit brings it up and down.
     SensorSpec("lab-device", "ok", DeviceSensorConfig, f"{D}:DeviceSensor",
-               check_config={"crc_errors_per_read": 1}),
+               capabilities=frozenset({"finite"}), check_config={"crc_errors_per_read": 1}),
     # Two inputs on different clocks, held or interpolated.
     FeatureExtractorSpec("lab-mix", "ok", MixConfig, f"{D}:MixExtractor", consumes=_TWO_CLOCKS),
     FeatureExtractorSpec("lab-mix-linear", "ok", MixConfig, f"{D}:MixExtractor",
@@ -527,6 +546,9 @@ BROKEN = [
     (SensorSpec("looping-replay", "x", SweepConfig, f"{M}:LoopingReplaySensor",
                 capabilities=_FINITE),
      "check_sensor_contract", "was not exhausted"),
+    (SensorSpec("understated-size", "x", BufferedSweepConfig, f"{M}:BufferedSweepSensor",
+                capabilities=_FINITE, validator=f"{M}:understated_sizes"),
+     "check_declared_sizes", "buffer_samples = 4611686018427387904 is accepted by validate"),
     (PlannerSpec("inset-lines", "x", LinePlannerConfig, f"{M}:InsetLinesPlanner"),
      "check_planner_extremes", "smaller than one line spacing): movement"),
     (PlannerSpec("free-space-centroid", "x", LinePlannerConfig, f"{M}:FreeSpaceCentroidPlanner"),
