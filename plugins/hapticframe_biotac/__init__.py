@@ -20,8 +20,7 @@ cheap; the implementation modules load on first attribute access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import BioTacSensorConfig
 
@@ -113,12 +112,4 @@ _LAZY = {
     "granular_noise_ratios": "._synthetic",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
