@@ -19,6 +19,8 @@ BUNDLED = {
     ("classifier", "fusion-rnn"),
     ("classifier", "linear-svm"),
     ("classifier", "sf-rnn"),
+    ("classifier", "raking-estimator"),
+    ("sensor_model", "distance-estimate"),
     ("sensor_model", "contact-point"),
     ("sensor_model", "failure-zone-kernel"),
     ("map", "bayesian-hilbert-map"),
