@@ -518,13 +518,20 @@ def _last_label(probs: ClassProbabilities) -> int:
     return row.index(max(row))
 
 
+_NO_TIMES: NDArray[np.float64] = np.empty(0)
+
+
 def _usable_times(batch: SampleBatch, channel: str) -> NDArray[np.float64]:
     """The timestamps of ``batch``'s valid samples of ``channel`` whose values are finite."""
     n = len(batch)
     if not n:
-        return np.empty(0)
-    usable = np.all(np.isfinite(batch.channels[channel].reshape(n, -1)), axis=1)
+        return _NO_TIMES
+    values = batch.channels[channel]
     valid = batch.valid.get(channel)
+    if n == 1 and values.size <= 3:  # a closed loop's one sample: plain floats are faster
+        ok = all(math.isfinite(v) for v in values.ravel().tolist())
+        return batch.timestamps_s if ok and (valid is None or bool(valid[0])) else _NO_TIMES
+    usable = np.all(np.isfinite(values.reshape(n, -1)), axis=1)
     if valid is not None:
         usable &= valid
     return np.asarray(batch.timestamps_s[usable], dtype=np.float64)

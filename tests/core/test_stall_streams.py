@@ -104,3 +104,20 @@ def test_a_look_ahead_batch_with_one_silent_stream_is_replayed():
     assert not safety.batch_needs_replay(states, both)  # type: ignore[arg-type]
     one = {"a": both["a"], "b": SampleBatch(t, {"f": np.full((40, 3), np.nan)})}
     assert safety.batch_needs_replay(states, one)  # type: ignore[arg-type]
+
+
+def test_only_valid_finite_samples_count_as_arrivals():
+    from hapticframe.run._dataflow import _usable_times
+
+    empty = SampleBatch(np.empty(0), {"f": np.empty((0, 3))})
+    assert _usable_times(empty, "f").size == 0
+    one = SampleBatch(np.array([0.5]), {"f": np.array([[1e300, -1e300, 0.0]])})
+    assert _usable_times(one, "f").tolist() == [0.5]  # huge is still finite
+    nan = SampleBatch(np.array([0.5]), {"f": np.array([[0.0, np.nan, 0.0]])})
+    assert _usable_times(nan, "f").size == 0
+    invalid = SampleBatch(np.array([0.5]), {"f": np.ones((1, 3))}, {"f": np.array([False])})
+    assert _usable_times(invalid, "f").size == 0
+    t = np.arange(4) / 100
+    force = np.array([[1.0, 0, 0], [np.inf, 0, 0], [2.0, 0, 0], [3.0, 0, 0]])
+    many = SampleBatch(t, {"f": force}, {"f": np.array([True, True, False, True])})
+    assert _usable_times(many, "f").tolist() == [0.0, 0.03]
