@@ -73,9 +73,9 @@ class SafetyMonitor:
         self._rate_hz = 1.0
         # Per watched stream: robot time of its latest valid sample's arrival, its count.
         streams = len(flow.stall_streams)
-        self._ref_t = np.full(streams, -math.inf)
+        self._ref_t = [-math.inf] * streams
         self._seen = [0] * streams
-        self._batch_ref_t = np.full(streams, -math.inf)
+        self._batch_ref_t = [-math.inf] * streams
 
     @property
     def enabled(self) -> bool:
@@ -85,7 +85,7 @@ class SafetyMonitor:
         """A movement has begun: the stall clock starts from the robot's state now."""
         self._robot, self._index = robot, index
         self._rate_hz = float(robot.control_rate_hz)
-        self._ref_t = np.full(len(self._seen), float(robot.state.timestamp_s))
+        self._ref_t = [float(robot.state.timestamp_s)] * len(self._seen)
         self._seen = list(self.flow.stall_counts)
         self.flow.force_violation = None
         if self.watchdog is not None:
@@ -125,22 +125,22 @@ class SafetyMonitor:
         stall_s = self.stall_s
         if stall_s is not None:
             now = float(robot.state.timestamp_s)
-            oldest = float(self._ref_t.min())
+            ref_t = self._ref_t
+            oldest = min(ref_t)
             fed = False
             for k, seen in enumerate(flow.stall_counts):
                 if seen != self._seen[k]:
-                    fed = fed or float(self._ref_t[k]) <= oldest  # the most silent one spoke
+                    fed = fed or ref_t[k] <= oldest  # the most silent stream spoke
                     self._seen[k] = seen
-                    self._ref_t[k] = now
+                    ref_t[k] = now
             if fed and self.watchdog is not None:
                 self.watchdog.fed()
-            silent = int(np.argmin(self._ref_t))
-            if now - float(self._ref_t[silent]) >= stall_s - _EPS_S:
+            oldest = min(ref_t)
+            if now - oldest >= stall_s - _EPS_S:
                 robot.halt(FORCE_STREAM_STALLED)
-                cid, channel = flow.stall_streams[silent]
-                self._record(FORCE_STREAM_STALLED, now,
-                             silent_s=now - float(self._ref_t[silent]), stall_s=stall_s,
-                             stream=f"{cid}/{channel}")
+                cid, channel = flow.stall_streams[ref_t.index(oldest)]
+                self._record(FORCE_STREAM_STALLED, now, silent_s=now - oldest,
+                             stall_s=stall_s, stream=f"{cid}/{channel}")
                 return FORCE_STREAM_STALLED
         return ""
 
@@ -166,7 +166,7 @@ class SafetyMonitor:
             if times.size:
                 last = len(step_t) - 1
                 arrivals[np.minimum(np.searchsorted(step_t, times - _EPS_S), last)] = True
-            ref_t = float(self._ref_t[k])
+            ref_t = self._ref_t[k]
             refs = np.maximum(np.maximum.accumulate(np.where(arrivals, step_t, ref_t)), ref_t)
             self._batch_ref_t[k] = float(refs[-1])
             stalls = stalls or bool(np.any(step_t - refs >= stall_s - _EPS_S))
@@ -174,7 +174,7 @@ class SafetyMonitor:
 
     def batch_committed(self) -> None:
         """A look-ahead batch that :meth:`batch_needs_replay` passed was committed."""
-        self._ref_t = np.maximum(self._ref_t, self._batch_ref_t)
+        self._ref_t = [max(a, b) for a, b in zip(self._ref_t, self._batch_ref_t, strict=True)]
         self._seen = list(self.flow.stall_counts)
 
     def _record(self, reason: str, robot_time_s: float, **extra: Any) -> None:
