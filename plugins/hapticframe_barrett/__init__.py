@@ -13,6 +13,8 @@ from this package only when first used.
 - :class:`PuckHost` / :class:`BarrettHandHost`: wake, identify, GET/SET with bounded waits
   counted in a ``DeviceHealth``, group position polls that report missing pucks, hand
   commands.
+- :class:`CanPort` / :class:`PacedCanPort` / :class:`EmulatedCanPort`: the channel and clock
+  a host is handed; the port decides how a wait lets time pass (real or emulated pucks).
 """
 
 from __future__ import annotations
@@ -58,13 +60,16 @@ __all__ = [
     "WAM_NODES",
     "BarrettError",
     "BarrettHandHost",
+    "CanPort",
     "Cmd",
+    "EmulatedCanPort",
     "EmulatedPuck",
     "Group",
     "MalformedReply",
     "Mode",
     "MoveResult",
     "Node",
+    "PacedCanPort",
     "PositionPoll",
     "PropertyReply",
     "PropertyTable",
@@ -90,6 +95,7 @@ __all__ = [
 ]
 
 _HOMES = {
+    **dict.fromkeys(("CanPort", "EmulatedCanPort", "PacedCanPort"), "._bus"),
     **dict.fromkeys(("FAULT_KINDS", "EmulatedPuck", "PuckBus", "hand_pucks", "wam_pucks"),
                     "._emulator"),
     **dict.fromkeys(("BarrettError", "BarrettHandHost", "MalformedReply", "MoveResult",
