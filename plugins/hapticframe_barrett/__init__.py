@@ -19,8 +19,7 @@ from this package only when first used.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._protocol import (
     CAN_ERR_BUSOFF,
@@ -102,13 +101,4 @@ _HOMES = {
                      "PositionPoll", "PuckHost", "ReplyTimeout", "WakeResult"), "._host"),
 }
 
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(home, __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES)

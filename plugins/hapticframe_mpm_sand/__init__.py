@@ -9,8 +9,7 @@ checks needs the ``physics`` extra (``newton``). See docs/physics-world.md.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import MpmSandRobotConfig
 from ._library import ResponseLibrary, fit_power_law, load_library, save_library
@@ -32,8 +31,4 @@ _LAZY = {
     "engine_available": "._engine",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
