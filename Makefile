@@ -19,6 +19,8 @@ DEMO_EXTRAS ?= plots
 EXTRAS ?= all,test,lint
 TORCH_INDEX ?=
 ARGS ?=
+# pytest-xdist workers for `make test` (auto: one per CPU); WORKERS=0 runs in this process.
+WORKERS ?= auto
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEMO_STAMP := $(VENV)/.installed-demo
@@ -31,7 +33,7 @@ demo: $(DEMO_STAMP)
 	$(BIN)/hapticframe run examples/search-ellipse.yaml --out runs/demo --overwrite
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q $(ARGS)
+	$(BIN)/python -m pytest -q -n $(WORKERS) $(ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

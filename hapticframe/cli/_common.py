@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from hapticframe._defaults import LIVE_PORT
+
 __all__ = [
     "LIVE_PORT",
     "SUMMARY_METRICS",
@@ -213,9 +215,6 @@ def port_arg(text: str) -> int:
         raise argparse.ArgumentTypeError("must be 0 (any free port) ... 65535")
     return value
 
-
-#: The live page's port when --port is not given (kept here: the parser imports nothing).
-LIVE_PORT = 8765
 
 
 def add_port_option(p: argparse.ArgumentParser) -> None:

@@ -17,6 +17,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from hapticframe._defaults import LIVE_PORT
 from hapticframe._errors import UsageError
 from hapticframe.live._state import LiveState, MessageQueue, RecordingTimeline
 
@@ -28,8 +29,8 @@ __all__ = ["LiveFeed", "LiveServer", "TimelineFeed"]
 _log = logging.getLogger("hapticframe.live")
 
 STATIC = Path(__file__).parent / "static"
-#: The default port of ``--live`` and ``view`` (the CLI's ``LIVE_PORT``).
-DEFAULT_PORT = 8765
+#: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
+DEFAULT_PORT = LIVE_PORT
 
 
 class Feed(Protocol):

@@ -67,6 +67,7 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 
 from hapticframe._atomic import output_error
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe._version import __version__
 from hapticframe.record import _foxglove
@@ -292,7 +293,7 @@ class RunRecording:
         # Snapshots (contract B): set by configure_snapshots, the run's settings.
         self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
         self.snapshot_spacing_m = SNAPSHOT_SPACING_M
-        self.outline_level = 0.6
+        self.outline_level = OUTLINE_LEVEL
         self._next_snapshot_s = -math.inf
         self._next_pose_s: dict[str, float] = {}
         self._scene_written = False
@@ -427,7 +428,7 @@ class RunRecording:
         return self._now_s
 
     def configure_snapshots(self, rate_hz: float, spacing_m: float,
-                            outline_level: float = 0.6) -> None:
+                            outline_level: float = OUTLINE_LEVEL) -> None:
         """Snapshots and poses per second of model time (0: none), the snapshots' grid
         spacing (metres) and the level of the estimated outline drawn with them."""
         self.snapshot_rate_hz = float(rate_hz)

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe import plotting
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe.record import _foxglove
 from hapticframe.record._recording import _check_magic, _records, find_recording
@@ -222,19 +223,19 @@ def truth_of(recording: Recording) -> Truth:
 
 
 def _estimate_level(recording: Recording, map_id: str) -> float:
-    """The level of the map's recorded estimated outline (0.6, the thesis's, by default)."""
+    """The level of the map's recorded estimated outline (``OUTLINE_LEVEL`` by default)."""
     for _, update in reversed(recording.messages.get("/scene", [])):
         for entity in update.get("entities", []):
             if entity.get("id") == f"estimate/{map_id}":
                 meta = {p.get("key"): p.get("value") for p in entity.get("metadata", [])}
                 try:
-                    return float(meta.get("level", 0.6))
+                    return float(meta.get("level", OUTLINE_LEVEL))
                 except ValueError:
-                    return 0.6
+                    return OUTLINE_LEVEL
     config = recording.config()
     run = config.get("run") if config else None
     level = run.get("outline_level") if isinstance(run, dict) else None
-    return float(level) if isinstance(level, (int, float)) else 0.6
+    return float(level) if isinstance(level, (int, float)) else OUTLINE_LEVEL
 
 
 def _truth_and_region(axes: Axes, truth: Truth) -> None:

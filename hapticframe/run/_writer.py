@@ -11,6 +11,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from hapticframe._defaults import OUTLINE_LEVEL
+
 if TYPE_CHECKING:
     from hapticframe._scene import Scene
     from hapticframe.kinds import (
@@ -67,7 +69,7 @@ class RecordingWriter(Protocol):
     def health(self, counters: Mapping[str, Mapping[str, int]]) -> None: ...
 
     def configure_snapshots(self, rate_hz: float, spacing_m: float,
-                            outline_level: float = 0.6) -> None: ...
+                            outline_level: float = OUTLINE_LEVEL) -> None: ...
 
     def snapshot_due(self, t_s: float | None = None) -> bool: ...
 

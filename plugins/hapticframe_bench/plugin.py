@@ -29,7 +29,7 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     )
     yield BenchSpec(
         name="search-scenes",
-        summary="Haptic search beyond Table 3.2 (issue 19): an L-shape, a 5-point star, and "
+        summary="Haptic search beyond Table 3.2: an L-shape, a 5-point star, and "
         "two and three objects at once, every object scored.",
         factory="hapticframe_bench._search:run_search_scenes",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
@@ -37,20 +37,20 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     yield BenchSpec(
         name="search-devices",
         summary="Haptic search through emulated FT 300 + BNO055 and the force observer "
-        "beside the pure simulation (issue 14): accuracy, per-step cost, calibration, health.",
+        "beside the pure simulation: accuracy, per-step cost, calibration, health.",
         factory="hapticframe_bench._search_devices:run_search_devices",
         install_hint="pip install 'hapticframe[hardware]'  (pyserial for the emulated ports)",
     )
     yield BenchSpec(
         name="search-dynamixel",
         summary="Haptic search on a whole emulated rig: a Dynamixel gantry, FT 300, BNO055 "
-        "and the force observer, the sandbox following the gantry (issue 15).",
+        "and the force observer, the sandbox following the gantry.",
         factory="hapticframe_bench._search_dynamixel:run_search_dynamixel",
         install_hint="pip install 'hapticframe[hardware]'  (dynamixel-sdk, pyserial)",
     )
     yield BenchSpec(
         name="fuzz",
-        summary="Mutants of the examples (issue 16): each refused at validate with located "
+        summary="Mutants of the examples: each refused at validate with located "
         "issues, or run to a clean end; --trials mutants (default 320).",
         factory="hapticframe_bench._fuzz:run_fuzz",
     )
@@ -74,10 +74,32 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint=_LEARN_HINT,
     )
     yield BenchSpec(
+        name="raking-real",
+        summary="Real raking data (Chen et al., IROS 2024): our raking-estimator against the "
+        "authors' trained LSTMs on their 20 test trials, per input set (issue 27).",
+        factory="hapticframe_bench._raking_real:run_raking_real",
+        install_hint="pip install 'hapticframe[learn,tables]'  (torch trains ours; h5py reads "
+        "theirs)",
+    )
+    yield BenchSpec(
+        name="raking-jamming",
+        summary="The force/force-rate jamming rule on real raking data: calibrated on 80 "
+        "trials, first-flag distance and far false alarms on 20, force against distance.",
+        factory="hapticframe_bench._raking_jamming:run_raking_jamming",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
+        name="raking-map",
+        summary="Where the 20 real raking test trials place the object: the distance-estimate "
+        "sensor model against the fixed distance of the failure zone's rule.",
+        factory="hapticframe_bench._raking_map:run_raking_map",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "
-        "220,000 samples against PyEMD (issue 18).",
+        "220,000 samples against PyEMD.",
         factory="hapticframe_bench._emd_fidelity:run_emd_fidelity",
         install_hint="pip install 'hapticframe[learn]' EMD-signal  (PyEMD for the cross-check)",
     )

@@ -39,7 +39,8 @@ def _sample() -> tuple[Mutant, ...]:
 @pytest.mark.parametrize("index", range(SAMPLE))
 def test_a_sample_of_mutants_is_refused_or_runs_cleanly(tmp_path: Path, index: int) -> None:
     mutant = _sample()[index]
-    outcome = check_mutant(mutant, tmp_path / "m")
+    # One movement is enough to see an accepted mutant run to a clean end (the bench runs 3).
+    outcome = check_mutant(mutant, tmp_path / "m", max_movements=1)
     failures = [] if outcome.ok else [
         (mutant.example, mutant.change, outcome.status, outcome.detail)]
     assert not failures, failures
