@@ -15,7 +15,7 @@ from hapticframe._config import Experiment
 from hapticframe.record._recording import open_run_recording
 from hapticframe.run import _run
 from hapticframe.run._results import RunSummary
-from hapticframe.run._scope import RecordingOpener
+from hapticframe.run._writer import RecordingOpener
 
 __all__ = ["run_experiment"]
 

@@ -43,9 +43,10 @@ from hapticframe.run._evaluate import score_run
 from hapticframe.run._loop import run_loop
 from hapticframe.run._results import RunSummary, environment
 from hapticframe.run._safety import FORCE_LIMIT
-from hapticframe.run._scope import RecordingOpener, device_health, run_scope
+from hapticframe.run._scope import device_health, run_scope
 from hapticframe.run._session import Session
 from hapticframe.run._train import fit_before_run
+from hapticframe.run._writer import RecordingOpener
 
 __all__ = ["RunSummary", "run_experiment"]
 

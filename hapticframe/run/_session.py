@@ -13,13 +13,16 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hapticframe._config import Experiment, RunSettings
 from hapticframe._session_view import SessionView
 from hapticframe.kinds import Component, MovementResult
 from hapticframe.run._components import Components
 from hapticframe.run._streams import TraceRecorder
+
+if TYPE_CHECKING:
+    from hapticframe.run._writer import RecordingWriter
 
 __all__ = ["Session"]
 
@@ -37,9 +40,9 @@ class Session:
     results_dir: Path | None = None
     movements: list[MovementResult] = field(default_factory=list)
     recorder: TraceRecorder = field(default_factory=TraceRecorder)
-    #: The run's ``run.mcap`` writer (:class:`~hapticframe.record._recording.RunRecording`), or
-    #: None when ``run.record`` is off.
-    recording: Any = None
+    #: The run's recording writer (``run.mcap``'s, handed in by the caller), or None when
+    #: ``run.record`` is off or no writer was given.
+    recording: RecordingWriter | None = None
     #: Entries for ``run.json``'s ``details`` (training, sensor reads, ...).
     details: dict[str, Any] = field(default_factory=dict)
     started: float = field(default_factory=time.perf_counter)
