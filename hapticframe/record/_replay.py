@@ -336,6 +336,5 @@ def replay_run(
                 if cid not in rebuilt:
                     session.component_metrics[cid] = dict(own)
         scope.save(metrics)
-    summary = RunSummary(metrics)
-    summary.out_dir = scope.out
+    summary = RunSummary(metrics, scope.out)
     return summary

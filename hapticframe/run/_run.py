@@ -133,6 +133,5 @@ def run_experiment(
         if health:
             metrics["devices"] = health
         scope.save(metrics)
-    summary = RunSummary(metrics)
-    summary.out_dir = scope.out
+    summary = RunSummary(metrics, scope.out)
     return summary

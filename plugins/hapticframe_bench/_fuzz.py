@@ -330,7 +330,7 @@ def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
         "wall_time_s": time.perf_counter() - started,
     }
     atomic_write(out_dir / "fuzz.json", json.dumps(summary, indent=2) + "\n")
-    lines = ["# Fuzzing the examples (issue 16)", "",
+    lines = ["# Fuzzing the examples", "",
              f"{len(outcomes)} mutants, seed {options.seed}: "
              + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
              + f"; {len(failures)} failures; {summary['wall_time_s']:.0f} s.", ""]

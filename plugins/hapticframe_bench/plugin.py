@@ -93,7 +93,7 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     yield BenchSpec(
         name="raking-real",
         summary="Real raking data (Chen et al., IROS 2024): our raking-estimator against the "
-        "authors' trained LSTMs on their 20 test trials, per input set (issue 27).",
+        "authors' trained LSTMs on their 20 test trials, per input set.",
         factory="hapticframe_bench._raking_real:run_raking_real",
         install_hint="pip install 'hapticframe[learn,tables]'  (torch trains ours; h5py reads "
         "theirs)",
