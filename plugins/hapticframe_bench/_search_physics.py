@@ -69,7 +69,7 @@ SANDBOX_DEFAULTS = {
     "depth_decrement_ratio": 0.5,
 }
 #: Table 3.1 (Jia 2022): rupture distance at the four depths, eta at n = 0, the schedule.
-TABLE_3_1 = {
+TABLE_3_1: dict[str, Any] = {
     "rupture_distance_m": {0.044: 0.072, 0.034: 0.055, 0.029: 0.047, 0.0265: 0.043},
     "sector_half_angle_deg": 50.0,
     "initial_depth_m": 0.044,
@@ -140,7 +140,7 @@ def calibrate_in_world(out_dir: Path, seed: int, shapes: Sequence[str] = SHAPES,
         (0.0, REGION_WIDTH_M, 0.0, REGION_HEIGHT_M), tuple(shapes))
     fits: dict[str, dict[str, float]] = {}
     arrays: dict[str, list[np.ndarray]] = {k: [] for k in ("p", "h", "d", "m", "s")}
-    outlines = []
+    outlines: list[np.ndarray] = []
     movement_base = 0
     for shape in shapes:
         placement = placements[shape][0]
@@ -265,8 +265,8 @@ def render_physics_markdown(summary: Mapping[str, Any]) -> str:
             lines.append(
                 f"| {shape} | {world} | {label} | {_fmt(tuple(row['ems_phase1']))} | "
                 f"{_fmt(tuple(row['ems_phase2']))} | {_fmt(tuple(row['object_interactions']))} | "
-                f"{_fmt(row['centroid_rmse_cm'], ' cm')} | {_fmt(tuple(row['hausdorff_cm']), ' cm')} "
-                f"| {found} |")
+                f"{_fmt(row['centroid_rmse_cm'], ' cm')} | "
+                f"{_fmt(tuple(row['hausdorff_cm']), ' cm')} | {found} |")
     lines += ["", "Lengths are over the runs that found the object; interactions over every "
               "completed run.", "", "## Calibrated in the world, against Table 3.1 and the "
               "analytic sandbox's defaults", "",
