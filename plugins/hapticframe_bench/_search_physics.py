@@ -18,7 +18,8 @@ jamming ahead of the object and contact; then
   jamming force threshold floored at the free-sand drag, ``calibration_force_floor:
   free-drag``), the larger of the two fits per threshold kept;
 - the failure-zone kernel's rupture distance, sector angle and depth schedule are fitted
-  from the same recordings (:func:`hapticframe_failure_zone.fit_failure_zone`).
+  from the same recordings (``python -m hapticframe_failure_zone.fit_runs``:
+  :func:`hapticframe_failure_zone.fit_failure_zone`).
 
 Outputs in ``options.out_dir``: ``sandbox/``, ``mpm/`` and ``mpm-calibrated/`` (each a
 ``bench search`` report with its trial runs), ``calibration/`` (the recordings, the trained
@@ -132,41 +133,26 @@ def calibrate_in_world(out_dir: Path, seed: int, shapes: Sequence[str] = SHAPES,
     stays below them), the failure-zone fit over all recordings, and the ``--set`` texts
     that apply both to a search.
     """
-    from hapticframe_failure_zone import fit_failure_zone
+    from hapticframe_failure_zone.fit_runs import fit_recorded_runs
 
     out_dir.mkdir(parents=True, exist_ok=True)
     placements = draw_placements(
         np.random.default_rng(seed + CALIBRATION_SEED_OFFSET), 1,
         (0.0, REGION_WIDTH_M, 0.0, REGION_HEIGHT_M), tuple(shapes))
     fits: dict[str, dict[str, float]] = {}
-    arrays: dict[str, list[np.ndarray]] = {k: [] for k in ("p", "h", "d", "m", "s")}
-    outlines: list[np.ndarray] = []
-    movement_base = 0
+    recorded_runs = []
     for shape in shapes:
         placement = placements[shape][0]
         recorded = out_dir / f"recorded-{shape}"
         echo(f"calibration: recording a search for a {shape} in {WORLD} into {recorded}")
         _record(placement.scene_objects(), seed + CALIBRATION_SEED_OFFSET, recorded)
         fits[shape] = _train(recorded, out_dir / f"jamming-{shape}")
-        trace = np.load(recorded / "trace.npz")
-        truth = np.load(recorded / "ground_truth.npz")
-        arrays["p"].append(trace["robot/arm/position_m"])
-        arrays["h"].append(trace["robot/arm/heading_rad"])
-        arrays["d"].append(truth["depth_m"])
-        arrays["s"].append(truth["state"])
-        movement = truth["movement_index"].astype(np.int64)
-        # Depth schedules restart per search: fit_failure_zone's schedule reads the first.
-        arrays["m"].append(movement + movement_base)
-        movement_base += int(movement.max()) + 1 if movement.size else 0
-        scene = hapticframe.Scene.model_validate(
-            json.loads((recorded / "run.json").read_text())["resolved_config"]["scene"])
-        outlines.extend(o.outline() for o in scene.objects)
+        recorded_runs.append(recorded)
     combined = {k: max(f[k] for f in fits.values()) for k in _THRESHOLDS}
     combined["contact_force_n"] = max(combined["contact_force_n"], combined["jamming_force_n"])
     combined["contact_rate_n_per_s"] = max(combined["contact_rate_n_per_s"],
                                            combined["jamming_rate_n_per_s"])
-    kernel = fit_failure_zone(*(np.concatenate(arrays[k]) for k in ("p", "h", "d", "m", "s")),
-                              outlines)
+    kernel = fit_recorded_runs(recorded_runs)
     atomic_write(out_dir / "failure-zone-fit.json",
                  json.dumps(kernel.as_dict(), indent=2) + "\n")
     overrides = [f"jamming.{k}={v!r}" for k, v in combined.items()]

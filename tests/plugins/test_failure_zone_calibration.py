@@ -68,3 +68,11 @@ def test_refuses_recordings_without_jamming_onset() -> None:
         fit_failure_zone(bad, head, dep, mov, state, outlines)
     with pytest.raises(ValueError, match="outline"):
         fit_failure_zone(pos, head, dep, mov, state, [])
+
+
+def test_fit_runs_names_a_run_that_is_not_a_recording(tmp_path, capsys) -> None:
+    from hapticframe_failure_zone.fit_runs import main
+
+    assert main([str(tmp_path / "missing"), "--out", str(tmp_path / "fit.json")]) == 2
+    assert "missing: not a recorded run" in capsys.readouterr().err
+    assert not (tmp_path / "fit.json").exists()
