@@ -17,7 +17,7 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``search-scenes``, ``search-devices``,
+    """Yield the suites: ``search``, ``search-scenes``, ``search-physics``, ``search-devices``,
     ``search-dynamixel``, ``fuzz``, ``perception``, ``perception-real``,
     ``biotac-calibration``, ``bhm``, ``latency`` and
     ``emd-fidelity``."""
@@ -33,6 +33,13 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         summary="Haptic search beyond Table 3.2: an L-shape, a 5-point star, and "
         "two and three objects at once, every object scored.",
         factory="hapticframe_bench._search:run_search_scenes",
+        install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="search-physics",
+        summary="Table 3.2 in the mpm-sand world (Newton MPM response library): today's "
+        "defaults, models calibrated there, Table 3.1's parameters, beside the sandbox.",
+        factory="hapticframe_bench._search_physics:run_search_physics",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
     )
     yield BenchSpec(
