@@ -42,6 +42,7 @@ from hapticframe.record._recording import (
     open_run_recording,
 )
 from hapticframe.run._assembly import LEAVE_OUT, Substitute, build_components
+from hapticframe.run._channels import LOOP, METRICS, MOVEMENT, ROBOT_STATE, SENSOR
 from hapticframe.run._components import Components
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._evaluate import score_run
@@ -94,13 +95,12 @@ def read_timeline(path: Path) -> Recorded:
             out.metadata = dict(record.metadata)
         elif isinstance(record, Message) and record.channel_id in channels:
             topic = channels[record.channel_id]
-            if topic in ("/loop", "/movement"):
+            if topic in (LOOP.name, MOVEMENT.name):
                 out.timeline.append((topic, json.loads(record.data)))
-            elif topic == "/metrics":
+            elif topic == METRICS.name:
                 out.metrics = json.loads(record.data)
-            elif topic.startswith("/robot/") and topic.endswith("/state"):
-                rows.setdefault(topic[len("/robot/"):-len("/state")], []).append(
-                    json.loads(record.data))
+            elif (robot_id := ROBOT_STATE.id_of(topic)) is not None:
+                rows.setdefault(robot_id, []).append(json.loads(record.data))
     out.cut = stop[0] if stop else ""
     for robot_id, messages in rows.items():
         def column(name: str, messages: list[dict[str, Any]] = messages) -> np.ndarray:
@@ -114,7 +114,7 @@ def read_timeline(path: Path) -> Recorded:
 
 
 def _recorded_sensor_error(path: Path, missing: list[str], topics: set[str]) -> UsageError:
-    held = sorted(t[len("/sensor/"):] for t in topics if t.startswith("/sensor/"))
+    held = sorted(i for t in topics if (i := SENSOR.id_of(t)) is not None)
     return UsageError(
         f"{path} has no recorded samples of sensor{'s' if len(missing) > 1 else ''} "
         f"{', '.join(repr(m) for m in missing)}; it holds "
@@ -138,7 +138,7 @@ def build_replay_components(
                 raise RunError("the 'recording' sensor (hapticframe_recording) is not "
                                "installed; reinstall hapticframe")
             config: Any = spec.spec.config.model_validate(
-                {"file": str(recording), "topic": f"/sensor/{entry.id}"})
+                {"file": str(recording), "topic": SENSOR.topic(entry.id)})
             return Substitute(spec.spec.load_factory(), config, "recording")
         if entry.kind in REBUILT or entry.kind is Kind.SENSOR:
             return None  # as configured
@@ -184,7 +184,7 @@ class _Replayer:
     def run(self) -> None:
         flow, session = self.flow, self.session
         for topic, data in self.recorded.timeline:
-            if topic == "/movement":
+            if topic == MOVEMENT.name:
                 self.movement(data)
                 continue
             self.push(data.get("counts") or {})
@@ -291,13 +291,13 @@ def replay_run(
     say = echo if echo is not None else (lambda _text: None)
     path = find_recording(Path(source))
     recorded = read_timeline(path)
-    if not any(topic == "/loop" for topic, _ in recorded.timeline):
+    if not any(topic == LOOP.name for topic, _ in recorded.timeline):
         raise UsageError(
             f"{path} holds no /loop events: it was recorded before replay was possible, or "
             "cut before its first movement; record the run again with this version")
     training = frozenset(experiment.model.run.train_from.values())
     missing = [e.id for e in experiment.of_kind(Kind.SENSOR)
-               if e.id not in training and f"/sensor/{e.id}" not in recorded.topics]
+               if e.id not in training and SENSOR.topic(e.id) not in recorded.topics]
     if missing:
         raise _recorded_sensor_error(path, missing, recorded.topics)
     started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
