@@ -21,6 +21,7 @@ rebuilt (robots, the planner, the replaced sensors: the run's ``/metrics``), lis
 from __future__ import annotations
 
 import json
+import logging
 import math
 from collections.abc import Callable, Mapping
 from contextlib import ExitStack
@@ -53,7 +54,9 @@ from hapticframe.run._scope import CloseErrorHandler, run_scope
 from hapticframe.run._session import Session
 from hapticframe.run._train import fit_before_run
 
-__all__ = ["Recorded", "read_timeline", "replay_run"]
+__all__ = ["Recorded", "read_timeline", "replay_run", "replay_warnings"]
+
+_log = logging.getLogger("hapticframe.replay")
 
 #: The kinds a replay rebuilds from the ``--with`` experiment (sensors become recordings).
 REBUILT = (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER, Kind.SENSOR_MODEL, Kind.MAP)
@@ -246,6 +249,37 @@ def _note_force(session: Session, force_n: float) -> None:
         session.max_measured_force_n = force_n if math.isnan(previous) else max(previous, force_n)
 
 
+def replay_warnings(recorded: Recorded, experiment: Experiment,
+                    training: frozenset[str]) -> list[str]:
+    """What makes the replay's figures differ from a rerun of the recorded run: a cut
+    recording, a streamed sensor the ``--with`` experiment names another type than the
+    recorded run did, another scene (the figures are scored against the ``--with`` one)."""
+    warnings = []
+    if recorded.cut:
+        warnings.append(f"{recorded.path} is cut ({recorded.cut}): the replay covers only "
+                        "the movements it holds, and its figures are those of a shorter run")
+    try:
+        config = json.loads(recorded.metadata.get("config", ""))
+    except ValueError:
+        config = None
+    if not isinstance(config, dict):
+        return warnings
+    resolved = experiment.resolved_config()
+    recorded_types = {s.get("id"): s.get("type") for s in config.get("sensors") or []
+                      if isinstance(s, dict)}
+    for entry in experiment.of_kind(Kind.SENSOR):
+        was = recorded_types.get(entry.id)
+        if entry.id not in training and was is not None and was != entry.type:
+            warnings.append(
+                f"sensor {entry.id!r} was a {was!r} in the recorded run, the --with "
+                f"experiment names a {entry.type!r}: its recorded samples stand in for it, "
+                "and the chain built for the other type reads them")
+    if "scene" in config and config.get("scene") != resolved.get("scene"):
+        warnings.append("the --with experiment's scene is not the recorded run's: the "
+                        "replay is scored against the --with scene")
+    return warnings
+
+
 def _carried(recorded: Recorded, rebuilt: set[str], metrics: dict[str, Any]
              ) -> dict[str, Any]:
     """The run's metrics of components not rebuilt, and of robots and devices."""
@@ -300,6 +334,9 @@ def replay_run(
                if e.id not in training and SENSOR.topic(e.id) not in recorded.topics]
     if missing:
         raise _recorded_sensor_error(path, missing, recorded.topics)
+    warnings = replay_warnings(recorded, experiment, training)
+    for warning in warnings:  # the CLI prints them as `warning: ...` lines
+        _log.warning("%s", warning)
     started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
     head = {"status": "running", "command": "replay", "replayed_from": str(path),
             "experiment_file": str(experiment.file), "started_utc": started_utc}
@@ -313,6 +350,8 @@ def replay_run(
         session.details["replayed_from"] = str(path)
         if recorded.cut:
             session.details["replayed_cut"] = recorded.cut
+        if warnings:
+            session.details["replay_warnings"] = warnings
         fit_before_run(session)
         flow = Dataflow(experiment, components, session.recorder, training)
         flow.recording = session.recording

@@ -46,6 +46,7 @@ from hapticframe.run._safety import FORCE_LIMIT
 from hapticframe.run._scope import RecordingOpener, device_health, run_scope
 from hapticframe.run._session import Session
 from hapticframe.run._train import fit_before_run
+from hapticframe.run._verdict import RunInconclusive, inconclusive_reasons
 
 __all__ = ["RunSummary", "run_experiment"]
 
@@ -109,6 +110,10 @@ def run_experiment(
     RunError
         When the run fails, or a component's ``close()`` raises; ``run.json`` then records
         the failure (exit status 1).
+    RunInconclusive
+        (a :class:`RunError`) The run ended but its figures are no result: its sensors
+        delivered (almost) nothing, or a safety check halted every movement. Its files are
+        written; ``run.json`` says ``failed`` and why (exit status 1).
     RunInterrupted
         On Ctrl-C (SIGINT) or SIGTERM while running; ``run.json`` records
         ``status: interrupted`` and the signal (exit status 130 or 143).
@@ -132,6 +137,11 @@ def run_experiment(
         if health:
             metrics["devices"] = health
         scope.save(metrics)
+        reasons = inconclusive_reasons(session)
+        if reasons:
+            # Every file is kept for inspection; run.json says failed, and why.
+            session.details["no_result"] = reasons
+            raise RunInconclusive(reasons, metrics)
     summary = RunSummary(metrics)
     summary.out_dir = scope.out
     return summary
