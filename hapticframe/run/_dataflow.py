@@ -105,6 +105,48 @@ class Dataflow:
             i for i in self.sensors
             if any(info.unit == "N" for info in components.sensors[i].channels.values())
         ]
+        #: The force streams the stall check watches, ``(component id, channel)``: what the
+        #: classifiers consume (the nearest force channels upstream of each: a force
+        #: observer's output, not the sensors it reads), else the force sensors' own; and
+        #: the valid, finite samples committed on each (the check watches them grow).
+        self.stall_streams = self._classified_force_streams() or [
+            (i, name) for i in self.force_sensors
+            for name, info in components.sensors[i].channels.items() if info.unit == "N"
+        ]
+        self.stall_counts = [0] * len(self.stall_streams)
+
+    def _channels_of(self, cid: str) -> Mapping[str, Any] | None:
+        if cid in self.sensors:
+            return self.components.sensors[cid].channels
+        if cid in self.extractors:
+            return self.components.feature_extractors[cid].output_channels
+        return None
+
+    def _classified_force_streams(self) -> list[tuple[str, str]]:
+        """For each classifier, the force channels (unit ``N``) nearest upstream of it: an
+        input's own, or, for an extractor without one, those its inputs feed it."""
+        streams: list[tuple[str, str]] = []
+
+        def visit(cid: str, seen: set[str]) -> None:
+            channels = self._channels_of(cid)
+            if channels is None or cid in seen:
+                return
+            seen.add(cid)
+            forces = [(cid, name) for name, info in channels.items() if info.unit == "N"]
+            if not forces and cid in self.extractors:
+                for upstream in self.entries[cid].inputs:
+                    visit(upstream, seen)
+            streams.extend(f for f in forces if f not in streams)
+
+        for clf_id in self.classifiers:
+            for cid in self.entries[clf_id].inputs:
+                visit(cid, set())
+        return streams
+
+    def stall_arrivals(self, outputs: Mapping[str, SampleBatch]) -> list[NDArray[np.float64]]:
+        """The timestamps of the valid, finite samples of each of :attr:`stall_streams` in
+        ``outputs`` (what :meth:`read_and_classify` made)."""
+        return [_usable_times(outputs[cid], name) for cid, name in self.stall_streams]
 
     @property
     def recording(self) -> RecordingWriter | None:
@@ -232,6 +274,8 @@ class Dataflow:
                     self.poses[sensor_id].add_batch(batch)
         for fe_id in self.extractors:
             self._record_batch("feature_extractor", fe_id, outputs[fe_id])
+        for k, times in enumerate(self.stall_arrivals(outputs)):
+            self.stall_counts[k] += len(times)
         for clf_id in self.classifiers:
             probs = classified[clf_id]
             if len(probs):
@@ -477,3 +521,22 @@ def _last_label(probs: ClassProbabilities) -> int:
     of the last row (rows are finite, checked by the record)."""
     row: list[float] = probs.probabilities[-1].tolist()
     return row.index(max(row))
+
+
+_NO_TIMES: NDArray[np.float64] = np.empty(0)
+
+
+def _usable_times(batch: SampleBatch, channel: str) -> NDArray[np.float64]:
+    """The timestamps of ``batch``'s valid samples of ``channel`` whose values are finite."""
+    n = len(batch)
+    if not n:
+        return _NO_TIMES
+    values = batch.channels[channel]
+    valid = batch.valid.get(channel)
+    if n == 1 and values.size <= 3:  # a closed loop's one sample: plain floats are faster
+        ok = all(math.isfinite(v) for v in values.ravel().tolist())
+        return batch.timestamps_s if ok and (valid is None or bool(valid[0])) else _NO_TIMES
+    usable = np.all(np.isfinite(values.reshape(n, -1)), axis=1)
+    if valid is not None:
+        usable &= valid
+    return np.asarray(batch.timestamps_s[usable], dtype=np.float64)
