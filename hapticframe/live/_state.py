@@ -22,6 +22,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe._defaults import OUTLINE_LEVEL
+from hapticframe.run._channels import (
+    CLASSIFIER,
+    MAP_GRID,
+    METRICS,
+    MOVEMENT,
+    ROBOT_STATE,
+    SAFETY_HALT,
+    SCENE,
+    SENSOR,
+)
 
 __all__ = [
     "END_TOPIC",
@@ -233,27 +243,26 @@ class LiveState:
         self.version += 1
         if topic != END_TOPIC:
             self.t_s = max(self.t_s, float(t_s))
-        parts = topic.strip("/").split("/")
         try:
             if topic == END_TOPIC:
                 self.status = str(data.get("status", "ended"))
                 self.reason = str(data.get("reason") or "")
                 self._metrics(data.get("metrics"))
-            elif topic == "/scene":
+            elif topic == SCENE.name:
                 self._scene(data)
-            elif parts[0] == "map" and len(parts) == 3 and parts[2] == "grid":
-                self._grid(parts[1], t_s, data)
-            elif parts[0] == "robot" and len(parts) == 3 and parts[2] == "state":
-                self._robot(parts[1], data)
-            elif parts[0] == "sensor" and len(parts) == 2:
-                self._sensor(parts[1], data)
-            elif parts[0] == "classifier" and len(parts) == 2:
-                self._classifier(parts[1], data)
-            elif topic == "/movement":
+            elif (map_id := MAP_GRID.id_of(topic)) is not None:
+                self._grid(map_id, t_s, data)
+            elif (robot_id := ROBOT_STATE.id_of(topic)) is not None:
+                self._robot(robot_id, data)
+            elif (sensor_id := SENSOR.id_of(topic)) is not None:
+                self._sensor(sensor_id, data)
+            elif (classifier_id := CLASSIFIER.id_of(topic)) is not None:
+                self._classifier(classifier_id, data)
+            elif topic == MOVEMENT.name:
                 self.movements.append(dict(data))
-            elif topic == "/safety_halt":
+            elif topic == SAFETY_HALT.name:
                 self.halts.append(str(data.get("reason", "")))
-            elif topic == "/metrics":
+            elif topic == METRICS.name:
                 self._metrics(data.get("metrics"))
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             self.errors[topic] = f"{type(exc).__name__}: {exc}"
@@ -497,7 +506,7 @@ class RecordingTimeline:
     def evaluated_map(self) -> str | None:
         """The map the run scored (its final ``/metrics``), the one the page shows first."""
         for topic, _, data in reversed(self.messages):
-            if topic == "/metrics":
+            if topic == METRICS.name:
                 metrics = data.get("metrics")
                 found = metrics.get("evaluated_map") if isinstance(metrics, Mapping) else None
                 return found if isinstance(found, str) else None

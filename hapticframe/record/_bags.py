@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from hapticframe._errors import UsageError
+from hapticframe.run._channels import SENSOR
 from hapticframe.run._results import OutputDir, environment
 
 __all__ = [
@@ -495,7 +496,7 @@ def describe(result: BagImport) -> list[str]:
                          "receive time used")
         if s["skipped_without_finger"]:
             notes.append(f"{s['skipped_without_finger']} without finger {s.get('finger')}")
-        lines.append(f"  {s['topic']} ({s['type']}) -> /sensor/{sid}: {s['samples']} samples"
+        lines.append(f"  {s['topic']} ({s['type']}) -> {SENSOR.topic(sid)}: {s['samples']} samples"
                      + (f" ({'; '.join(notes)})" if notes else ""))
     lines.append(f"wrote {result.out / 'run.mcap'}: {result.messages} messages, "
                  f"{result.duration_s:.3f} s from {_utc(result.start_time_ns)}")

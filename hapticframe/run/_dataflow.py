@@ -25,6 +25,7 @@ from hapticframe.kinds import (
     SampleBatch,
     Sensor,
 )
+from hapticframe.run._channels import LOOP, MapSnapshot, RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._streams import InputAligner, PoseHistory, TraceRecorder, _merge_exact
 
@@ -39,7 +40,7 @@ class Dataflow:
     force_violation: tuple[float, float] | None = None
     valid_force_samples: int = 0
     #: The run's recording (see :attr:`recording`); maps changed since the last snapshot.
-    _recording: Any = None
+    _recording: RecordingWriter | None = None
     _maps_changed = False
 
     def __init__(
@@ -53,7 +54,9 @@ class Dataflow:
         self.recorder = recorder
         # Map snapshots in the recording (run.snapshot_*), with the scene they lie in.
         run = experiment.model.run
-        self._snapshots = (run.snapshot_rate_hz, run.snapshot_spacing_m, run.outline_level)
+        self._snapshot_rate_hz = run.snapshot_rate_hz
+        self._snapshot_spacing_m = run.snapshot_spacing_m
+        self._outline_level = run.outline_level
         self.scene = experiment.model.scene
         self.recording = None
         self.entries: dict[str, ComponentEntry] = {e.id: e for e in experiment.components}
@@ -146,17 +149,17 @@ class Dataflow:
         return [_usable_times(outputs[cid], name) for cid, name in self.stall_streams]
 
     @property
-    def recording(self) -> Any:
+    def recording(self) -> RecordingWriter | None:
         """The run's ``run.mcap`` (:class:`~hapticframe.record._recording.RunRecording`), fed the
         same data as ``recorder`` as it happens; None when the run records none. Setting
-        one configures its map snapshots and writes the scene into it."""
+        one configures its map snapshots' rate and writes the scene into it."""
         return self._recording
 
     @recording.setter
-    def recording(self, recording: Any) -> None:
+    def recording(self, recording: RecordingWriter | None) -> None:
         self._recording = recording
         if recording is not None:
-            recording.configure_snapshots(*self._snapshots)
+            recording.configure_snapshots(self._snapshot_rate_hz)
             recording.scene(self.scene)
 
     def _plan_sensor_models(self) -> None:
@@ -350,7 +353,7 @@ class Dataflow:
         if self.recording is None:
             return
         when = self._now_s if t_s is None else float(t_s)
-        self.recording.later("/loop", "hapticframe.LoopEvent", {
+        self.recording.later(LOOP.name, LOOP.schema, {
             "event": event, "t_s": when, "counts": dict(self.counts),
             "keep_force": keep_force}, when)
 
@@ -379,7 +382,9 @@ class Dataflow:
             return
         self._maps_changed = False
         for map_id in self.maps:
-            recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
+            recording.map_snapshot(MapSnapshot.of(
+                map_id, self.components.maps[map_id], recording.now_s,
+                self._snapshot_spacing_m, self._outline_level))
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):

@@ -38,12 +38,12 @@ from typing import TYPE_CHECKING, Any
 from hapticframe._atomic import OutputError
 from hapticframe._errors import HapticframeError, RunError, RunInterrupted
 from hapticframe.devices import DeviceError
+from hapticframe.run._channels import METRICS, RecordingOpener, RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._loop import devices_of
 from hapticframe.run._results import OutputDir, run_record, save_outputs
 from hapticframe.run._safety import stop_robots
 from hapticframe.run._session import Session
-from hapticframe.run._writer import RecordingOpener, RecordingWriter
 
 if TYPE_CHECKING:
     from hapticframe._config import Experiment
@@ -191,7 +191,7 @@ class RunScope:
         says and each component's own part of it), ``trace.npz`` and ``metrics.json``."""
         session = self._session()
         if session.recording is not None:
-            session.recording.event("/metrics", "hapticframe.RunMetrics", {
+            session.recording.event(METRICS.name, METRICS.schema, {
                 "metrics": dict(metrics), "components": session.component_metrics})
         save_outputs(session, metrics)
         self.succeed()

@@ -13,16 +13,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from hapticframe._config import Experiment, RunSettings
 from hapticframe._session_view import SessionView
 from hapticframe.kinds import Component, MovementResult
+from hapticframe.run._channels import RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._streams import TraceRecorder
-
-if TYPE_CHECKING:
-    from hapticframe.run._writer import RecordingWriter
 
 __all__ = ["Session"]
 

@@ -28,6 +28,7 @@ from hapticframe.live import (
 from hapticframe.live._state import WINDOW_S
 from hapticframe.record._foxglove import grid_message
 from hapticframe.record._recording import RunRecording, listening, read_recording
+from hapticframe.run._channels import MapSnapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -201,9 +202,9 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
     state = LiveState(clock=FakeClock())
     recording = RunRecording(tmp_path / "run.mcap", clock=FakeClock())
     recording.add_listener(state.fold)
-    recording.configure_snapshots(5.0, 0.05)
+    recording.configure_snapshots(5.0)
     recording.scene(scene)
-    recording.map_snapshot("ramp", cast(Any, _Ramp()), 0.2)
+    recording.map_snapshot(MapSnapshot.of("ramp", cast(Any, _Ramp()), 0.2, 0.05, 0.6))
     frame = state.frame()
     assert frame["scene"]["region"] == [[0.0, 0.0], [0.5, 0.0], [0.5, 0.25], [0.0, 0.25]]
     [circle] = frame["scene"]["objects"]
@@ -221,7 +222,8 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
             n = len(np.asarray(points_m))
             return MapEstimate(np.full(n, 0.5), np.full(n, 0.3))
 
-    recording.map_snapshot("ramp", cast(Any, Empty()), 0.4)  # nothing above 0.6: the outline goes
+    # nothing above 0.6: the outline goes
+    recording.map_snapshot(MapSnapshot.of("ramp", cast(Any, Empty()), 0.4, 0.05, 0.6))
     recording.close()
     later = state.frame()["maps"]["ramp"]
     assert later["version"] == 2 and later["outline"] == [] and later["outline_source"] == "none"

@@ -42,8 +42,10 @@ def test_an_imu_dropout_halts_the_rig_on_the_observer_stream(tmp_path):
     path = tmp_path / "imu-dropout.yaml"
     path.write_text(yaml.safe_dump(data))
     code = main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"])
-    assert code == 0
     run = json.loads((tmp_path / "out" / "run.json").read_text())
+    # Its only movement halted by the stall check: no result (exit 1), its files kept.
+    assert code == 1 and run["status"] == "failed"
+    assert "halted by a safety check" in run["error"]
     halts = run["details"].get("safety_halts", [])
     assert halts, "the arm raked on while the classifier's force was invalid"
     first = halts[0]
