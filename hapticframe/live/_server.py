@@ -4,41 +4,96 @@ The page (``static/``: plain HTML, CSS and JavaScript, nothing fetched from else
 a websocket on ``/ws`` and gets a frame (see :class:`~hapticframe.live._state.LiveState`)
 whenever the picture has changed, at most :attr:`LiveServer.rate_hz` times a second. A
 live feed drains the run's :class:`~hapticframe.live._state.MessageQueue` in the server's
-thread; a recording's feed answers the slider's ``{"t_s": ...}`` messages.
+thread; a recording's feed answers the slider's ``{"t_s": ...}`` messages, each page at its
+own time.
+
+Only the person who started it may read it (:mod:`hapticframe.live._access`: Host, Origin
+and the session's token on every request), and no page slows the run: a frame is encoded
+once for every page, a page that has not taken the last frame yet misses the next ones, and
+one that takes nothing for :attr:`LiveServer.stuck_s` is disconnected. Frames are strict
+JSON (a non-finite number is ``null``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import math
+import socket
 import threading
+import time
+from collections import OrderedDict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from hapticframe._errors import UsageError
+from hapticframe.live._access import AccessPolicy, new_token
 from hapticframe.live._state import LiveState, MessageQueue, RecordingTimeline
 
 if TYPE_CHECKING:
     from aiohttp import web
 
-__all__ = ["LiveFeed", "LiveServer", "TimelineFeed"]
+__all__ = ["LiveFeed", "LiveServer", "TimelineFeed", "strict_json"]
 
 _log = logging.getLogger("hapticframe.live")
 
 STATIC = Path(__file__).parent / "static"
 #: The default port of ``--live`` and ``view`` (the CLI's ``LIVE_PORT``).
 DEFAULT_PORT = 8765
+#: The kernel's send buffer of a page's connection (Linux doubles it): a few frames.
+SEND_BUFFER_BYTES = 256 * 1024
+#: Headers on every answer: no other site may frame the page, and its address (with the
+#: token) goes nowhere as a referrer.
+SECURITY_HEADERS = {
+    "Cache-Control": "no-store",
+    "Content-Security-Policy": "frame-ancestors 'none'",
+    "Referrer-Policy": "no-referrer",
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+}
 
 
-class Feed(Protocol):
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
+def strict_json(value: Any) -> str:
+    """``value`` as compact, strict JSON: NaN and infinities become ``null``."""
+    try:
+        return json.dumps(value, separators=(",", ":"), allow_nan=False)
+    except ValueError:  # rare: walk it only then
+        return json.dumps(_finite(value), separators=(",", ":"), allow_nan=False)
+
+
+class Cursor(Protocol):
+    """One page's view of a feed."""
+
+    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
+        """``(key, frame)``: the picture at ``t_s`` (None: now, or the end); the same key
+        means the same picture."""
+        ...
+
+
+class Feed(Cursor, Protocol):
     """Where a page's frames come from."""
 
     mode: str
 
-    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
-        """``(version, frame)``: the picture at ``t_s`` (None: now, or the start)."""
+    def cursor(self) -> Cursor:
+        """A position of its own for one page (its slider moves no one else's)."""
+        ...
+
+    def time_error(self, t_s: float) -> str | None:
+        """Why a page may not ask for time ``t_s`` (finite, a float), or None."""
         ...
 
 
@@ -79,24 +134,53 @@ class LiveFeed:
         self.pump()
         return self.state.version, self.state.frame()
 
+    def cursor(self) -> LiveFeed:
+        """Every page sees the run now: one picture for all."""
+        return self
+
+    def time_error(self, t_s: float) -> str | None:
+        return None  # a live page has no slider: a time is ignored
+
+
+class _TimelineCursor:
+    """One page's position on a recording's timeline."""
+
+    def __init__(self, feed: TimelineFeed) -> None:
+        self.feed = feed
+        self.timeline = RecordingTimeline(feed.timeline.messages)
+
+    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
+        when = self.timeline.end_s if t_s is None else float(t_s)
+        frame = self.timeline.frame_at(when)
+        frame["name"] = self.feed.name
+        # A new time is a new frame even when nothing happened between the two times.
+        return hash((self.timeline.state_at(when).version, when)) & 0x7FFFFFFF, frame
+
 
 class TimelineFeed:
-    """A recording's picture at the slider's time."""
+    """A recording's picture at the slider's time; each page has its own time
+    (:meth:`cursor`)."""
 
     mode = "view"
 
     def __init__(self, timeline: RecordingTimeline, name: str = "") -> None:
         self.timeline = timeline
         self.name = name
-        self._versions: dict[float, int] = {}
+        self._default = _TimelineCursor(self)
+
+    def cursor(self) -> _TimelineCursor:
+        return _TimelineCursor(self)
 
     def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
-        when = self.timeline.end_s if t_s is None else float(t_s)
-        state = self.timeline.state_at(when)
-        frame = self.timeline.frame_at(when)
-        frame["name"] = self.name
-        # A new time is a new frame even when nothing happened between the two times.
-        return hash((state.version, when)) & 0x7FFFFFFF, frame
+        """The picture at ``t_s`` (for one-off requests: ``GET /frame``)."""
+        return self._default.frame(t_s)
+
+    def time_error(self, t_s: float) -> str | None:
+        start, end = self.timeline.start_s, self.timeline.end_s
+        slack = 1e-9 * max(1.0, abs(start), abs(end))
+        if not start - slack <= t_s <= end + slack:
+            return f"t_s={t_s!r} is outside the recording ({start:.6g} ... {end:.6g} s)"
+        return None
 
 
 class LiveServer:
@@ -114,15 +198,34 @@ class LiveServer:
         asked gives the page 5-8 while the run's thread holds the GIL most of the time, and
         keeps a page rendering on the same 2 cores within the loop's 10 % (20 cost it 10-11 %;
         measured: docs/benchmarks.md, "The live view").
+    token : str, optional
+        The session's token, which every request but the page's files must carry (default:
+        a fresh random one; :attr:`url` holds it).
+    stuck_s : float
+        A page that has not taken a frame sent this long ago is disconnected (until then
+        it misses the frames that come meanwhile).
     """
 
     def __init__(self, feed: Feed, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 rate_hz: float = 15.0) -> None:
+                 rate_hz: float = 15.0, *, token: str | None = None,
+                 stuck_s: float = 30.0) -> None:
         self.feed = feed
         self.host = host
         self.port = port
         self.rate_hz = rate_hz
+        self.token = token or new_token()
+        self.stuck_s = stuck_s
         self.frames_sent = 0
+        #: Pictures encoded as JSON (once each, however many pages get them).
+        self.frames_encoded = 0
+        #: Frames a page missed because it had not taken the one before yet.
+        self.frames_skipped = 0
+        #: Pages disconnected for taking nothing for ``stuck_s``.
+        self.pages_dropped = 0
+        #: Requests refused (Host, Origin or token), and time values refused.
+        self.refused = 0
+        self._access: AccessPolicy | None = None
+        self._encoded: OrderedDict[int, str] = OrderedDict()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._runner: web.AppRunner | None = None
         self._thread: threading.Thread | None = None
@@ -133,7 +236,8 @@ class LiveServer:
 
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/"
+        """The page's address, with the session's token (what the command prints)."""
+        return f"http://{self.host}:{self.port}/?token={self.token}"
 
     # --- life cycle --------------------------------------------------------------------------
 
@@ -199,7 +303,12 @@ class LiveServer:
         from aiohttp import web
 
         self._stopping = asyncio.Event()
-        app = web.Application()
+
+        @web.middleware
+        async def guard(request: web.Request, handler: Any) -> web.StreamResponse:
+            return await self._guard_request(request, handler)
+
+        app = web.Application(middlewares=[guard])
         app.router.add_get("/", self._index)
         app.router.add_get("/frame", self._frame)
         app.router.add_get("/ws", self._websocket)
@@ -217,6 +326,7 @@ class LiveServer:
         sockets = getattr(server, "sockets", None) or []
         if sockets:
             self.port = int(sockets[0].getsockname()[1])
+        self._access = AccessPolicy(self.host, self.port, self.token)
         self._started.set()
         pump = getattr(self.feed, "pump", None)
         try:
@@ -234,57 +344,157 @@ class LiveServer:
 
     # --- handlers ----------------------------------------------------------------------------
 
+    async def _guard_request(self, request: web.Request, handler: Any) -> web.StreamResponse:
+        from aiohttp import web
+
+        access = self._access
+        refusal = "the server is starting" if access is None else access.refusal(
+            request.path, request.query, request.headers)
+        if refusal is not None:
+            self.refused += 1
+            _log.warning("live view: refused %s %s: %s", request.method, request.path, refusal)
+            return web.Response(status=403, text=refusal + "\n", headers=SECURITY_HEADERS)
+        response: web.StreamResponse = await handler(request)
+        if not response.prepared:  # a websocket has sent its headers already
+            response.headers.update(SECURITY_HEADERS)
+        return response
+
+    def _parse_time(self, raw: Any) -> tuple[float | None, str | None]:
+        """``(t_s, None)`` for a time a page may ask for (None: now), else ``(None, why)``."""
+        if raw is None:
+            return None, None
+        if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+            return None, f"t_s={raw!r} is not a number"
+        try:
+            value = float(raw)
+        except ValueError:
+            return None, f"t_s={raw!r} is not a number"
+        if not math.isfinite(value):
+            return None, f"t_s={raw!r} is not a finite number"
+        error = self.feed.time_error(value)
+        return (None, error) if error else (value, None)
+
+    def _encode(self, key: int, frame: dict[str, Any]) -> str:
+        """The frame as the JSON text every page gets, encoded once per picture."""
+        text = self._encoded.get(key)
+        if text is None:
+            text = strict_json({"mode": self.feed.mode, **frame})
+            self.frames_encoded += 1
+            self._encoded[key] = text
+            while len(self._encoded) > 16:
+                self._encoded.popitem(last=False)
+        else:
+            self._encoded.move_to_end(key)
+        return text
+
     async def _index(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
-        return web.FileResponse(STATIC / "index.html",
-                                headers={"Cache-Control": "no-store"})
+        return web.FileResponse(STATIC / "index.html")
 
     async def _frame(self, request: web.Request) -> web.StreamResponse:
         """One frame as JSON (``?t_s=`` for a recording): for scripts and tests."""
         from aiohttp import web
 
-        raw = request.query.get("t_s")
-        try:
-            t_s = None if raw is None else float(raw)
-        except ValueError:
-            raise web.HTTPBadRequest(text=f"t_s={raw!r} is not a number") from None
-        _, frame = self.feed.frame(t_s)
-        return web.json_response({"mode": self.feed.mode, **frame})
+        t_s, error = self._parse_time(request.query.get("t_s"))
+        if error is not None:
+            self.refused += 1
+            raise web.HTTPBadRequest(text=error + "\n")
+        key, frame = self.feed.frame(t_s)
+        return web.Response(text=self._encode(key, frame), content_type="application/json")
 
     async def _websocket(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import WSMsgType, web
 
-        ws = web.WebSocketResponse(heartbeat=10.0)
+        # No compression: on 127.0.0.1 it would only cost the run's CPU, once per page.
+        ws = web.WebSocketResponse(heartbeat=10.0, compress=False)
         await ws.prepare(request)
         self._sockets.add(ws)
+        cursor = self.feed.cursor()
         wanted: list[float | None] = [None]
+        replies: list[str] = []
 
         async def receive() -> None:
             async for message in ws:
-                if message.type == WSMsgType.TEXT:
-                    try:
-                        value = json.loads(message.data).get("t_s")
-                        wanted[0] = None if value is None else float(value)
-                    except (ValueError, TypeError, AttributeError):
-                        continue
+                if message.type != WSMsgType.TEXT:
+                    continue
+                try:
+                    asked = json.loads(message.data)
+                except ValueError:
+                    replies.append("a message that is not JSON")
+                    continue
+                if not isinstance(asked, dict) or "t_s" not in asked:
+                    replies.append("a message without t_s")
+                    continue
+                value, error = self._parse_time(asked["t_s"])
+                if error is not None:  # this page's time stays where it was
+                    self.refused += 1
+                    replies.append(error)
+                else:
+                    wanted[0] = value
 
         reader = asyncio.ensure_future(receive())
+        transport = request.transport
+        connection = None if transport is None else transport.get_extra_info("socket")
+        if connection is not None:
+            # A bounded send buffer: a page that stops reading shows within a few frames
+            # (and costs the kernel little) instead of after megabytes.
+            with contextlib.suppress(OSError):
+                connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         sent = None
+        waiting_since: float | None = None  # when this page last failed to take a frame
         period = 1.0 / self.rate_hz
         try:
             while not ws.closed and not reader.done():
-                key, frame = self.feed.frame(wanted[0])
+                while replies:
+                    if not await self._send(ws, transport, strict_json(
+                            {"error": replies.pop(0)})):
+                        return ws
+                key, frame = cursor.frame(wanted[0])
                 if key != sent:
-                    await ws.send_str(json.dumps({"mode": self.feed.mode, **frame},
-                                                 separators=(",", ":")))
-                    self.frames_sent += 1
-                    sent = key
+                    if transport is None or transport.is_closing():
+                        break
+                    if transport.get_write_buffer_size() > 0:
+                        # The page has not taken the last frame: it misses this one, and
+                        # goes once it has taken nothing for stuck_s.
+                        now = time.monotonic()
+                        waiting_since = waiting_since or now
+                        self.frames_skipped += 1
+                        if now - waiting_since > self.stuck_s:
+                            self._drop(transport)
+                            break
+                    else:
+                        waiting_since = None
+                        if not await self._send(ws, transport, self._encode(key, frame)):
+                            break
+                        self.frames_sent += 1
+                        sent = key
                 await asyncio.sleep(period)
         except (ConnectionError, RuntimeError):
             pass  # the page went away
         finally:
             self._sockets.discard(ws)
             reader.cancel()
-            await ws.close()
+            if transport is not None and transport.is_closing():
+                pass  # dropped or gone: no closing handshake to wait for
+            else:
+                await ws.close()
         return ws
+
+    async def _send(self, ws: web.WebSocketResponse, transport: asyncio.Transport | None,
+                    text: str) -> bool:
+        """Send ``text``; False when the page took too long (then it is disconnected)."""
+        try:
+            await asyncio.wait_for(ws.send_str(text), self.stuck_s)
+        except asyncio.TimeoutError:
+            if transport is not None:
+                self._drop(transport)
+            return False
+        return True
+
+    def _drop(self, transport: asyncio.Transport) -> None:
+        """Disconnect a page that takes nothing (without a closing handshake it would
+        never answer)."""
+        self.pages_dropped += 1
+        _log.warning("live view: a page took no frame for %g s; disconnected it", self.stuck_s)
+        transport.abort()
