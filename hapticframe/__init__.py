@@ -7,9 +7,10 @@ components and runs them. Everything scientific lives in plugins.
 
 from __future__ import annotations
 
-import importlib
 import logging
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe._lazy import lazy_exports as lazy_exports
 
 # The library logs through `logging` and configures no output: the application (the
 # `hapticframe` command, a notebook, a lab's script) decides what is shown.
@@ -28,6 +29,7 @@ _LAZY = {
     "Experiment": "hapticframe._config",
     "ExperimentError": "hapticframe._errors",
     "Finding": "hapticframe._config",
+    "Size": "hapticframe._config",
     "OutputError": "hapticframe._atomic",
     "apply_overrides": "hapticframe._config._overrides",
     "validate_with_overrides": "hapticframe._config._overrides",
@@ -64,118 +66,64 @@ _LAZY = {
     "Source": "hapticframe._registry",
     "UsageError": "hapticframe._errors",
     "__version__": "hapticframe._version",
+    "lazy_exports": "hapticframe._lazy",
     "get_plugin_manager": "hapticframe._manager",
     "get_registry": "hapticframe._manager",
     "hookimpl": ".hookspecs",
     "make_plugin_manager": "hapticframe._manager",
-    "run_experiment": "hapticframe.run._run",
+    "run_experiment": "hapticframe.record._recorded",
     "validate_file": "hapticframe._config",
     "validate_mapping": "hapticframe._config",
 }
 
-__all__ = [
-    "BenchOptions",
-    "BenchSpec",
-    "BrokenPlugin",
-    "Circle",
-    "ClassifierSpec",
-    "ComponentView",
-    "Ellipse",
-    "Experiment",
-    "ExperimentError",
-    "FeatureExtractorSpec",
-    "Finding",
-    "HapticframeError",
-    "Issue",
-    "Kind",
-    "Knob",
-    "MapSpec",
-    "Material",
-    "OutputError",
-    "PlannerSpec",
-    "PluginConfig",
-    "PluginConflictError",
-    "PluginError",
-    "PluginImportError",
-    "PluginSpec",
-    "Polygon",
-    "RegionConfig",
-    "Registered",
-    "Registry",
-    "RobotSpec",
-    "RunError",
-    "RunInterrupted",
-    "RunSettings",
-    "RunSummary",
-    "Scene",
-    "SensorModelSpec",
-    "SensorSpec",
-    "SessionView",
-    "Source",
-    "UsageError",
-    "ValidationContext",
-    "__version__",
-    "apply_overrides",
-    "atomic_path",
-    "atomic_write",
-    "get_plugin_manager",
-    "get_registry",
-    "hookimpl",
-    "make_plugin_manager",
-    "run_experiment",
-    "save_npz",
-    "validate_file",
-    "validate_mapping",
-    "validate_with_overrides",
-]
+__all__ = sorted(_LAZY)
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'hapticframe' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module, __name__), name)
-    globals()[name] = value
-    return value
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
-
-if TYPE_CHECKING:  # static type checkers see the real imports
-    from hapticframe._config import Experiment, RunSettings, validate_file, validate_mapping
-    from hapticframe._errors import (
-        ExperimentError,
-        HapticframeError,
-        Issue,
-        PluginConflictError,
-        PluginError,
-        PluginImportError,
-        RunError,
-        RunInterrupted,
-        UsageError,
-    )
-    from hapticframe._kind import Kind
-    from hapticframe._manager import get_plugin_manager, get_registry, make_plugin_manager
-    from hapticframe._registry import BrokenPlugin, Registered, Registry, Source
-    from hapticframe._scene import Circle, Ellipse, Material, Polygon, RegionConfig, Scene
-    from hapticframe._session_view import SessionView
-    from hapticframe._specs import (
-        BenchSpec,
-        ClassifierSpec,
-        FeatureExtractorSpec,
-        Knob,
-        MapSpec,
-        PlannerSpec,
-        PluginConfig,
-        PluginSpec,
-        RobotSpec,
-        SensorModelSpec,
-        SensorSpec,
-    )
-    from hapticframe._version import __version__
-    from hapticframe.cli._bench import BenchOptions
-    from hapticframe.hookspecs import hookimpl
-    from hapticframe.run._results import RunSummary
-    from hapticframe.run._run import run_experiment
+if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit re-export)
+    from hapticframe._config import Experiment as Experiment
+    from hapticframe._config import RunSettings as RunSettings
+    from hapticframe._config import validate_file as validate_file
+    from hapticframe._config import validate_mapping as validate_mapping
+    from hapticframe._errors import ExperimentError as ExperimentError
+    from hapticframe._errors import HapticframeError as HapticframeError
+    from hapticframe._errors import Issue as Issue
+    from hapticframe._errors import PluginConflictError as PluginConflictError
+    from hapticframe._errors import PluginError as PluginError
+    from hapticframe._errors import PluginImportError as PluginImportError
+    from hapticframe._errors import RunError as RunError
+    from hapticframe._errors import RunInterrupted as RunInterrupted
+    from hapticframe._errors import UsageError as UsageError
+    from hapticframe._kind import Kind as Kind
+    from hapticframe._manager import get_plugin_manager as get_plugin_manager
+    from hapticframe._manager import get_registry as get_registry
+    from hapticframe._manager import make_plugin_manager as make_plugin_manager
+    from hapticframe._registry import BrokenPlugin as BrokenPlugin
+    from hapticframe._registry import Registered as Registered
+    from hapticframe._registry import Registry as Registry
+    from hapticframe._registry import Source as Source
+    from hapticframe._scene import Circle as Circle
+    from hapticframe._scene import Ellipse as Ellipse
+    from hapticframe._scene import Material as Material
+    from hapticframe._scene import Polygon as Polygon
+    from hapticframe._scene import RegionConfig as RegionConfig
+    from hapticframe._scene import Scene as Scene
+    from hapticframe._session_view import SessionView as SessionView
+    from hapticframe._specs import BenchSpec as BenchSpec
+    from hapticframe._specs import ClassifierSpec as ClassifierSpec
+    from hapticframe._specs import FeatureExtractorSpec as FeatureExtractorSpec
+    from hapticframe._specs import Knob as Knob
+    from hapticframe._specs import MapSpec as MapSpec
+    from hapticframe._specs import PlannerSpec as PlannerSpec
+    from hapticframe._specs import PluginConfig as PluginConfig
+    from hapticframe._specs import PluginSpec as PluginSpec
+    from hapticframe._specs import RobotSpec as RobotSpec
+    from hapticframe._specs import SensorModelSpec as SensorModelSpec
+    from hapticframe._specs import SensorSpec as SensorSpec
+    from hapticframe._version import __version__ as __version__
+    from hapticframe.cli._bench import BenchOptions as BenchOptions
+    from hapticframe.hookspecs import hookimpl as hookimpl
+    from hapticframe.record._recorded import run_experiment as run_experiment
+    from hapticframe.run._results import RunSummary as RunSummary

@@ -2,8 +2,9 @@
 
 A map that solves small dense systems many times a second runs fastest on one BLAS thread,
 and leaves the other cores to the run loop; :func:`blas_threads` limits BLAS inside a
-``with`` block through ``threadpoolctl`` (a scikit-learn dependency), and does nothing when
-that is not installed or no limit is asked.
+``with`` block through ``threadpoolctl`` (a core dependency: without the limit, BLAS picks its
+own thread count and a map's sums change in their last bits), and does nothing when no limit
+is asked.
 """
 
 from __future__ import annotations

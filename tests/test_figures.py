@@ -215,7 +215,7 @@ def test_an_open_loop_outline_figure_draws_the_fingertip_path() -> None:
     angles = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
     outline = np.column_stack([0.02 + 0.018 * np.cos(angles), 0.018 * np.sin(angles)])
     region = Region(-0.06, 0.1, -0.04, 0.04)
-    figure = draw_outline_figure(region, scene, (), outline, (0.02, 0.0), 0.6, path)
+    figure = draw_outline_figure(region, scene, (), outline, [(0.02, 0.0)], 0.6, path)
     labels = check_figure(figure, "outline.png")
     assert {"true object", "fingertip path", "fingertip", "estimated outline (p = 0.6)"} <= set(
         labels

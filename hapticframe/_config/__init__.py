@@ -10,6 +10,7 @@ from hapticframe._config._model import (
     RunSettings,
     build_experiment_model,
 )
+from hapticframe._config._sizes import ITERATION_LIMIT, MEMORY_LIMIT_BYTES, Size
 from hapticframe._config._validate import (
     validate_data,
     validate_file,
@@ -22,9 +23,12 @@ __all__ = [
     "ComponentView",
     "Experiment",
     "ExperimentRoot",
+    "ITERATION_LIMIT",
+    "MEMORY_LIMIT_BYTES",
     "Finding",
     "LoadedFile",
     "RunSettings",
+    "Size",
     "ValidationContext",
     "build_experiment_model",
     "load_file",

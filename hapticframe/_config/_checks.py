@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 from hapticframe._config._load import LoadedFile
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._config._sizes import Size, format_bytes
 from hapticframe._errors import Issue, PluginImportError
 from hapticframe._kind import Kind
 
@@ -27,8 +29,15 @@ __all__ = [
     "ValidationContext",
     "core_checks",
     "declared_channels",
+    "grid_points",
     "run_validators",
+    "validator_results",
 ]
+
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
 
 
 @dataclass(frozen=True)
@@ -93,6 +102,58 @@ class ValidationContext:
     run: Any
     extra: Mapping[str, Any] = field(default_factory=dict)
 
+    def query_grid_points(self, width_m: float, height_m: float) -> float:
+        """The most points a run queries a map of this size at, at once: its evaluation
+        grid (``run.evaluation_spacing_m``) or, when it records map snapshots, its snapshot
+        grid (``run.snapshot_spacing_m``). For a :class:`Size` of what a query allocates."""
+        spacings = [getattr(self.run, "evaluation_spacing_m", None)]
+        if getattr(self.run, "record", False) and getattr(self.run, "snapshot_rate_hz", 0):
+            spacings.append(getattr(self.run, "snapshot_spacing_m", None))
+        counts = [grid_points(width_m, height_m, s) for s in spacings
+                  if isinstance(s, float) and s > 0]
+        return max(counts, default=1.0)
+
+
+def grid_points(width_m: float, height_m: float, spacing_m: float) -> float:
+    """Cells of a grid of ``spacing_m`` over ``width_m x height_m``, as
+    :func:`hapticframe.geometry.sample_grid` lays them (at least one a side)."""
+    nx = max(1, _ceil(width_m / spacing_m - 1e-9))
+    ny = max(1, _ceil(height_m / spacing_m - 1e-9))
+    return nx * ny
+
+
+def validator_results(
+    validator: Any, config: Any, context: ValidationContext, name: str = "the plugin"
+) -> tuple[list[Finding], list[Size]]:
+    """What ``validator`` yields for ``config``: its findings, and the sizes it declares.
+
+    Raises
+    ------
+    TypeError
+        It yielded something that is neither a :class:`Finding` nor a :class:`Size`.
+    """
+    findings: list[Finding] = []
+    sizes: list[Size] = []
+    for result in validator(config, context) or ():
+        if isinstance(result, Finding):
+            findings.append(result)
+        elif isinstance(result, Size):
+            sizes.append(result)
+        else:
+            raise TypeError(
+                f"the validator of {name} yielded {type(result).__name__}, not a "
+                "hapticframe.Finding or hapticframe.Size"
+            )
+    return findings, sizes
+
+
+def size_findings(sizes: Iterable[Size], findings: Iterable[Finding] = ()) -> list[Finding]:
+    """An error finding for every size over the limits, located at its field; none for a
+    field the validator's own ``findings`` already refuse (its words come first)."""
+    refused = {f.field for f in findings if f.severity == "error"}
+    return [Finding(problem, field=size.field) for size in sizes
+            if size.field not in refused and (problem := size.problem()) is not None]
+
 
 def run_validators(
     entries: Iterable[ComponentEntry], model: Any, loaded: LoadedFile, command: str = "run"
@@ -125,12 +186,10 @@ def run_validators(
             run=getattr(model, "run", None),
             extra={"command": command},
         )
-        for finding in validator(entry.config, context) or ():
-            if not isinstance(finding, Finding):
-                raise TypeError(
-                    f"the validator of {spec.kind} plugin {spec.name!r} yielded "
-                    f"{type(finding).__name__}, not a hapticframe.Finding"
-                )
+        findings, sizes = validator_results(
+            validator, entry.config, context, f"{spec.kind} plugin {spec.name!r}"
+        )
+        for finding in [*findings, *size_findings(sizes, findings)]:
             path = f"{entry.path}.config.{finding.field}" if finding.field else entry.path
             line = loaded.line_of(path) or loaded.line_of(entry.path)
             issue = Issue(path, finding.message, line)
@@ -151,6 +210,9 @@ COARSE_STEP_FRACTION = 0.1
 NEEDS_ROBOT = "needs-robot"
 #: The capability of a planner that reads a map (it plans on it).
 READS_MAP = "reads-map"
+#: The capability of a plugin that simulates the scene (a simulated robot in its sand):
+#: ``validate`` refuses an experiment without one (``scene: null`` included).
+NEEDS_SCENE = "needs-scene"
 
 
 def declared_channels(config: Any) -> frozenset[str] | None:
@@ -200,7 +262,7 @@ def core_checks(
         for path, message in scene.problems():
             report.error(f"scene.{path}", message)
     _check_loop(entries, model.run, report)
-    _check_inputs(entries, model.run, report)
+    _check_inputs(entries, model.run, scene, report)
     _check_run_settings(entries, model.run, scene, report)
     _check_pace(entries, model.run, scene, report)
     return report.errors, report.warnings
@@ -244,8 +306,11 @@ def _check_loop(entries: list[ComponentEntry], run: Any, report: _Report) -> Non
         ))
 
 
-def _check_inputs(entries: list[ComponentEntry], run: Any, report: _Report) -> None:
-    """What each component needs among its inputs, as the run loop reads them."""
+def _check_inputs(
+    entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
+) -> None:
+    """What each component needs among its inputs (and the scene), as the run loop reads
+    them."""
     by_id = {e.id: e for e in entries}
     training = set(run.train_from.values())
     streamed = [e for e in _of(entries, Kind.SENSOR) if e.id not in training]
@@ -255,6 +320,11 @@ def _check_inputs(entries: list[ComponentEntry], run: Any, report: _Report) -> N
         named = f"{entry.kind} {entry.id!r} ({entry.type})"
         if NEEDS_ROBOT in entry.registered.spec.capabilities and Kind.ROBOT not in kinds:
             report.error(where, f"{named} needs a robot among its inputs: name one")
+        if NEEDS_SCENE in entry.registered.spec.capabilities and scene is None:
+            report.error(entry.path, (
+                f"{named} simulates the scene, and the experiment has none: add a 'scene' "
+                "section (region, material, objects)"
+            ))
         if entry.kind in (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER) and not entry.inputs:
             report.error(where, (
                 f"{named} reads sensors or feature extractors: name at least one in inputs"
@@ -377,7 +447,7 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
             if found is not None:
                 region, _ = found
                 length = math.hypot(*_sides(region))
-                steps = math.ceil(length * rate / speed)
+                steps = _ceil(length * rate / speed)
                 if steps > run.max_steps_per_movement:
                     report.error("run.max_steps_per_movement", (
                         f"a line across the planner's region (its diagonal, {length:.4g} m) "
@@ -402,6 +472,8 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                         f"the smallest object's width ({width:.4g} m): the fingertip meets "
                         "it in few steps"
                     ))
+    if len(planners) == 1:
+        _check_workspaces(planners[0], robots, by_id, scene, report)
     evaluated = _evaluated_map(entries, run)
     if objects and evaluated is not None:
         found = _region_of(evaluated, by_id, scene)
@@ -413,18 +485,73 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
             if points > MAX_EVALUATION_POINTS:
                 report.error("run.evaluation_spacing_m", (
                     f"scoring map {entry.id!r} on its {width:.4g} x {height:.4g} m region at "
-                    f"{spacing:g} m spacing takes {points:.3g} grid points; the limit is "
+                    f"{spacing:g} m spacing takes {points:.3g} grid points (about "
+                    f"{format_bytes(points * GRID_POINT_BYTES)}); the limit is "
                     f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
                 ))
+    _check_snapshots(entries, run, scene, report)
+
+
+def _check_workspaces(planner: ComponentEntry, robots: list[ComponentEntry],
+                      by_id: Mapping[str, ComponentEntry], scene: Any, report: _Report) -> None:
+    """A robot whose ``workspace`` misses the planner's region entirely could carry out no
+    movement: every line starts outside it."""
+    found = _region_of(planner, by_id, scene)
+    if found is None:
+        return
+    region, where = found
+    for robot in robots:
+        space = getattr(robot.config, "workspace", None)
+        if space is None or not hasattr(space, "x_max_m"):
+            continue
+        width = min(space.x_max_m, region.x_max_m) - max(space.x_min_m, region.x_min_m)
+        height = min(space.y_max_m, region.y_max_m) - max(space.y_min_m, region.y_min_m)
+        if width <= 0 or height <= 0:
+            report.error(f"{robot.path}.config.workspace", (
+                f"the workspace of robot {robot.id!r} (x {space.x_min_m:g} to "
+                f"{space.x_max_m:g} m, y {space.y_min_m:g} to {space.y_max_m:g} m) lies "
+                f"outside the region planner {planner.id!r} searches ({where}: x "
+                f"{region.x_min_m:g} to {region.x_max_m:g} m, y {region.y_min_m:g} to "
+                f"{region.y_max_m:g} m): every movement would be refused; make them overlap"
+            ))
+
+
+#: Bytes a map query on a grid holds per point: its coordinates, mean and std (float64),
+#: and the recorded grid message.
+GRID_POINT_BYTES = 48
+
+
+def _check_snapshots(entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
+                     ) -> None:
+    """Each map snapshot that ``run.mcap`` records queries its map on a grid of
+    ``run.snapshot_spacing_m``: at most :data:`MAX_EVALUATION_POINTS` points."""
+    if not (run.record and run.snapshot_rate_hz > 0):
+        return
+    by_id = {e.id: e for e in entries}
+    spacing = run.snapshot_spacing_m
+    worst: tuple[float, ComponentEntry, float, float] | None = None
+    for entry in _of(entries, Kind.MAP):
+        found = _region_of(entry, by_id, scene)
+        if found is None:
+            continue
+        width, height = _sides(found[0])
+        points = grid_points(width, height, spacing)
+        if worst is None or points > worst[0]:
+            worst = (points, entry, width, height)
+    if worst is not None and worst[0] > MAX_EVALUATION_POINTS:
+        points, entry, width, height = worst
+        report.error("run.snapshot_spacing_m", (
+            f"a snapshot of map {entry.id!r} on its {width:.4g} x {height:.4g} m region at "
+            f"{spacing:g} m spacing takes {points:.3g} grid points (about "
+            f"{format_bytes(points * GRID_POINT_BYTES)} a snapshot); the limit is "
+            f"{MAX_EVALUATION_POINTS:.3g}: raise run.snapshot_spacing_m, or set "
+            "run.snapshot_rate_hz: 0 to record no snapshots"
+        ))
 
 
 def _evaluated_map(entries: list[ComponentEntry], run: Any) -> ComponentEntry | None:
-    """The map a run scores against the scene, as :mod:`hapticframe.run._evaluate` picks it."""
+    """The map a run scores against the scene (:func:`evaluated_map_id`), None when
+    ``run.evaluation_map`` names no map."""
     maps = {e.id: e for e in _of(entries, Kind.MAP)}
-    if run.evaluation_map is not None:
-        return maps.get(run.evaluation_map)
-    for planner in _of(entries, Kind.PLANNER):
-        for name in planner.inputs:
-            if name in maps:
-                return maps[name]
-    return list(maps.values())[-1] if maps else None
+    chosen = evaluated_map_id(entries, run.evaluation_map)
+    return None if chosen is None else maps.get(chosen)

@@ -182,6 +182,10 @@ class _YamlConverter:
                 return self.constructor.construct_object(node, deep=True)
             except yaml.YAMLError as exc:
                 raise self.fail(node, str(exc).splitlines()[0]) from None
+            except ValueError:  # an integer longer than Python converts (4300 digits)
+                issue = Issue(path, _long_number_message(len(node.value)),
+                              node.start_mark.line + 1)
+                raise ExperimentError(self.file, [issue]) from None
         if isinstance(node, yaml.SequenceNode):
             if node.tag != _SEQ_TAG:
                 raise self.fail(node, f"tag {node.tag!r} is not allowed")
@@ -230,6 +234,27 @@ def _yaml_lines(text: str, file: str) -> tuple[Any, dict[str, int]]:
     converter = _YamlConverter(file)
     data = converter.convert(node, "", 0)
     return data, converter.lines
+
+
+#: A run of digits (TOML and YAML allow underscores between them) longer than Python
+#: converts to an integer (``sys.get_int_max_str_digits()``, 4300 by default).
+_LONG_NUMBER = re.compile(r"[0-9][0-9_]{4299,}")
+
+
+def _long_number_message(digits: int) -> str:
+    limit = getattr(sys, "get_int_max_str_digits", lambda: 4300)()
+    return (f"a number of {digits} digits: Python reads integers of at most {limit} digits, "
+            "and no setting needs one that long")
+
+
+def _long_number_error(text: str, file: str) -> ExperimentError | None:
+    """The located error for the first number too long to convert, or None."""
+    match = _LONG_NUMBER.search(text)
+    if match is None:
+        return None
+    line = text.count("\n", 0, match.start()) + 1
+    digits = len(match.group().replace("_", ""))
+    return ExperimentError(file, [Issue("", _long_number_message(digits), line)])
 
 
 # Strings and comments, whose brackets are not structure. Each pattern matches whatever
@@ -306,7 +331,9 @@ def load_text(text: str, file: str, suffix: str) -> LoadedFile:
                 file, [Issue("", f"JSON syntax error: {exc.msg}", exc.lineno)]
             ) from None
         except ValueError as exc:
-            raise ExperimentError(file, [Issue("", str(exc))]) from None
+            raise _long_number_error(text, file) or ExperimentError(
+                file, [Issue("", str(exc))]
+            ) from None
         try:  # JSON is YAML, so the YAML pass can tell line numbers.
             _, lines = _yaml_lines(text, file)
         except ExperimentError:
@@ -318,6 +345,10 @@ def load_text(text: str, file: str, suffix: str) -> LoadedFile:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ExperimentError(file, [Issue("", f"TOML syntax error: {exc}")]) from None
+        except ValueError as exc:  # an integer longer than Python converts
+            raise _long_number_error(text, file) or ExperimentError(
+                file, [Issue("", f"TOML error: {exc}")]
+            ) from None
         _check_data_depth(data, file)
         return LoadedFile(file, data, {})
     if suffix in (".yaml", ".yml"):

@@ -10,6 +10,8 @@ from typing import Annotated, Any, Literal
 import pluggy
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
 
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import Issue
 from hapticframe._kind import Kind
 from hapticframe._registry import Registered, Registry
@@ -74,7 +76,8 @@ class RunSettings(BaseModel):
         "at a time.",
     )
     outline_level: float = Field(
-        0.6, gt=0, lt=1, description="Occupancy level of the estimated outline (thesis: 0.6)."
+        OUTLINE_LEVEL, gt=0, lt=1,
+        description="Occupancy level of the estimated outline (thesis: 0.6).",
     )
     evaluation_map: _ComponentId | None = Field(
         None,
@@ -281,3 +284,8 @@ class Experiment:
 
     def of_kind(self, kind: Kind) -> list[ComponentEntry]:
         return [c for c in self.components if c.kind is kind]
+
+    def evaluated_map(self) -> str | None:
+        """The id of the map the run scores against the scene (``run.evaluation_map``, else
+        the first map a planner reads, else the last map; see :func:`evaluated_map_id`)."""
+        return evaluated_map_id(self.components, self.model.run.evaluation_map)

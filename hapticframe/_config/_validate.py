@@ -24,6 +24,7 @@ from hapticframe._config._model import (
     Experiment,
     build_experiment_model,
 )
+from hapticframe._config._strict import bool_issues
 from hapticframe._errors import ExperimentError, Issue
 from hapticframe._kind import Kind
 from hapticframe._manager import PluginManager, get_plugin_manager, make_plugin_manager
@@ -118,11 +119,17 @@ def validate_data(
     issues, flagged = _check_types(loaded, registry)
     model_cls = build_experiment_model(registry)
     model = None
+    booleans = [b for b in bool_issues(model_cls, loaded)
+                if not any(b.path == f or b.path.startswith(f + ".") for f in flagged)]
+    issues.extend(booleans)
     try:
         model = model_cls.model_validate(data)
     except ValidationError as exc:
+        refused = {b.path for b in booleans}
         for error in exc.errors(include_url=False):
             issue = _issue_from_pydantic(error, loaded, registry)
+            if issue.path in refused:
+                continue  # said once: the boolean where a number belongs
             if not any(issue.path == f or issue.path.startswith(f + ".") for f in flagged):
                 issues.append(issue)
     if model is not None and not issues:
@@ -199,6 +206,9 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
     i = 0
     while i < len(loc):
         key = loc[i]
+        if isinstance(key, str) and isinstance(raw, list | str | int | float):
+            i += 1  # the label of a union's member (``tuple[...]``, a tag): not in the file
+            continue
         parts.append(key)
         raw = raw.get(key) if isinstance(raw, dict) and isinstance(key, str) else (
             raw[key] if isinstance(raw, list) and isinstance(key, int) and key < len(raw) else None
@@ -215,6 +225,8 @@ def _issue_from_pydantic(error: Mapping[str, Any], loaded: LoadedFile, registry:
         dotted = join_path(dotted, part)
     kind = error["type"]
     message = str(error["msg"])
+    if kind == "value_error":  # a validator's own sentence: pydantic's prefix adds nothing
+        message = message.removeprefix("Value error, ")
     if kind == "extra_forbidden":
         message = f"unknown key {parts[-1]!r}" + _key_suggestion(parts, loaded, registry)
     elif kind == "missing":

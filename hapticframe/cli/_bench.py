@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,8 +12,9 @@ from hapticframe._errors import PluginConflictError, UsageError
 from hapticframe._manager import get_registry
 from hapticframe._registry import BENCHMARK
 from hapticframe._specs import resolve_reference
+from hapticframe.cli._common import add_set_option, out, positive_int
 
-__all__ = ["BenchOptions", "list_benches", "run_bench"]
+__all__ = ["BenchOptions", "list_benches", "register", "run_bench"]
 
 
 @dataclass(frozen=True)
@@ -77,3 +79,36 @@ def run_bench(name: str, options: BenchOptions) -> Any:
     )
     options.out_dir.mkdir(parents=True, exist_ok=True)
     return suite(options)
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``hapticframe bench`` to the command line."""
+    p = sub.add_parser("bench", help="run a benchmark suite (see `hapticframe plugins`)")
+    p.add_argument("name", metavar="NAME", nargs="?", help="the suite to run; none: list them")
+    p.add_argument("--trials", type=positive_int, default=None, help="trials per case")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="bench-out", metavar="DIR")
+    p.add_argument("--quick", action="store_true", help="a reduced run")
+    p.add_argument("--workers", type=positive_int, default=None,
+                   help="processes for independent trials (default: one per CPU)")
+    p.add_argument("--device", default="cpu",
+                   help="where a suite that trains models trains them: cpu (default) or a "
+                   "torch accelerator such as cuda")
+    add_set_option(p, "every experiment the suite runs (suites that run experiment "
+                    "files: search)")
+    p.set_defaults(func=cmd_bench)
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    if args.name is None:
+        for line in list_benches():
+            out(line)
+        return 0
+    options = BenchOptions(
+        out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
+        workers=args.workers, device=args.device, echo=out,
+        overrides=tuple(o.text for o in args.set),
+    )
+    run_bench(args.name, options)
+    return 0
+

@@ -14,6 +14,7 @@ cleans it up afterwards, also after an error.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from enum import Enum
 
 from hapticframe.devices._health import DeviceHealth
@@ -126,6 +127,14 @@ class DeviceLifecycle:
         """Bring the device back after ``error``; raise when it cannot be (default: cannot)."""
         raise error
 
+    def recovery_steps(self, error: Exception) -> Iterator[None]:
+        """One recovery attempt in steps that never wait: yield where the attempt waits for
+        the device or for time to pass (the next :meth:`continue_recovery` goes on from
+        there), return when the device is back, raise when it is not. Default: the whole
+        of :meth:`on_recover` in one step."""
+        self.on_recover(error)
+        yield from ()
+
     # --- transitions -------------------------------------------------------------------
     def _fail(self, what: str, exc: BaseException) -> DeviceError:
         self._set_state(LifecycleState.ERROR)
@@ -186,6 +195,7 @@ class DeviceLifecycle:
             return
         if state is LifecycleState.ACTIVE:
             self.deactivate()
+        self.__dict__["_recovery"] = None  # a recovery under way ends with the link
         self._set_state(LifecycleState.FINALIZED)
         try:
             self.on_cleanup()
@@ -230,6 +240,66 @@ class DeviceLifecycle:
             f"(first error: {error}; last: {last})",
             device_id=self.device_id,
         ) from last
+
+    # --- recovery that never blocks the loop ---------------------------------------------
+    @property
+    def recovering(self) -> bool:
+        """Whether a recovery started by :meth:`begin_recovery` is under way."""
+        return self.__dict__.get("_recovery") is not None
+
+    def begin_recovery(self, error: Exception) -> None:
+        """Start recovering after ``error`` without waiting: each later
+        :meth:`continue_recovery` runs one step of :meth:`recovery_steps` (a read of a
+        recovering device delivers nothing and returns at once). A no-op while recovering.
+
+        Raises
+        ------
+        DeviceError
+            When the device is not configured.
+        """
+        if self.recovering:
+            return
+        state = self.lifecycle_state
+        if state not in (LifecycleState.INACTIVE, LifecycleState.ACTIVE):
+            raise DeviceError(
+                f"device {self.device_id!r} cannot recover from {state.value} "
+                f"(after: {error})",
+                device_id=self.device_id,
+            )
+        self.health.recoveries += 1
+        self.__dict__["_recovery"] = (self.recovery_steps(error), error)
+
+    def continue_recovery(self) -> bool:
+        """One step of the recovery under way; True once the device is back (or when none
+        is under way). A failed attempt starts the next; after ``max_recoveries`` failed
+        attempts in a row the device enters ERROR, is deactivated and
+        :class:`DeviceError` is raised, as from :meth:`recover`."""
+        under_way = self.__dict__.get("_recovery")
+        if under_way is None:
+            return True
+        steps, first = under_way
+        try:
+            next(steps)
+        except StopIteration:
+            self.__dict__["_recovery"] = None
+            self.__dict__["_recovery_streak"] = 0
+            return True
+        except Exception as exc:
+            streak = self.recovery_streak + 1
+            if streak >= self.max_recoveries:
+                self.__dict__["_recovery"] = None
+                self.__dict__["_recovery_streak"] = 0
+                self._set_state(LifecycleState.ERROR)
+                self._deactivate_quietly()
+                raise DeviceError(
+                    f"device {self.device_id!r} did not recover after {self.max_recoveries} "
+                    f"attempts (first error: {first}; last: {exc})",
+                    device_id=self.device_id,
+                ) from exc
+            self.__dict__["_recovery_streak"] = streak
+            self.health.recoveries += 1
+            self.__dict__["_recovery"] = (self.recovery_steps(exc), first)
+        return False
 
     def _deactivate_quietly(self) -> None:
         try:

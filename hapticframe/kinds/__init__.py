@@ -6,7 +6,13 @@ What only some components can do (train, persist, evaluate on a grid) is declare
 :mod:`hapticframe.kinds.capabilities`.
 """
 
-from hapticframe.kinds._base import BuildContext, Component, InputAlignment, RunOutcome
+from hapticframe.kinds._base import (
+    OUTLINE_LEVEL,
+    BuildContext,
+    Component,
+    InputAlignment,
+    RunOutcome,
+)
 from hapticframe.kinds._records import (
     ChannelInfo,
     ClassProbabilities,
@@ -32,7 +38,7 @@ from hapticframe.kinds.capabilities import (
 )
 from hapticframe.kinds.classifier import Classifier
 from hapticframe.kinds.feature_extractor import FeatureExtractor
-from hapticframe.kinds.map import Map
+from hapticframe.kinds.map import Map, query_points
 from hapticframe.kinds.planner import Planner
 from hapticframe.kinds.robot import Robot
 from hapticframe.kinds.sensor import Sensor
@@ -54,6 +60,7 @@ __all__ = [
     "Map",
     "MapEstimate",
     "MovementResult",
+    "OUTLINE_LEVEL",
     "Observations",
     "Persistent",
     "PhysicalTruth",
@@ -69,4 +76,5 @@ __all__ = [
     "SensorModel",
     "Trainable",
     "concatenate_batches",
+    "query_points",
 ]

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._kind import Kind
 from hapticframe.kinds._records import ChannelInfo, MovementResult, Region
 
@@ -21,7 +22,7 @@ if TYPE_CHECKING:
 #: its config nor the experiment's scene gives one.
 DEFAULT_SEARCH_REGION = Region(0.0, 0.75, 0.0, 0.50)
 
-__all__ = ["BuildContext", "Component", "InputAlignment", "RunOutcome"]
+__all__ = ["OUTLINE_LEVEL", "BuildContext", "Component", "InputAlignment", "RunOutcome"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,7 @@ class RunOutcome:
     components: Mapping[str, Component]
     wall_time_s: float
     figures: bool = True
-    outline_level: float = 0.6
+    outline_level: float = OUTLINE_LEVEL
 
 
 #: The ways a consumer's inputs can be aligned (see :class:`InputAlignment`).

@@ -22,12 +22,25 @@ Contract
   and ``halt`` itself. Their device lifecycle is still the run's.
 - :meth:`Robot.execute` is the batch path: it runs one movement to its end and returns the
   states.
+
+What the base does (template method)
+------------------------------------
+:meth:`Robot.begin` resolves the movement's depth (its own, else :attr:`Robot.default_depth_m`),
+refuses a non-positive or non-finite depth and a movement whose start or end lies outside
+:attr:`Robot.workspace` (``ValueError``, before anything moves), then calls the plugin's
+:meth:`Robot._begin` with the checked depth, as scikit-learn's ``fit`` calls ``_fit``. The
+properties ``control_rate_hz`` (``config.control_rate_hz``), ``state`` (``self._state``),
+``halt_reason`` (``self._halt_reason``) and ``workspace`` (``self._workspace``) read the
+attributes a robot keeps; a robot overrides any of them when it keeps that elsewhere.
 """
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from typing import ClassVar
+
+import numpy as np
 
 from hapticframe._kind import Kind
 from hapticframe.kinds._base import Component
@@ -41,19 +54,91 @@ class Robot(Component):
 
     kind: ClassVar[Kind] = Kind.ROBOT
 
+    #: How far (m) a movement's ends may lie outside :attr:`workspace` and still be accepted
+    #: (a robot whose movements are cut at a neighbour's boundary allows for rounding).
+    workspace_slack_m: ClassVar[float] = 0.0
+
+    #: Set by the robot: its latest state (what :attr:`state` returns).
+    _state: RobotState
+    #: Why the last movement stopped early (what :attr:`halt_reason` returns).
+    _halt_reason: str = ""
+    #: The region the fingertip may reach (what :attr:`workspace` returns).
+    _workspace: Region | None = None
+
     @property
-    @abstractmethod
     def control_rate_hz(self) -> float:
-        """Steps per second."""
+        """Steps per second (default: ``config.control_rate_hz``)."""
+        rate = getattr(self.config, "control_rate_hz", None)
+        if rate is None:
+            raise NotImplementedError(
+                f"{type(self).__name__}: its config has no control_rate_hz; override "
+                "Robot.control_rate_hz"
+            )
+        return float(rate)
 
     @property
-    @abstractmethod
     def state(self) -> RobotState:
-        """The latest state."""
+        """The latest state (default: ``self._state``, which the robot keeps up to date)."""
+        try:
+            return self._state
+        except AttributeError:
+            raise NotImplementedError(
+                f"{type(self).__name__}: set self._state in __init__ (or override Robot.state)"
+            ) from None
 
-    @abstractmethod
+    @property
+    def default_depth_m(self) -> float | None:
+        """The depth of a movement that gives none (``depth_m`` None), or None when the
+        robot has no default (then such a movement is refused). Default: ``config.depth_m``
+        when the config has one."""
+        depth = getattr(self.config, "depth_m", None)
+        return None if depth is None else float(depth)
+
     def begin(self, movement: ExploratoryMovement) -> None:
-        """Start ``movement`` from its start point."""
+        """Start ``movement`` from its start point.
+
+        Refuses (``ValueError``, nothing moves) a movement whose depth is not a positive
+        number or whose start or end lies outside :attr:`workspace`; then calls
+        :meth:`_begin` with the movement's depth.
+        """
+        depth = self._checked_depth_m(movement)
+        self._refuse_outside_workspace(movement)
+        self._begin(movement, depth)
+
+    def _checked_depth_m(self, movement: ExploratoryMovement) -> float:
+        """The depth ``movement`` runs at (its own, else :attr:`default_depth_m`); a
+        ``ValueError`` unless it is a positive number."""
+        depth = self.default_depth_m if movement.depth_m is None else float(movement.depth_m)
+        if depth is None:
+            raise ValueError(
+                f"robot {self.id!r}: the movement gives no depth and the robot has no default"
+            )
+        if not (math.isfinite(depth) and depth > 0):
+            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
+        return depth
+
+    def _refuse_outside_workspace(self, movement: ExploratoryMovement) -> None:
+        """``ValueError`` naming the first end of ``movement`` outside :attr:`workspace`."""
+        region = self.workspace
+        if region is None:
+            return
+        ends = np.vstack([movement.start_m, movement.end_m])
+        outside = ends[~region.contains(ends, self.workspace_slack_m)]
+        if len(outside):
+            x, y = outside[0].tolist()
+            raise ValueError(
+                f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, {y:.4g}) m "
+                f"(x {region.x_min_m:g}...{region.x_max_m:g} m, "
+                f"y {region.y_min_m:g}...{region.y_max_m:g} m)"
+            )
+
+    def _begin(self, movement: ExploratoryMovement, depth_m: float) -> None:
+        """Start ``movement`` at ``depth_m`` (already checked: positive, inside the workspace).
+
+        The plugin's hook behind :meth:`begin`; a robot overrides this (or, when it checks
+        movements in its own way, :meth:`begin` itself).
+        """
+        raise NotImplementedError(f"{type(self).__name__} must override Robot._begin")
 
     @abstractmethod
     def step(self) -> RobotState | None:
@@ -67,10 +152,10 @@ class Robot(Component):
     def workspace(self) -> Region | None:
         """The region the fingertip may reach, or None (no limit declared: the default).
 
-        A robot that declares one must refuse, with ``ValueError`` from :meth:`begin`, a
-        movement whose start or end lies outside it (``check_robot_refuses_outside_workspace``).
+        Default: ``self._workspace``. :meth:`begin` refuses, with ``ValueError``, a movement
+        whose start or end lies outside it (``check_robot_refuses_outside_workspace``).
         """
-        return None
+        return self._workspace
 
     @property
     def controlled_robots(self) -> tuple[Robot, ...]:
@@ -84,8 +169,9 @@ class Robot(Component):
 
     @property
     def halt_reason(self) -> str:
-        """Why the last movement stopped early (``""`` if it did not)."""
-        return ""
+        """Why the last movement stopped early (``""`` if it did not; default:
+        ``self._halt_reason``)."""
+        return self._halt_reason
 
     def execute(
         self, movement: ExploratoryMovement, max_steps: int = 1_000_000

@@ -28,6 +28,7 @@ from collections import OrderedDict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from hapticframe._defaults import LIVE_PORT
 from hapticframe._errors import UsageError
 from hapticframe.live._access import AccessPolicy, new_token
 from hapticframe.live._state import LiveState, MessageQueue, RecordingTimeline
@@ -40,8 +41,8 @@ __all__ = ["LiveFeed", "LiveServer", "TimelineFeed", "strict_json"]
 _log = logging.getLogger("hapticframe.live")
 
 STATIC = Path(__file__).parent / "static"
-#: The default port of ``--live`` and ``view`` (the CLI's ``LIVE_PORT``).
-DEFAULT_PORT = 8765
+#: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
+DEFAULT_PORT = LIVE_PORT
 #: The kernel's send buffer of a page's connection (Linux doubles it): a few frames.
 SEND_BUFFER_BYTES = 256 * 1024
 #: Headers on every answer: no other site may frame the page, and its address (with the

@@ -18,20 +18,9 @@ __all__ = ["evaluated_map", "run_live"]
 
 
 def evaluated_map(experiment: Any) -> str | None:
-    """The map the run will score (as :mod:`hapticframe.run._evaluate` picks it): the page
-    shows it first. ``run.evaluation_map`` when set, else the first map a planner reads,
-    else the last map."""
-    from hapticframe._kind import Kind
-
-    chosen = getattr(experiment.model.run, "evaluation_map", None)
-    if chosen is not None:
-        return str(chosen)
-    maps = [entry.id for entry in experiment.of_kind(Kind.MAP)]
-    for planner in experiment.of_kind(Kind.PLANNER):
-        for name in planner.inputs:
-            if name in maps:
-                return str(name)
-    return maps[-1] if maps else None
+    """The map the run will score (``Experiment.evaluated_map``): the page shows it first."""
+    chosen: str | None = experiment.evaluated_map()
+    return chosen
 
 
 def _ending(exc: BaseException) -> tuple[str, str, bool]:

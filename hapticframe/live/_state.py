@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe._defaults import OUTLINE_LEVEL
+
 __all__ = [
     "END_TOPIC",
     "LiveState",
@@ -31,8 +33,6 @@ __all__ = [
 
 #: The topic :meth:`LiveState.end` is told the run's end on (never written to a file).
 END_TOPIC = "/hapticframe/live/end"
-#: The estimated outline's level of P(occupied) (as the evaluation's, see ``score_run``).
-OUTLINE_LEVEL = 0.6
 #: Model-time seconds of force and class probability the page plots.
 WINDOW_S = 10.0
 #: At most this many points of a time series or a path go into one frame.

@@ -382,6 +382,8 @@ def import_bag(bag: str | Path, maps: Sequence[TopicMap], out_dir: str | Path, *
     except BaseException:
         directory.discard()
         raise
+    finally:
+        directory.release()
 
 
 def _utc(stamp_ns: int) -> str:

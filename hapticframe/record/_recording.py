@@ -4,8 +4,8 @@ A run writes its recording with the ``mcap`` library into its staging folder
 (``DIR/.hapticframe-partial/run.mcap``, see :class:`~hapticframe.run._results.OutputDir`),
 which moves to ``DIR/run.mcap`` with the other results when the run ends in any way. A run
 killed outright (``kill -9``, power loss) leaves the recording in the staging folder,
-complete up to its last sync; ``hapticframe recover DIR`` rewrites it as a complete,
-indexed ``DIR/run.mcap`` (and lists it in ``run.json``).
+complete up to its last sync; ``hapticframe recover DIR`` writes what it holds as a
+complete, indexed ``DIR/run.mcap`` (:mod:`hapticframe.record._recover`).
 
 Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``) hold arrays per
 block of samples, never one message per sample:
@@ -66,11 +66,11 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
 
-from hapticframe._atomic import OutputError, atomic_path, output_error
+from hapticframe._atomic import output_error
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe._version import __version__
 from hapticframe.record import _foxglove
-from hapticframe.run._results import write_json
 
 if TYPE_CHECKING:
     from hapticframe._scene import Scene
@@ -91,12 +91,11 @@ __all__ = [
     "SNAPSHOT_RATE_HZ",
     "SNAPSHOT_SPACING_M",
     "SYNC_S",
-    "Recovery",
     "RunRecording",
     "find_recording",
     "listening",
+    "open_run_recording",
     "read_recording",
-    "recover",
 ]
 
 _log = logging.getLogger("hapticframe.recording")
@@ -294,7 +293,7 @@ class RunRecording:
         # Snapshots (contract B): set by configure_snapshots, the run's settings.
         self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
         self.snapshot_spacing_m = SNAPSHOT_SPACING_M
-        self.outline_level = 0.6
+        self.outline_level = OUTLINE_LEVEL
         self._next_snapshot_s = -math.inf
         self._next_pose_s: dict[str, float] = {}
         self._scene_written = False
@@ -429,7 +428,7 @@ class RunRecording:
         return self._now_s
 
     def configure_snapshots(self, rate_hz: float, spacing_m: float,
-                            outline_level: float = 0.6) -> None:
+                            outline_level: float = OUTLINE_LEVEL) -> None:
         """Snapshots and poses per second of model time (0: none), the snapshots' grid
         spacing (metres) and the level of the estimated outline drawn with them."""
         self.snapshot_rate_hz = float(rate_hz)
@@ -597,6 +596,12 @@ class RunRecording:
             raise output_error(self.path, exc) from exc
 
 
+def open_run_recording(folder: Path, metadata: Mapping[str, str]) -> RunRecording:
+    """``folder/run.mcap``: the :class:`~hapticframe.run._scope.RecordingOpener` that the CLI,
+    sweep trials, replay and :func:`hapticframe.run_experiment` hand the run scope."""
+    return RunRecording(Path(folder) / RECORDING, metadata)
+
+
 # --- reading and recovering ------------------------------------------------------------------
 
 
@@ -636,103 +641,14 @@ def _records(path: Path, stop: list[str]) -> Iterator[Any]:
         reader = StreamReader(stream, validate_crcs=True)
         try:
             yield from reader.records
-        except Exception as exc:  # a cut record: EndOfFile, a short chunk, a bad CRC
+        except Exception as exc:  # a cut record (EndOfFile, a short chunk), or a damaged one
             where = stream.tell()
-            stop.append(f"the file ends inside a record, at byte {where} "
-                        f"({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})")
-
-
-@dataclass
-class Recovery:
-    """What :func:`recover` read back."""
-
-    source: Path
-    target: Path
-    counts: dict[str, int]
-    start_s: float
-    end_s: float
-    #: How the reading stopped when the file was cut ("" for a complete file).
-    cut: str = ""
-
-    @property
-    def messages(self) -> int:
-        return sum(self.counts.values())
-
-
-def recover(source: Path, target: Path) -> Recovery:
-    """Read ``source`` as a stream up to its end or cut and write every whole message to
-    ``target`` as a complete, indexed recording (atomically; ``target`` may be ``source``).
-
-    Raises :class:`UsageError` (exit status 2) when ``source`` is not an MCAP file.
-    """
-    from mcap.records import Channel, Message, Metadata, Schema
-    from mcap.writer import CompressionType, Writer
-
-    _check_magic(source)
-    stop: list[str] = []
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    counts: dict[str, int] = {}
-    start_ns: int | None = None
-    end_ns = 0
-    with atomic_path(target) as temp, open(temp, "wb") as out:
-        writer = Writer(out, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
-        writer.start(profile="", library=f"hapticframe {__version__} (recovered)")
-        schema_ids: dict[int, int] = {}
-        channel_ids: dict[int, int] = {}
-        for record in _records(source, stop):
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                channels[record.id] = record
-            elif isinstance(record, Metadata):
-                writer.add_metadata(record.name, dict(record.metadata))
-            elif isinstance(record, Message):
-                channel = channels.get(record.channel_id)
-                if channel is None:
-                    continue  # a message without its channel cannot be decoded
-                if record.channel_id not in channel_ids:
-                    if channel.schema_id not in schema_ids and channel.schema_id in schemas:
-                        s = schemas[channel.schema_id]
-                        schema_ids[channel.schema_id] = writer.register_schema(
-                            s.name, s.encoding, s.data)
-                    channel_ids[record.channel_id] = writer.register_channel(
-                        channel.topic, channel.message_encoding,
-                        schema_ids.get(channel.schema_id, 0), dict(channel.metadata))
-                writer.add_message(channel_ids[record.channel_id], record.log_time,
-                                   record.data, record.publish_time, record.sequence)
-                counts[channel.topic] = counts.get(channel.topic, 0) + 1
-                start_ns = record.log_time if start_ns is None else min(start_ns, record.log_time)
-                end_ns = max(end_ns, record.log_time)
-        writer.finish()  # type: ignore[no-untyped-call]
-        out.flush()
-    first = (start_ns or 0) / 1e9
-    return Recovery(source, target, counts, first, end_ns / 1e9 if counts else first,
-                    stop[0] if stop else "")
-
-
-def recover_run(target: Path, out: Path | None = None) -> Recovery:
-    """``hapticframe recover``: ``target`` is a run's directory or a recording file."""
-    source = find_recording(target)
-    if out is None:
-        out = target / RECORDING if target.is_dir() else source
-    recovery = recover(source, out)
-    record_path = out.parent / "run.json"
-    if target.is_dir() and out.parent == target and record_path.is_file():
-        # The run's record lists the recovered file, so --overwrite may clear it later.
-        try:
-            record = json.loads(record_path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            record = None
-        if isinstance(record, dict):
-            listed = record.get("files")
-            files: list[Any] = listed if isinstance(listed, list) else []
-            if RECORDING not in files:
-                try:
-                    write_json(record_path, {**record, "files": sorted([*files, RECORDING])})
-                except OutputError as exc:
-                    _log.warning("%s", exc)
-    return recovery
+            if type(exc).__name__ in ("CRCValidationError", "ZstdError"):
+                stop.append(f"the file is damaged before byte {where}: a chunk fails its check "
+                            f"({exc}); `hapticframe recover` keeps what it can read past it")
+            else:
+                stop.append(f"the file ends inside a record, at byte {where} "
+                            f"({type(exc).__name__}{': ' + str(exc) if str(exc) else ''})")
 
 
 def read_recording(path: Path) -> dict[str, list[tuple[int, dict[str, Any]]]]:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -32,19 +31,26 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe._config import Experiment
-from hapticframe._errors import ExperimentError, HapticframeError, Issue, RunError, UsageError
+from hapticframe._config import ComponentEntry, Experiment
+from hapticframe._errors import RunError, UsageError
 from hapticframe._kind import Kind
-from hapticframe.kinds import BuildContext, ExploratoryMovement, MovementResult, RobotState
-from hapticframe.record._recording import _check_magic, _records, find_recording
-from hapticframe.run._assembly import activate_devices, component_rng
+from hapticframe.kinds import ExploratoryMovement, MovementResult, RobotState
+from hapticframe.record._recording import (
+    _check_magic,
+    _records,
+    find_recording,
+    open_run_recording,
+)
+from hapticframe.run._assembly import LEAVE_OUT, Substitute, build_components
 from hapticframe.run._components import Components
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._evaluate import score_run
-from hapticframe.run._results import OutputDir, RunSummary, run_record, save_outputs
-from hapticframe.run._robots import _share_poses
+from hapticframe.run._results import RunSummary
+from hapticframe.run._robots import share_poses
 from hapticframe.run._safety import OUTSIDE_WORKSPACE
+from hapticframe.run._scope import CloseErrorHandler, run_scope
 from hapticframe.run._session import Session
+from hapticframe.run._train import fit_before_run
 
 __all__ = ["Recorded", "read_timeline", "replay_run"]
 
@@ -118,49 +124,31 @@ def _recorded_sensor_error(path: Path, missing: list[str], topics: set[str]) -> 
 
 def build_replay_components(
     experiment: Experiment, recording: Path, stack: ExitStack, training: frozenset[str],
-    progress: bool = True,
+    progress: bool = True, on_close_error: CloseErrorHandler | None = None,
 ) -> Components:
     """The ``--with`` experiment's perception chain, its streamed sensors as ``recording``
     sensors of the same ids (training sensors as they are); ``stack`` closes them."""
-    from hapticframe.run._assembly import _closer, _log_close_error, _named
-
     registry = experiment.registry
     spec = registry.get(Kind.SENSOR, "recording") if "recording" in registry.names(
         Kind.SENSOR) else None
-    scene = experiment.model.scene
-    built = Components()
-    for entry in experiment.components:
+
+    def choose(entry: ComponentEntry) -> Substitute | str | None:
         if entry.kind is Kind.SENSOR and entry.id not in training:
             if spec is None:
                 raise RunError("the 'recording' sensor (hapticframe_recording) is not "
                                "installed; reinstall hapticframe")
-            factory = spec.spec.load_factory()
             config: Any = spec.spec.config.model_validate(
                 {"file": str(recording), "topic": f"/sensor/{entry.id}"})
-            plugin = "recording"
-        elif entry.kind in REBUILT or entry.kind is Kind.SENSOR:
-            factory = entry.registered.spec.load_factory()
-            config, plugin = entry.config, entry.type
-        else:
-            continue  # robots, planners: their recorded movements stand in for them
-        context = BuildContext(
-            id=entry.id, rng=component_rng(experiment.seed, entry.id),
-            inputs={name: built[name] for name in entry.inputs if name in built},
-            scene=scene, progress=progress)
-        try:
-            component = factory(config, context)
-        except (ValueError, KeyError) as exc:
-            raise ExperimentError(experiment.file, [Issue(
-                entry.path, f"cannot build {_named(entry)} for the replay: {exc}")]) from exc
-        except HapticframeError:
-            raise
-        except Exception as exc:
-            raise RunError(f"cannot build {_named(entry)} for the replay: "
-                           f"{type(exc).__name__}: {exc}") from exc
-        stack.callback(_closer(component, _log_close_error))
-        built.add(entry.id, entry.kind, component, plugin=plugin)
-    activate_devices(built, stack)
-    return built
+            return Substitute(spec.spec.load_factory(), config, "recording")
+        if entry.kind in REBUILT or entry.kind is Kind.SENSOR:
+            return None  # as configured
+        return LEAVE_OUT  # robots, planners: their recorded movements stand in for them
+
+    if on_close_error is None:
+        return build_components(experiment, stack, progress=progress, choose=choose,
+                                purpose=" for the replay")
+    return build_components(experiment, stack, progress=progress, choose=choose,
+                            purpose=" for the replay", on_close_error=on_close_error)
 
 
 def _state(row: np.ndarray) -> RobotState:
@@ -289,24 +277,17 @@ def replay_run(
 ) -> RunSummary:
     """Replay the recording ``source`` (a run's directory or its ``run.mcap``) through the
     perception and mapping chain of ``experiment``, writing results into ``out_dir`` as a
-    run does.
+    run does (the same run scope: :func:`~hapticframe.run._scope.run_scope`).
 
     Raises
     ------
     UsageError
         (exit status 2) ``source`` is no recording, holds no ``/loop`` events, or lacks a
-        sensor the experiment streams.
+        sensor the experiment streams; ``out_dir`` is (or holds) the recording or the
+        experiment file.
     ExperimentError, RunError, OutputError
         As :func:`~hapticframe.run._run.run_experiment`.
     """
-    from hapticframe.run._run import (
-        _close_recording,
-        _finish,
-        _fit_before_run,
-        _open_recording,
-        _record_metrics,
-    )
-
     say = echo if echo is not None else (lambda _text: None)
     path = find_recording(Path(source))
     recorded = read_timeline(path)
@@ -319,70 +300,42 @@ def replay_run(
                if e.id not in training and f"/sensor/{e.id}" not in recorded.topics]
     if missing:
         raise _recorded_sensor_error(path, missing, recorded.topics)
-    directory = OutputDir.prepare(out_dir, overwrite=overwrite, min_free=min_free_bytes)
     started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    directory.begin({"status": "running", "command": "replay", "replayed_from": str(path),
-                     "experiment_file": str(experiment.file), "started_utc": started_utc})
-    session: Session | None = None
-    error: str | None = None
+    head = {"status": "running", "command": "replay", "replayed_from": str(path),
+            "experiment_file": str(experiment.file), "started_utc": started_utc}
     metrics: dict[str, Any] = {}
-    primary: BaseException | None = None
-    try:
-        with ExitStack() as stack:
-            components = build_replay_components(experiment, path, stack, training, progress)
-            session = Session(experiment, directory.staging, components, say,
-                              results_dir=directory.path)
-            session.started_utc = started_utc
-            session.details["replayed_from"] = str(path)
-            if recorded.cut:
-                session.details["replayed_cut"] = recorded.cut
-            if session.settings.record:
-                session.recording = _open_recording(directory, experiment, started_utc)
-            try:
-                _fit_before_run(session)
-                flow = Dataflow(experiment, components, session.recorder, training)
-                flow.recording = session.recording
-                robot_ids = [e.id for e in experiment.of_kind(Kind.ROBOT)]
-                if len(robot_ids) > 1:
-                    _share_poses(flow, robot_ids)
-                _Replayer(session, flow, recorded).run()
-                say(f"replayed {len(session.movements)} movements of {path}")
-                metrics = score_run(session)
-                # Replaced sensors count as not rebuilt: their own metrics are the run's.
-                rebuilt = {cid for cid in components
-                           if cid in training or cid not in components.sensors}
-                carried = _carried(recorded, rebuilt, metrics)
-                wall = metrics.pop("wall_time_s")
-                metrics.update(carried)
-                metrics["wall_time_s"] = wall
-                session.details["carried_metrics"] = sorted(carried)
-                if recorded.metrics is not None:
-                    # The replay's own /metrics carries them on: it replays the same.
-                    for cid, own in (recorded.metrics.get("components") or {}).items():
-                        if cid not in rebuilt:
-                            session.component_metrics[cid] = dict(own)
-                _record_metrics(session, metrics)
-                save_outputs(session, metrics)
-                session.status = "ok"
-            except HapticframeError as exc:
-                session.status, error = "failed", str(exc)
-                raise
-            except Exception as exc:
-                session.status = "failed"
-                error = f"{type(exc).__name__}: {exc}"
-                raise RunError(f"the replay failed: {error}") from exc
-    except BaseException as exc:
-        primary = exc
-        raise
-    finally:
-        if session is None:
-            directory.discard()
-        else:
-            recording_error = _close_recording(session)
-            if recording_error is not None and session.status == "ok":
-                session.status, error = "failed", str(recording_error)
-            wall_s = time.perf_counter() - session.started
-            _finish(directory, run_record(session, wall_s, error), primary)
+    with run_scope(out_dir, head, what="replay", overwrite=overwrite,
+                   min_free_bytes=min_free_bytes, started_utc=started_utc,
+                   inputs=(path, Path(source), experiment.file)) as scope:
+        components = scope.build(lambda stack, on_close_error: build_replay_components(
+            experiment, path, stack, training, progress, on_close_error))
+        session = scope.start_session(experiment, say, recording=open_run_recording)
+        session.details["replayed_from"] = str(path)
+        if recorded.cut:
+            session.details["replayed_cut"] = recorded.cut
+        fit_before_run(session)
+        flow = Dataflow(experiment, components, session.recorder, training)
+        flow.recording = session.recording
+        robot_ids = [e.id for e in experiment.of_kind(Kind.ROBOT)]
+        if len(robot_ids) > 1:
+            share_poses(flow, robot_ids)
+        _Replayer(session, flow, recorded).run()
+        say(f"replayed {len(session.movements)} movements of {path}")
+        metrics = score_run(session)
+        # Replaced sensors count as not rebuilt: their own metrics are the run's.
+        rebuilt = {cid for cid in components
+                   if cid in training or cid not in components.sensors}
+        carried = _carried(recorded, rebuilt, metrics)
+        wall = metrics.pop("wall_time_s")
+        metrics.update(carried)
+        metrics["wall_time_s"] = wall
+        session.details["carried_metrics"] = sorted(carried)
+        if recorded.metrics is not None:
+            # The replay's own /metrics carries them on: it replays the same.
+            for cid, own in (recorded.metrics.get("components") or {}).items():
+                if cid not in rebuilt:
+                    session.component_metrics[cid] = dict(own)
+        scope.save(metrics)
     summary = RunSummary(metrics)
-    summary.out_dir = directory.path
+    summary.out_dir = scope.out
     return summary

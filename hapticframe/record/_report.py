@@ -1,9 +1,9 @@
-"""``hapticframe report``: ``trace.npz`` and figures from a run's recording.
+"""``hapticframe report``: a trace and figures from a run's recording, beside the run's own.
 
 Everything is read from ``run.mcap`` (a finished run's, a recovered one, or the staging
-file a killed run left, read up to its cut): the trace holds the same keys, values and
-dtypes the run's in-memory recorder writes (:class:`~hapticframe.run._streams.TraceRecorder`),
-and the figures show
+file a killed run left, read up to its cut): the trace (``report_trace.npz``, never the
+run's own ``trace.npz``) holds the same keys, values and dtypes the run's in-memory recorder
+writes (:class:`~hapticframe.run._streams.TraceRecorder`), and the figures show
 
 - ``report_map_ID_mean.png``, ``report_map_ID_std.png``: each map's last snapshot
   (``/map/ID/grid``), its estimated outline and the true objects;
@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe import plotting
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe.record import _foxglove
 from hapticframe.record._recording import _check_magic, _records, find_recording
@@ -222,19 +223,19 @@ def truth_of(recording: Recording) -> Truth:
 
 
 def _estimate_level(recording: Recording, map_id: str) -> float:
-    """The level of the map's recorded estimated outline (0.6, the thesis's, by default)."""
+    """The level of the map's recorded estimated outline (``OUTLINE_LEVEL`` by default)."""
     for _, update in reversed(recording.messages.get("/scene", [])):
         for entity in update.get("entities", []):
             if entity.get("id") == f"estimate/{map_id}":
                 meta = {p.get("key"): p.get("value") for p in entity.get("metadata", [])}
                 try:
-                    return float(meta.get("level", 0.6))
+                    return float(meta.get("level", OUTLINE_LEVEL))
                 except ValueError:
-                    return 0.6
+                    return OUTLINE_LEVEL
     config = recording.config()
     run = config.get("run") if config else None
     level = run.get("outline_level") if isinstance(run, dict) else None
-    return float(level) if isinstance(level, (int, float)) else 0.6
+    return float(level) if isinstance(level, (int, float)) else OUTLINE_LEVEL
 
 
 def _truth_and_region(axes: Axes, truth: Truth) -> None:
@@ -438,20 +439,48 @@ class Report:
     cut: str = ""
 
 
+#: The report's trace: beside the run's own ``trace.npz``, never over it.
+TRACE = "report_trace.npz"
+#: The recording's metadata a run's record must agree with (the record's key, the metadata's).
+_IDENTITY = (("name", "name"), ("seed", "seed"), ("started_utc", "started_utc"),
+             ("experiment_file", "experiment_file"))
+
+
+def check_belongs(recording: Recording, record: Mapping[str, Any], where: Path) -> None:
+    """Refuse to report ``recording`` into the directory of another run (``record``, its
+    ``run.json``): the recording's metadata must name the same run (name, seed, start)."""
+    meta = recording.metadata.get("hapticframe", {})
+    differ = [f"{key} {meta.get(mkey)!r} (run.json: {record.get(key)!r})"
+              for key, mkey in _IDENTITY
+              if key in record and str(meta.get(mkey)) != str(record[key])]
+    if differ or not meta:
+        what = "; ".join(differ) if meta else "it names no run (no hapticframe metadata)"
+        raise UsageError(
+            f"{recording.path} is not the recording of the run in {where}: {what}; the report "
+            "would mix two runs: give --out a directory of its own")
+
+
 def write_report(target: Path, out: Path | None = None, *, figures: bool = True,
                  echo: Callable[[str], None] | None = None) -> Report:
-    """``hapticframe report``: ``trace.npz`` and (unless ``figures`` is False) the figures
-    of the recording ``target`` names (a run's directory, or an ``.mcap`` file) into
-    ``out`` (default: the run's directory, or the file's folder).
+    """``hapticframe report``: a trace (``report_trace.npz``) and (unless ``figures`` is
+    False) the figures of the recording ``target`` names (a run's directory, or an
+    ``.mcap`` file) into ``out`` (default: the run's directory, or the file's folder).
+
+    Every file it writes is named ``report_*``: beside the run's own results, never over
+    them. Into a run's directory only that run's recording is reported (its metadata must
+    agree with ``run.json``), and the directory is locked meanwhile
+    (:mod:`hapticframe._lock`).
 
     Raises
     ------
     UsageError
-        ``target`` holds no recording or is not one (exit status 2).
+        ``target`` holds no recording or is not one; ``out`` holds another run; another
+        command writes into ``out`` now (exit status 2).
     OutputError
         ``out`` cannot be written (exit status 1).
     """
     from hapticframe._atomic import output_error
+    from hapticframe._lock import lock_directory
 
     source = find_recording(target)
     recording = load_recording(source)
@@ -464,47 +493,51 @@ def write_report(target: Path, out: Path | None = None, *, figures: bool = True,
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise output_error(out, exc, "cannot create the folder") from exc
-    written = []
-    save_trace(trace_arrays(recording), out / "trace.npz")
-    written.append("trace.npz")
-    drawn: dict[str, Figure | None] = {}
-    if figures:
-        truth = truth_of(recording)
-        for topic in sorted(recording.topics(_foxglove.GRID)):
-            drawn.update(map_figures(recording, topic.split("/")[2], truth))
-        drawn["report_paths.png"] = paths_figure(recording, truth)
-        drawn["report_signals.png"] = signals_figure(recording)
-    for name, figure in drawn.items():
-        if figure is not None:
-            plotting.save_figure(figure, out / name)
-            written.append(name)
-            if echo is not None:
-                echo(f"wrote {out / name}")
-    _list_in_record(out, written)
+    with lock_directory(out, "report"):
+        record = _run_record(out)
+        if record is not None:
+            check_belongs(recording, record, out)
+        written = []
+        save_trace(trace_arrays(recording), out / TRACE)
+        written.append(TRACE)
+        drawn: dict[str, Figure | None] = {}
+        if figures:
+            truth = truth_of(recording)
+            for topic in sorted(recording.topics(_foxglove.GRID)):
+                drawn.update(map_figures(recording, topic.split("/")[2], truth))
+            drawn["report_paths.png"] = paths_figure(recording, truth)
+            drawn["report_signals.png"] = signals_figure(recording)
+        for name, figure in drawn.items():
+            if figure is not None:
+                plotting.save_figure(figure, out / name)
+                written.append(name)
+                if echo is not None:
+                    echo(f"wrote {out / name}")
+        if record is not None:
+            _list_in_record(out, record, written)
     return Report(source, out, written,
                   sum(len(m) for m in recording.messages.values()), recording.cut)
 
 
-def _list_in_record(out: Path, names: list[str]) -> None:
+def _run_record(out: Path) -> dict[str, Any] | None:
+    """The run's ``run.json`` in ``out`` (None: none, or not a record)."""
+    try:
+        record = json.loads((out / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def _list_in_record(out: Path, record: dict[str, Any], names: list[str]) -> None:
     """List the written files in the run's ``run.json`` (so ``--overwrite`` may clear them)."""
     from hapticframe._atomic import OutputError
     from hapticframe.run._results import write_json
 
-    record_path = out / "run.json"
-    if not record_path.is_file():
-        return
-    try:
-        record = json.loads(record_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
-    if not isinstance(record, dict):
-        return
     listed = record.get("files")
     files = [str(f) for f in listed] if isinstance(listed, list) else []
     missing = [n for n in names if n not in files]
     if missing:
         try:
-            write_json(record_path, {**record, "files": sorted([*files, *missing])})
+            write_json(out / "run.json", {**record, "files": sorted([*files, *missing])})
         except OutputError:
             pass  # the report is written; only the listing is missing
-

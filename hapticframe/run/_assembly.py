@@ -16,6 +16,8 @@ import logging
 import zlib
 from collections.abc import Callable
 from contextlib import ExitStack
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -24,12 +26,28 @@ from hapticframe._errors import ExperimentError, HapticframeError, Issue, RunErr
 from hapticframe.kinds import BuildContext, Component, Device
 from hapticframe.run._components import Components
 
-__all__ = ["activate_devices", "build_components", "component_rng"]
+__all__ = ["LEAVE_OUT", "Substitute", "activate_devices", "build_components", "component_rng"]
 
 _log = logging.getLogger(__name__)
 
 #: Receives ``(component id, exception)`` for each ``close()`` that raised.
 CloseErrorHandler = Callable[[str, BaseException], None]
+
+
+@dataclass(frozen=True)
+class Substitute:
+    """What to build in place of a configured component (a replay's recorded sensor)."""
+
+    factory: Callable[[Any, BuildContext], Any]
+    config: Any
+    plugin: str
+
+
+#: ``choose(entry)`` returns this for a component the command does not build.
+LEAVE_OUT = "leave out"
+#: What a command builds of each entry: as configured (None), :data:`LEAVE_OUT`, or a
+#: :class:`Substitute`.
+Chooser = Callable[[ComponentEntry], "Substitute | str | None"]
 
 
 def component_rng(seed: int, component_id: str) -> np.random.Generator:
@@ -60,8 +78,14 @@ def build_components(
     progress: bool = True,
     on_close_error: CloseErrorHandler = _log_close_error,
     activate: bool = True,
+    choose: Chooser | None = None,
+    purpose: str = "",
 ) -> Components:
     """Import and construct every component, inputs first; ``stack`` closes them.
+
+    ``choose(entry)`` (a replay's) may leave a component out (:data:`LEAVE_OUT`) or build
+    another in its place (:class:`Substitute`); ``purpose`` ends the messages of a build
+    that fails (``" for the replay"``).
 
     Each built component's ``close()`` is pushed onto ``stack`` as soon as it is built;
     a ``close()`` that raises is passed to ``on_close_error`` (default: logged) and the
@@ -84,27 +108,35 @@ def build_components(
     scene = experiment.model.scene
     built = Components()
     for entry in experiment.components:
-        factory = entry.registered.spec.load_factory()
+        chosen = choose(entry) if choose is not None else None
+        if chosen == LEAVE_OUT:
+            continue
+        if isinstance(chosen, Substitute):
+            factory, config, plugin = chosen.factory, chosen.config, chosen.plugin
+        else:
+            factory, config, plugin = entry.registered.spec.load_factory(), entry.config, entry.type
         context = BuildContext(
             id=entry.id,
             rng=component_rng(experiment.seed, entry.id),
-            inputs={name: built[name] for name in entry.inputs},
+            # Inputs left out (a replay's robots) are not handed in.
+            inputs={name: built[name] for name in entry.inputs if name in built},
             scene=scene,
             progress=progress,
         )
         try:
-            component = factory(entry.config, context)
+            component = factory(config, context)
         except (ValueError, KeyError) as exc:
             raise ExperimentError(experiment.file, [Issue(
-                entry.path, f"cannot build {_named(entry)}: {exc}",
+                entry.path, f"cannot build {_named(entry)}{purpose}: {exc}",
             )]) from exc
         except HapticframeError:
             raise
         except Exception as exc:
-            raise RunError(f"cannot build {_named(entry)}: {type(exc).__name__}: {exc}") from exc
+            raise RunError(f"cannot build {_named(entry)}{purpose}: "
+                           f"{type(exc).__name__}: {exc}") from exc
         if isinstance(component, Component):
             stack.callback(_closer(component, on_close_error))
-        built.add(entry.id, entry.kind, component, plugin=entry.type)
+        built.add(entry.id, entry.kind, component, plugin=plugin)
     if activate:
         names = {e.id: _named(e) for e in experiment.components}
         activate_devices(built, stack, on_close_error, names)

@@ -71,10 +71,11 @@ class Dataflow:
         self.force_max_n = float("nan")
         #: Classifier outputs before this time are not located (see :meth:`locate_from`).
         self.movement_start_s = -math.inf
-        # Safety (hapticframe.run._safety): the run's force limit, the first valid sample above
-        # it since the movement began, and a count of valid force samples (the stall check
-        # watches it grow).
-        self.force_limit_n: float | None = experiment.model.run.force_limit_n
+        # Safety (hapticframe.run._safety): the force limit to watch for (the safety monitor,
+        # which holds the run's limit, hands it over; None: nobody watches), the first valid
+        # sample above it since the movement began, and a count of valid force samples (the
+        # stall check watches it grow).
+        self.force_limit_n: float | None = None
         self.force_violation: tuple[float, float] | None = None
         self.valid_force_samples = 0
         self._robot_keys: dict[str, tuple[str, ...]] = {}

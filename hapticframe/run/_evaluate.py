@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -18,6 +19,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hapticframe import plotting
+from hapticframe._config._roles import evaluated_map_id
+from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import RunError
 from hapticframe._kind import Kind
 from hapticframe._scene import Scene
@@ -30,6 +33,8 @@ if TYPE_CHECKING:
     from hapticframe.run._session import Session
 
 __all__ = [
+    "WORST_FOUND_OBJECT",
+    "MapScore",
     "evaluate_labels",
     "evaluate_map",
     "evaluate_objects",
@@ -40,15 +45,30 @@ __all__ = [
 ]
 
 
+#: ``metrics.json``'s ``aggregate`` for a scene with several objects: what its top-level
+#: centroid error and Hausdorff distances are.
+WORST_FOUND_OBJECT = "worst found object (each object's figures are in objects)"
+
+
+@dataclass(frozen=True)
+class MapScore:
+    """A map scored against the scene: ``metrics.json``'s keys (JSON-ready) and what
+    ``outline.png`` draws (the estimated outlines and the estimated centroids)."""
+
+    metrics: dict[str, Any]
+    outlines: tuple[NDArray[np.float64], ...] = ()
+    centroids: tuple[tuple[float, float], ...] = ()
+
+
 def evaluate_map(
     the_map: Map,
     scene: Scene,
     *,
-    level: float = 0.6,
+    level: float = OUTLINE_LEVEL,
     spacing_m: float = 0.0025,
     near_m: ArrayLike | None = None,
     found_within_m: float | None = None,
-) -> dict[str, Any]:
+) -> MapScore:
     """Compare the map's estimated object with the nearest true object.
 
     The estimate is the connected region where the occupancy mean reaches ``level``: the
@@ -77,11 +97,10 @@ def evaluate_map(
         "estimated_centroid_m": None,
         "hausdorff_est_to_true_m": None,
         "hausdorff_true_to_est_m": None,
-        "_outline": None,  # popped by the caller: the estimated outline, for the figure
     }
     centroid = blob_centroid(xs, ys, mean, level, near_m=near_m)
     if centroid is None:
-        return out
+        return MapScore(out)
     truths = [obj.centroid_m for obj in scene.objects]
     nearest = int(np.argmin([np.linalg.norm(centroid - t) for t in truths]))
     truth = scene.objects[nearest]
@@ -92,12 +111,12 @@ def evaluate_map(
     out["estimated_centroid_m"] = centroid.tolist()
     out["centroid_error_m"] = error
     outline = main_outline(xs, ys, mean, level, near_m=centroid)
-    out["_outline"] = outline
     if outline is not None:
         est_to_true, true_to_est = directed_hausdorff_both(outline, truth.outline(512))
         out["hausdorff_est_to_true_m"] = est_to_true
         out["hausdorff_true_to_est_m"] = true_to_est
-    return out
+    return MapScore(out, () if outline is None else (outline,),
+                    ((float(centroid[0]), float(centroid[1])),))
 
 
 #: Blobs smaller than this (m²) are specks of the level set, neither objects nor false blobs.
@@ -108,10 +127,10 @@ def evaluate_objects(
     the_map: Map,
     scene: Scene,
     *,
-    level: float = 0.6,
+    level: float = OUTLINE_LEVEL,
     spacing_m: float = 0.0025,
     found_within_m: float | None = None,
-) -> dict[str, Any]:
+) -> MapScore:
     """Score every object of a scene with several objects.
 
     Each connected region where the occupancy mean reaches ``level`` (of at least
@@ -128,10 +147,11 @@ def evaluate_objects(
         ``hausdorff_est_to_true_m``, ``hausdorff_true_to_est_m``; the figures None when no
         blob was matched), ``objects_total``, ``objects_found``, ``objects_missed``,
         ``false_blobs`` (blobs matched to no found object), and the one-object keys of
-        :func:`evaluate_map` summarising the worst case: ``object_found`` only when every
-        object was found, ``centroid_error_m`` and the Hausdorff distances the largest over
-        found objects (None when none was found), ``estimated_centroid_m`` of the first
-        found object. ``_outlines`` (popped by the caller) holds the blobs' outlines.
+        :func:`evaluate_map` as aggregates, which ``aggregate`` names: ``object_found`` only
+        when every object was found, ``centroid_error_m`` and the Hausdorff distances the
+        largest over found objects (None when none was found). There is no top-level
+        ``estimated_centroid_m``: each object has its own. The score's outlines are the
+        blobs', its centroids the found objects'.
     """
     from scipy import ndimage
     from scipy.optimize import linear_sum_assignment
@@ -194,11 +214,11 @@ def evaluate_objects(
         values = [r[key] for r in found if r[key] is not None]
         return max(values) if values else None
 
-    return {
+    return MapScore({
         "object_found": len(found) == len(records),
         "found_within_m": found_within_m,
+        "aggregate": WORST_FOUND_OBJECT,
         "centroid_error_m": worst("centroid_error_m"),
-        "estimated_centroid_m": found[0]["estimated_centroid_m"] if found else None,
         "hausdorff_est_to_true_m": worst("hausdorff_est_to_true_m"),
         "hausdorff_true_to_est_m": worst("hausdorff_true_to_est_m"),
         "objects": records,
@@ -206,8 +226,8 @@ def evaluate_objects(
         "objects_found": len(found),
         "objects_missed": len(records) - len(found),
         "false_blobs": len(blobs) - len(found_blobs),
-        "_outlines": outlines,
-    }
+    }, tuple(outlines), tuple((float(r["estimated_centroid_m"][0]),
+                               float(r["estimated_centroid_m"][1])) for r in found))
 
 
 def save_outline_figure(
@@ -216,7 +236,7 @@ def save_outline_figure(
     scene: Scene,
     movements: Sequence[MovementResult],
     outline: NDArray[np.float64] | Sequence[NDArray[np.float64]] | None,
-    centroid: Sequence[float] | None,
+    centroids: Sequence[Sequence[float]],
     level: float,
     path_m: ArrayLike | None = None,
 ) -> bool:
@@ -226,7 +246,7 @@ def save_outline_figure(
     Returns False when matplotlib is not installed (figures are optional).
     """
     try:
-        figure = draw_outline_figure(region, scene, movements, outline, centroid, level,
+        figure = draw_outline_figure(region, scene, movements, outline, centroids, level,
                                      path_m)
     except ImportError:
         return False
@@ -242,7 +262,7 @@ def draw_outline_figure(
     scene: Scene,
     movements: Sequence[MovementResult],
     outline: NDArray[np.float64] | Sequence[NDArray[np.float64]] | None,
-    centroid: Sequence[float] | None,
+    centroids: Sequence[Sequence[float]],
     level: float,
     path_m: ArrayLike | None = None,
 ) -> Figure:
@@ -282,8 +302,10 @@ def draw_outline_figure(
         ring = np.vstack([one, one[:1]])
         ax.plot(ring[:, 0], ring[:, 1], "k--", lw=1.5,
                 label=f"estimated outline (p = {level:g})" if number == 0 else None)
-    if centroid is not None:
-        ax.plot(*centroid, "k+", ms=12, mew=2, label="estimated centroid")
+    if len(centroids):
+        points = np.asarray(centroids, dtype=float).reshape(-1, 2)
+        ax.plot(points[:, 0], points[:, 1], "k+", ms=12, mew=2, linestyle="none",
+                label="estimated centroid" + ("s" if len(points) > 1 else ""))
     title = (f"{len(movements)} exploratory movements and the estimated outline" if movements
              else "The fingertip path and the estimated outline")
     ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
@@ -460,30 +482,28 @@ def score_run(session: Session) -> dict[str, Any]:
         met = [r.final_state.position_m for r in session.movements
                if r.interacted and r.final_state is not None]
         the_map = session.components.maps[map_id]
-        outline: Any
         if len(scene.objects) > 1:
             # Every object scored (Hungarian matching); one object keeps the keys below.
-            out.update(evaluate_objects(
+            score = evaluate_objects(
                 the_map, scene, level=settings.outline_level,
                 spacing_m=settings.evaluation_spacing_m,
                 found_within_m=settings.found_within_m,
-            ))
-            outline = out.pop("_outlines")
+            )
         else:
-            out.update(evaluate_map(
+            score = evaluate_map(
                 the_map,
                 scene,
                 level=settings.outline_level,
                 spacing_m=settings.evaluation_spacing_m,
                 near_m=np.mean(met, axis=0) if met else None,
                 found_within_m=settings.found_within_m,
-            ))
-            outline = out.pop("_outline")
+            )
+        out.update(score.metrics)
         out["evaluated_map"] = map_id
         if settings.figures:
             save_outline_figure(
                 session.out_dir / "outline.png", the_map.region, scene, session.movements,
-                outline, out["estimated_centroid_m"], settings.outline_level,
+                score.outlines, score.centroids, settings.outline_level,
                 None if session.movements else _streamed_path(session),
             )
     out.update(_label_metrics(session))
@@ -548,15 +568,8 @@ def _label_metrics(session: Session) -> dict[str, Any]:
 
 def _evaluation_map(session: Session) -> str | None:
     chosen = session.settings.evaluation_map
-    if chosen is not None:
-        if chosen not in session.components.maps:
-            found = session.components.get(chosen)
-            what = f"a {found.kind}" if found is not None else "no component"
-            raise RunError(f"run.evaluation_map {chosen!r} names {what}, not a map")
-        return chosen
-    for entry in session.experiment.of_kind(Kind.PLANNER):
-        for name in entry.inputs:
-            if name in session.components.maps:
-                return name
-    maps = session.experiment.of_kind(Kind.MAP)
-    return maps[-1].id if maps else None
+    if chosen is not None and chosen not in session.components.maps:
+        found = session.components.get(chosen)
+        what = f"a {found.kind}" if found is not None else "no component"
+        raise RunError(f"run.evaluation_map {chosen!r} names {what}, not a map")
+    return evaluated_map_id(session.experiment.components, chosen)

@@ -114,7 +114,21 @@ def _closed_loop(
     pacers = {r.id: _pacer(devices, 1.0 / r.control_rate_hz) for r in robots}
     if any(p.period_s is not None for p in pacers.values()):
         lookahead = 1
-    safety = SafetyMonitor(settings, flow, session.safety_halts)
+    safety = SafetyMonitor(settings, flow, session.safety_halts,
+                           live=any(bool(d.live) for d in devices.values()))
+    try:
+        _movements(session, flow, planner, team, robots, limit, rewindable, lookahead,
+                   devices, pacers, safety)
+    finally:
+        safety.close()
+
+
+def _movements(
+    session: Session, flow: Dataflow, planner: Planner, team: RobotTeam, robots: list[Robot],
+    limit: int, rewindable: list[Component], lookahead: int, devices: Mapping[str, Device],
+    pacers: Mapping[str, _Pacer], safety: SafetyMonitor,
+) -> None:
+    settings = session.settings
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
@@ -143,6 +157,7 @@ def _closed_loop(
                 session, flow, robot, index, chain, lookahead, pacers[robot.id], safety,
                 team.stepper(robot),
             )
+            safety.end()
             steps += taken
             team.after_part(robot, taken)
             reason = halted_by_loop or robot.halt_reason

@@ -28,7 +28,7 @@ import os
 import platform
 import shutil
 import subprocess
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -46,6 +46,7 @@ from hapticframe._atomic import (
     save_npz,
 )
 from hapticframe._errors import UsageError
+from hapticframe._lock import DirectoryLock, lock_directory
 from hapticframe._version import __version__
 
 if TYPE_CHECKING:
@@ -74,8 +75,9 @@ MIN_FREE_BYTES = 50 * 1024 * 1024
 MIN_FREE_ENV = "HAPTICFRAME_MIN_FREE_MB"
 #: The folder inside ``--out`` that a run writes into until it ends.
 STAGING = ".hapticframe-partial"
-#: The statuses of a run (or training run) that has ended.
-FINISHED = ("ok", "failed", "interrupted")
+#: The statuses of a run (or training run) that has ended (``recovered``: a killed run whose
+#: recording ``hapticframe recover`` rewrote).
+FINISHED = ("ok", "failed", "interrupted", "recovered")
 
 #: Distributions whose versions a run records when they are installed.
 SCIENTIFIC_DISTRIBUTIONS = (
@@ -276,6 +278,11 @@ class OutputDir:
     command: str = "run"
     #: Folders :meth:`prepare` created (removed again by :meth:`discard`), innermost first.
     created: list[Path] = field(default_factory=list)
+    #: The directory's lock, held from :meth:`prepare` until :meth:`release`.
+    lock: DirectoryLock | None = None
+    #: What each folder the command moved in holds (its files' paths inside it): the
+    #: record lists it (``trees``), and ``--overwrite`` deletes those files by name.
+    trees: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def staging(self) -> Path:
@@ -295,29 +302,55 @@ class OutputDir:
         command: str = "run",
         overwrite: bool = False,
         min_free: int | None = None,
+        inputs: Sequence[str | Path] = (),
     ) -> OutputDir:
-        """Check ``path`` before anything runs, create it, and with ``overwrite`` clear the
-        results hapticframe left there.
+        """Check ``path`` before anything runs, create it, lock it for this process (see
+        :mod:`hapticframe._lock`), and with ``overwrite`` clear the results hapticframe left
+        there. The caller ends with :meth:`release` (or :meth:`discard`).
+
+        ``inputs``: files the command reads; an input inside ``path`` is refused, so that
+        clearing the directory never deletes what the command is about to read.
 
         Raises
         ------
         UsageError
-            ``path`` lies below a regular file, or holds results (a finished or unfinished
-            run, or files hapticframe did not write) that ``overwrite`` may not replace
-            (exit status 2). Nothing is deleted then.
+            ``path`` lies below a regular file, is or holds one of ``inputs``, holds
+            results (a finished or unfinished run, or files hapticframe did not write) that
+            ``overwrite`` may not replace, or another process writes into it now
+            (:class:`~hapticframe._lock.DirectoryBusy`) (exit status 2). Nothing is deleted
+            then.
         OutputError
             ``path`` cannot be created or written, or has less than ``min_free`` bytes free
             (default :func:`min_free_bytes`) (exit status 1).
         """
         out = cls(Path(path), record, command)
+        out._check_inputs(inputs)
         out._create()
         try:
+            out.lock = lock_directory(out.path, command)
             out._probe(min_free_bytes() if min_free is None else min_free)
             out._clear(overwrite)
         except BaseException:
+            out.release()
             out._remove_created()  # a refused --out is left as it was found
             raise
         return out
+
+    def _check_inputs(self, inputs: Sequence[str | Path]) -> None:
+        here = self.path.resolve()
+        for given in inputs:
+            if not Path(given).exists():
+                continue  # nothing there to destroy (an experiment made in memory)
+            source = Path(given).resolve()
+            if source == here or here in source.parents:
+                raise UsageError(
+                    f"--out {self.path} is also where this {self.command} reads {given}: "
+                    "clearing or writing it would destroy its own input; choose another --out")
+
+    def release(self) -> None:
+        """Let the directory's lock go (idempotent): another command may write here now."""
+        if self.lock is not None:
+            self.lock.release()
 
     def _create(self) -> None:
         missing = []
@@ -379,19 +412,34 @@ class OutputDir:
         entries = os.listdir(self.path)
         record = self.read_record()
         ours = {n for n in entries if _is_ours_by_name(n)}
+        trees: dict[str, list[str]] = {}
+        foreign: list[str] = []
         if record is not None:
             ours.add(self.record)
             listed = record.get("files")
             if isinstance(listed, list):
-                ours |= {n for n in listed
-                         if isinstance(n, str) and n in entries and _plain_name(n)}
+                named = {n for n in listed if isinstance(n, str) and n in entries
+                         and _plain_name(n)}
+                # A listed folder is ours only as far as the record says what it holds, and
+                # it holds nothing else: never a tree hapticframe did not make.
+                for name in sorted(named):
+                    entry = self.path / name
+                    if entry.is_dir() and not entry.is_symlink():
+                        tree = _own_tree(entry, record.get("trees"), name)
+                        if tree is None:
+                            foreign.append(name + "/")
+                            named.discard(name)
+                        else:
+                            trees[name] = tree
+                ours |= named
             elif record.get("status") in FINISHED and "versions" in record:
                 # A finished run of a version that did not list its files: what such runs
                 # wrote, at the top level (figures, arrays, metrics), is theirs.
                 ours |= {n for n in entries if _plain_name(n) and (self.path / n).is_file()
                          and Path(n).suffix in _LEGACY_SUFFIXES}
         # Hidden files (.DS_Store, .git) are no results: left alone, never deleted.
-        unknown = [n for n in entries if n not in ours and not n.startswith(".")]
+        unknown = [n for n in entries if n not in ours and not n.startswith(".")
+                   and n + "/" not in foreign] + foreign
         status = record.get("status") if record is not None else None
         finished = status in FINISHED
         redo = "choose another directory, or pass --overwrite to clear it first"
@@ -420,18 +468,34 @@ class OutputDir:
         # Only now, every check passed: delete what hapticframe wrote, the record last, so
         # a clearing cut short still says what is left.
         for name in sorted(ours - {self.record}):
-            self._delete(self.path / name)
+            if name in trees:
+                self._delete_tree(self.path / name, trees[name])
+            else:
+                self._delete(self.path / name)
         if self.record in ours:
             self._delete(self.record_path)
 
     def _delete(self, path: Path) -> None:
         try:
             if path.is_dir() and not path.is_symlink():
-                shutil.rmtree(path)
+                shutil.rmtree(path)  # only hapticframe's own names reach here (staging)
             else:
                 path.unlink(missing_ok=True)
         except OSError as exc:
             raise output_error(path, exc, "--overwrite cannot delete") from exc
+
+    def _delete_tree(self, folder: Path, files: list[str]) -> None:
+        """Delete the files the record lists in ``folder`` by name, then its folders (each
+        only once empty)."""
+        try:
+            for name in files:
+                (folder / name).unlink(missing_ok=True)
+            for sub in sorted((p for p in folder.rglob("*") if p.is_dir()),
+                              key=lambda p: len(p.parts), reverse=True):
+                sub.rmdir()
+            folder.rmdir()
+        except OSError as exc:
+            raise output_error(folder, exc, "--overwrite cannot delete") from exc
 
     def begin(self, record: Mapping[str, Any]) -> None:
         """Write the record with ``status: running`` and make the staging folder."""
@@ -456,8 +520,11 @@ class OutputDir:
         while moving leaves a record that lists every file hapticframe wrote.
         """
         names = self.staged()
+        self.trees = {name: _tree(self.staging / name) for name in names
+                      if (self.staging / name).is_dir() and not (self.staging / name).is_symlink()}
         if names:
-            write_json(self.record_path, {**record, "status": "running", "files": names})
+            write_json(self.record_path, {**record, "status": "running", "files": names,
+                                          **({"trees": self.trees} if self.trees else {})})
         for name in names:
             source, target = self.staging / name, self.path / name
             try:
@@ -473,14 +540,19 @@ class OutputDir:
         remove_quietly(self.staging)
 
     def finish(self, record: Mapping[str, Any], files: list[str]) -> None:
-        """Write the final record (its ``status`` as given) listing ``files``."""
-        write_json(self.record_path, {**record, "files": sorted(files)})
+        """Write the final record (its ``status`` as given) listing ``files`` (and what each
+        folder among them holds, ``trees``)."""
+        trees = {n: t for n, t in self.trees.items() if n in files}
+        write_json(self.record_path, {**record, "files": sorted(files),
+                                      **({"trees": trees} if trees else {})})
 
     def discard(self) -> None:
         """Remove what :meth:`begin` wrote, and the folders :meth:`prepare` created: a
-        command that failed before writing any result leaves nothing behind."""
+        command that failed before writing any result leaves nothing behind. Releases the
+        lock."""
         self.drop_staging()
         remove_quietly(self.record_path)
+        self.release()
         self._remove_created()
 
     def _remove_created(self) -> None:
@@ -489,6 +561,26 @@ class OutputDir:
                 folder.rmdir()  # only when empty: never a file of anyone's
             except OSError:
                 break
+
+
+def _tree(folder: Path) -> list[str]:
+    """The files below ``folder``, as paths relative to it (``/``-separated), sorted."""
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*")
+                  if not p.is_dir() or p.is_symlink())
+
+
+def _own_tree(folder: Path, trees: Any, name: str) -> list[str] | None:
+    """The files the record says ``folder`` holds, when it holds no other (else None)."""
+    listed = trees.get(name) if isinstance(trees, dict) else None
+    if not isinstance(listed, list) or not all(isinstance(p, str) for p in listed):
+        return None
+    allowed = set(listed)
+    found = _tree(folder)
+    if any(p not in allowed for p in found):
+        return None
+    if any(p.is_symlink() for p in folder.rglob("*")):
+        return None
+    return [p for p in found if p in allowed]
 
 
 def _plain_name(name: str) -> bool:

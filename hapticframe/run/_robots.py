@@ -33,7 +33,7 @@ from hapticframe.kinds import ExploratoryMovement, Region, Robot, RobotFollower,
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._streams import PoseHistory
 
-__all__ = ["WORKSPACE_LIMIT", "RobotTeam", "exit_distance", "workspace_of"]
+__all__ = ["WORKSPACE_LIMIT", "RobotTeam", "exit_distance", "share_poses", "workspace_of"]
 
 #: The halt reason of a movement that left the workspace of every robot that could make it.
 WORKSPACE_LIMIT = "workspace_limit"
@@ -116,7 +116,7 @@ class RobotTeam:
         self.several = len(self.robots) > 1
         self._latest_t = -math.inf
         if self.several:
-            _share_poses(flow, [r.id for r in self.robots])
+            share_poses(flow, [r.id for r in self.robots])
 
     def begin(self, robot: Robot, part: ExploratoryMovement) -> ExploratoryMovement:
         """Begin ``part`` on ``robot`` after telling the simulations that follow it, which
@@ -254,7 +254,7 @@ def _line(
     )
 
 
-def _share_poses(flow: Dataflow, robot_ids: Sequence[str]) -> None:
+def share_poses(flow: Dataflow, robot_ids: Sequence[str]) -> None:
     """Let every robot's states feed the pose history of every sensor model that locates
     its measurements with a robot: one history, the moving fingertip's, for all robots."""
     if not any(rid in flow.poses for rid in robot_ids):

@@ -21,6 +21,7 @@ import numpy as np
 from hapticframe._config import RunSettings
 from hapticframe.kinds import Component, Device, Robot, RobotState, SampleBatch
 from hapticframe.run._dataflow import Dataflow
+from hapticframe.run._watchdog import StallWatchdog
 
 __all__ = ["FORCE_LIMIT", "FORCE_STREAM_STALLED", "OUTSIDE_WORKSPACE", "SafetyMonitor",
            "stop_robots"]
@@ -44,14 +45,27 @@ class SafetyMonitor:
       largest latency becomes ``halt_latency_samples_max`` in ``metrics.json``.
     - Stalled stream (``run.force_stall_s``, runs that stream a force sensor): no valid
       force sample for that long, by the robot's state timestamps since the movement began
-      or since the last valid sample arrived, halts the robot.
+      or since the last valid sample arrived, halts the robot. With ``live`` (a run with a
+      live device) a :class:`~hapticframe.run._watchdog.StallWatchdog` also watches it on
+      the host's clock from a thread, so that a tick stuck in a device call cannot stop the
+      check: :meth:`close` stops it.
     """
 
-    def __init__(self, settings: RunSettings, flow: Dataflow, halts: list[dict[str, Any]]) -> None:
+    def __init__(
+        self, settings: RunSettings, flow: Dataflow, halts: list[dict[str, Any]],
+        live: bool = False,
+    ) -> None:
         self.flow = flow
         self.limit_n = settings.force_limit_n
+        # The dataflow notes the first sample above the limit as it commits samples; the
+        # limit itself lives here (one home), handed to the dataflow that reports to us.
+        flow.force_limit_n = self.limit_n
         self.stall_s = settings.force_stall_s if flow.force_sensors else None
         self.halts = halts
+        self.watchdog = (
+            StallWatchdog(self.stall_s, self._watchdog_halted).start()
+            if live and self.stall_s is not None else None
+        )
         self._robot: Robot | None = None
         self._index = 0
         self._rate_hz = 1.0
@@ -70,6 +84,25 @@ class SafetyMonitor:
         self._ref_t = float(robot.state.timestamp_s)
         self._seen = self.flow.valid_force_samples
         self.flow.force_violation = None
+        if self.watchdog is not None:
+            self.watchdog.arm(robot)
+
+    def end(self) -> None:
+        """The movement's part on the robot of :meth:`begin` is over."""
+        if self.watchdog is not None:
+            self.watchdog.disarm()
+
+    def close(self) -> None:
+        """Stop the watchdog (the loop is over)."""
+        if self.watchdog is not None:
+            self.watchdog.stop()
+
+    def _watchdog_halted(self, robot: Robot, silent_s: float) -> None:
+        self.halts.append({
+            "reason": FORCE_STREAM_STALLED, "robot": robot.id, "movement": self._index,
+            "robot_time_s": float(robot.state.timestamp_s), "silent_s": silent_s,
+            "stall_s": self.stall_s, "by": "watchdog",
+        })
 
     def after_commit(self) -> str:
         """After a committed tick: halt the robot if a safety limit was crossed; returns
@@ -91,6 +124,8 @@ class SafetyMonitor:
             seen = flow.valid_force_samples
             if seen != self._seen:
                 self._seen, self._ref_t = seen, now
+                if self.watchdog is not None:
+                    self.watchdog.fed()
             elif now - self._ref_t >= stall_s - _EPS_S:
                 robot.halt(FORCE_STREAM_STALLED)
                 self._record(FORCE_STREAM_STALLED, now, silent_s=now - self._ref_t,

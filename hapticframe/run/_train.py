@@ -11,7 +11,7 @@ and ``DIR/train.json`` records the seed, versions, plugins, the resolved config 
 report of each :class:`~hapticframe.kinds.Trainable` component. ``train.json`` says
 ``status: running`` from before the build until the artifacts are in place: they are saved
 into a staging folder and moved into ``DIR`` together (see
-:class:`~hapticframe.run._results.OutputDir`).
+:func:`~hapticframe.run._scope.run_scope`).
 
 This module uses :mod:`~hapticframe.run._assembly` and :mod:`~hapticframe.run._results`; the run
 (:mod:`~hapticframe.run._run`) uses it to fit before its loop, never the other way round.
@@ -23,25 +23,29 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hapticframe._atomic import OutputError
 from hapticframe._config import Experiment
 from hapticframe._errors import HapticframeError, RunError, UsageError
 from hapticframe._kind import Kind
 from hapticframe.kinds import Component, Persistent, SampleBatch, Trainable
 from hapticframe.run._assembly import build_components
 from hapticframe.run._components import Components
-from hapticframe.run._results import OutputDir, environment
+from hapticframe.run._results import environment
+from hapticframe.run._scope import RunScope, run_scope
 from hapticframe.run._streams import merge_batches
+
+if TYPE_CHECKING:
+    from hapticframe.run._session import Session
 
 __all__ = [
     "collect_recordings",
+    "fit_before_run",
     "fit_components",
     "labels_at",
     "train_experiment",
@@ -151,6 +155,29 @@ def fit_components(
     return trained
 
 
+def fit_before_run(session: Session) -> None:
+    """Fit feature extractors and classifiers on the training sensors' recordings
+    (``run.train_from``) before a run or replay; ``run.json`` records it
+    (``details.training``)."""
+    sources = session.settings.train_from
+    if not sources:
+        return
+    started = time.perf_counter()
+    recordings = collect_recordings(session.components, sources)
+    session.echo(
+        f"fitting before the run on {len(recordings)} recordings of "
+        f"{', '.join(sorted(set(sources.values())))}"
+    )
+    trained = fit_components(session.experiment, session.components, recordings,
+                             session.settings.label_channel, session.echo)
+    session.details["training"] = {
+        "recordings": len(recordings),
+        "trained": trained,
+        "reports": training_reports(session.components, trained),
+        "wall_time_s": time.perf_counter() - started,
+    }
+
+
 @contextmanager
 def _located(component_id: str, type_name: str, doing: str = "fitting") -> Iterator[None]:
     """Name the component whose ``fit`` failed (a plugin's error says what, not where)."""
@@ -173,75 +200,68 @@ def train_experiment(
 ) -> dict[str, Any]:
     """Fit every trainable component of ``experiment`` and save the artifacts into ``out_dir``.
 
-    ``out_dir`` is checked first as for a run (a directory, writable, ``min_free_bytes``
-    free, no results ``overwrite`` may not replace). ``train.json`` says
+    ``out_dir`` is checked and locked first as for a run (a directory, writable,
+    ``min_free_bytes`` free, no results ``overwrite`` may not replace, no other command
+    writing there: :func:`~hapticframe.run._scope.run_scope`). ``train.json`` says
     ``status: running`` until the training run ends; the artifacts are saved into a
     staging folder and moved into ``out_dir`` (``DIR/<component id>/``) only once every
     one is saved, so a killed save never leaves a truncated or empty artifact where a run
     would load it. A failed training run keeps no artifacts; its ``train.json`` records
     the error.
     """
-    directory = OutputDir.prepare(out_dir, record="train.json", command="training run",
-                                  overwrite=overwrite, min_free=min_free_bytes)
-    out = directory.path
     started = time.perf_counter()
     label_channel = experiment.model.run.label_channel
+    started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
     head = {
         "seed": experiment.seed,
-        "started_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "started_utc": started_utc,
         "pid": os.getpid(),
         "versions": environment(),
         "overrides": list(experiment.overrides),
     }
-    directory.begin(head)
-    built = False
-    try:
-        with ExitStack() as stack:
-            components = build_components(experiment, stack)
-            built = True
-            # With run.train_from, the training sensors stand in for the sensors a run streams.
-            sources = dict(experiment.model.run.train_from) or {
-                e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
-            }
-            recordings = collect_recordings(components, sources)
-            echo(f"training on {len(recordings)} recordings")
-            trained = fit_components(experiment, components, recordings, label_channel, echo)
-            saved = _save(components, trained, directory.staging, out)
-            record = {
-                **head,
-                "status": "ok",
-                "error": None,
-                "recordings": len(recordings),
-                "label_channel": label_channel,
-                "trained": trained,
-                "artifacts": saved,
-                "reports": training_reports(components, trained),
-                "plugins": _plugins(experiment),
-                "resolved_config": experiment.resolved_config(),
-                "wall_time_s": time.perf_counter() - started,
-            }
-    except BaseException as exc:
-        if not built:
-            directory.discard()  # nothing was trained: nothing is left behind
-            raise
-        # Half-saved artifacts must never be loaded: a failed training run keeps none.
-        directory.drop_staging()
-        failed = {
+    done: dict[str, Any] = {}
+
+    def final(scope: RunScope) -> dict[str, Any]:
+        if scope.status == "ok":
+            return done
+        failed = {**head, "status": scope.status,
+                  "error": scope.error if scope.error is not None else scope.signal_name,
+                  "plugins": _plugins(experiment),
+                  "resolved_config": experiment.resolved_config(),
+                  "wall_time_s": time.perf_counter() - started}
+        if scope.signal_name is not None:
+            failed["signal"] = scope.signal_name
+        return failed
+
+    with run_scope(out_dir, head, what="training run", record="train.json",
+                   overwrite=overwrite, min_free_bytes=min_free_bytes,
+                   keep_failed=False, started_utc=started_utc) as scope:
+        scope.final_record = final
+        components = scope.build(lambda stack, on_close_error: build_components(
+            experiment, stack, on_close_error=on_close_error))
+        # With run.train_from, the training sensors stand in for the sensors a run streams.
+        sources = dict(experiment.model.run.train_from) or {
+            e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
+        }
+        recordings = collect_recordings(components, sources)
+        echo(f"training on {len(recordings)} recordings")
+        trained = fit_components(experiment, components, recordings, label_channel, echo)
+        saved = _save(components, trained, scope.staging, scope.out)
+        done.update({
             **head,
-            "status": "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed",
-            "error": str(exc) or type(exc).__name__,
+            "status": "ok",
+            "error": None,
+            "recordings": len(recordings),
+            "label_channel": label_channel,
+            "trained": trained,
+            "artifacts": saved,
+            "reports": training_reports(components, trained),
             "plugins": _plugins(experiment),
             "resolved_config": experiment.resolved_config(),
             "wall_time_s": time.perf_counter() - started,
-        }
-        try:
-            directory.finish(failed, [])
-        except OutputError as write_error:  # never hides the error that ended the training
-            _log.error("%s; train.json still says the training run is unfinished", write_error)
-        raise
-    files = directory.commit(record)
-    directory.finish(record, files)
-    return {**record, "files": files}
+        })
+        scope.succeed()
+    return {**done, "files": scope.files}
 
 
 def _plugins(experiment: Experiment) -> list[dict[str, Any]]:

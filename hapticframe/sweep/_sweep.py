@@ -169,7 +169,7 @@ def _declared(experiment: Any) -> list[Vary]:
     import importlib
 
     try:
-        pairs = importlib.import_module("._knobs", __package__).declared_knobs(experiment)
+        pairs = importlib.import_module("hapticframe._knobs").declared_knobs(experiment)
     except ImportError:  # before the knobs module: read the specs' own declarations
         pairs = [(entry.id, knob) for entry in experiment.components
                  for knob in getattr(entry.registered.spec, "knobs", ())]

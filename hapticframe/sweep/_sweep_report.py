@@ -124,13 +124,17 @@ def render_markdown(result: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+#: A sweep with more points than this names only its front and its baseline in pareto.png.
+LABEL_ALL_UP_TO = 12
+
+
 def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
     """``pareto.png``: accuracy cost against mean wall time, every finished point, the
     front highlighted; False when matplotlib is not installed."""
     try:
         from hapticframe.plotting import new_figure, save_figure
 
-        figure = new_figure(7.0, 5.0)
+        figure = new_figure(9.5, 5.0)
     except ImportError:
         return False
     ax = figure.add_subplot(1, 1, 1)
@@ -164,20 +168,27 @@ def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
                    facecolors="none", edgecolors="black", label="baseline (the file)")
     times = [p["cost"]["wall_time_s"] for p in plotted]
     middle = (min(times) + max(times)) / 2 if times else 0.0
-    for p in plotted:
-        # Labels point inwards, so that those of the rightmost points are not cut off.
+    # Every label of a large sweep would be a pile of text: then only the front and the
+    # baseline are named (sweep.md lists every point).
+    named = plotted if len(plotted) <= LABEL_ALL_UP_TO else [
+        p for p in plotted if p.get("front") or p is base]
+    for number, p in enumerate(sorted(named, key=lambda p: p["cost"]["wall_time_s"])):
+        # Labels point inwards, so that those of the rightmost points are not cut off, and
+        # alternate above and below the line, so that neighbours on the front do not overlap.
         right = p["cost"]["wall_time_s"] > middle
         ax.annotate(p["label"], (p["cost"]["wall_time_s"], y[id(p)]), fontsize=6,
-                    xytext=(-3 if right else 3, 3), textcoords="offset points",
-                    ha="right" if right else "left")
+                    xytext=(-3 if right else 3, 4 if number % 2 == 0 else -9),
+                    textcoords="offset points", ha="right" if right else "left")
     failed = sum(1 for p in result["points"] if p.get("accuracy_cost") is None)
     ax.set_xlabel("mean wall time per run (s)")
     ax.set_ylabel(accuracy["description"] if accuracy else "no accuracy metric")
     ax.set_title(f"{result['experiment_file']}: {len(plotted)} points"
+                 + (", the front named" if len(named) < len(plotted) else "")
                  + (f", {failed} without a finite accuracy (see sweep.md)" if failed else ""),
                  fontsize=9)
     if plotted:
-        ax.legend(loc="best", fontsize=8)
+        # Beside the axes, not over the points.
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
     else:
         ax.text(0.5, 0.5, "no point finished with an accuracy", ha="center",
                 transform=ax.transAxes)

@@ -91,8 +91,12 @@ class TrialTask:
     plugin_dir: str | None = None
 
 
-class _TrialTimeout(Exception):
-    """Raised in a worker's main thread when a trial runs past its time limit."""
+class _TrialTimeout(BaseException):
+    """Raised in a worker's main thread when a trial runs past its time limit.
+
+    A BaseException, as KeyboardInterrupt is: the alarm can land inside code that catches
+    ``Exception`` to stay best-effort (provenance, hooks, clean-up), which must not swallow it.
+    """
 
 
 def _reset_peak_rss() -> bool:
@@ -186,7 +190,7 @@ def _alarm(timeout_s: float | None) -> Iterator[dict[str, bool]]:
 
 def run_trial(task: TrialTask) -> dict[str, Any]:
     """Run one trial and measure it; never raises for a failing run (the row says why)."""
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     out = Path(task.out_dir)
     row: dict[str, Any] = {"point": task.point, "trial": task.trial, "seed": task.seed,
@@ -205,15 +209,16 @@ def run_trial(task: TrialTask) -> dict[str, Any]:
             summary = run_experiment(experiment, out, overwrite=True, echo=lambda _t: None,
                                      progress=False)
             row["metrics"] = _scalars(summary)
-        except Exception as exc:  # a failing point is a row, not a crash
-            if alarm["fired"]:
-                row["status"], row["error"] = "timeout", f"past --timeout-s {task.timeout_s:g}"
-            else:
+        except (Exception, _TrialTimeout) as exc:  # a failing point is a row, not a crash
+            if not alarm["fired"]:
                 row["status"] = "failed"
                 row["error"] = (str(exc) if isinstance(exc, HapticframeError)
                                 else f"{type(exc).__name__}: {exc}")
         finally:
             alarm["armed"] = False
+    if alarm["fired"]:  # however the run ended after the alarm, it ran past the limit
+        row["status"], row["error"] = "timeout", f"past --timeout-s {task.timeout_s:g}"
+        row["metrics"] = {}
     messages = list(dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught))
     row["warnings"] = {"count": len(caught), "messages": messages[:3]}
     row["wall_time_s"] = time.perf_counter() - wall0

@@ -16,14 +16,18 @@ extremes (zero, constant, huge, tiny and NaN input give finite output or a clear
 
 What each kind is held to, beyond the checks every plugin gets (``check_spec_record``,
 ``check_config_round_trip``, ``check_lazy_import``, ``check_builds``, ``check_knobs``
-(each declared knob names a config field and its values validate), ``check_deterministic``):
+(each declared knob names a config field and its values validate),
+``check_declared_sizes`` (each field the validator declares with a ``hapticframe.Size`` is
+refused at the extremes of its range, or built and driven there within the memory limit),
+``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
-  times; a ``finite`` sensor is read to its end, bounded by reads and by seconds of its
-  own clock, a live one 30 times), ``check_sensor_valid_samples_finite`` (no NaN or
+  times; every sensor is read until it ends, bounded by reads and by seconds of its own
+  clock, and one that ends without declaring ``finite`` is told to declare it),
+  ``check_sensor_valid_samples_finite`` (no NaN or
   infinity in a sample the batch marks valid), ``check_sensor_read_all_matches_reads``
-  (a finite sensor's ``read_all()`` and joined ``iter_recordings()`` equal what successive
-  ``read()`` calls deliver), ``check_rewind``;
+  (the ``read_all()`` and joined ``iter_recordings()`` of a sensor that ends equal what
+  successive ``read()`` calls deliver), ``check_rewind``;
 - feature extractors and classifiers: ``check_stream_contract``,
   ``check_streaming_matches_batch``, ``check_aligned_inputs_stream_as_batch`` (a consumer
   whose ``input_alignment`` is ``hold`` or ``linear`` gets two inputs on different clocks,
@@ -32,14 +36,16 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 - sensor models: ``check_sensor_model_contract``, ``check_sensor_model_streaming``,
   ``check_sensor_model_extremes``;
 - maps: ``check_map_contract``, ``check_map_streaming_matches_batch``,
-  ``check_map_extremes``, ``check_map_ranks_scattered_points``;
+  ``check_map_extremes``, ``check_map_ranks_scattered_points``,
+  ``check_map_refuses_bad_query_points``;
 - planners: ``check_planner_contract``, ``check_planner_extremes`` (an all-unknown map, an
   all-occupied map, a region smaller than one line spacing);
 - robots: ``check_robot_contract``, ``check_robot_halt``, ``check_robot_stops_at_once``
   (after ``halt()``, before the first step or mid-movement, no step returns a state and
   the fingertip stays put), ``check_robot_refuses_outside_workspace`` (a robot that declares
   a ``workspace`` raises ``ValueError`` from ``begin()`` for a movement leaving it),
-  ``check_robot_extremes`` (a zero-length movement, movements that leave the workspace),
+  ``check_robot_refuses_bad_depth`` (zero, negative, NaN), ``check_robot_extremes`` (a
+  zero-length movement, movements that leave the workspace),
   ``check_rewind``.
 
 A :class:`~hapticframe.kinds.Device` the kit builds is configured and activated first,
@@ -50,7 +56,13 @@ never ends fails a check instead of hanging it; no check is timed.
 """
 
 # _knobs first: its spec-level check runs beside the other checks every plugin gets.
-from hapticframe.testing import _knobs, _rewind, _spatial, _streams  # noqa: F401  (registers the kind checks)
+from hapticframe.testing import (  # noqa: F401  (registers the kind checks)
+    _knobs,
+    _rewind,
+    _sizes,
+    _spatial,
+    _streams,
+)
 from hapticframe.testing._common import (
     CHECKS,
     HEAVY_MODULES,
@@ -69,18 +81,27 @@ from hapticframe.testing._harness import (
 )
 from hapticframe.testing._knobs import check_knobs
 from hapticframe.testing._rewind import check_rewind
-from hapticframe.testing._runner import CheckResult, checks_for, parametrize_with_checks, run_checks
+from hapticframe.testing._runner import (
+    CheckResult,
+    checks_for,
+    iter_checks,
+    parametrize_with_checks,
+    run_checks,
+)
+from hapticframe.testing._sizes import check_declared_sizes
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
     check_map_extremes,
     check_map_ranks_scattered_points,
+    check_map_refuses_bad_query_points,
     check_map_streaming_matches_batch,
     check_planner_contract,
     check_planner_extremes,
     check_robot_contract,
     check_robot_extremes,
     check_robot_halt,
+    check_robot_refuses_bad_depth,
     check_robot_refuses_outside_workspace,
     check_robot_stops_at_once,
     check_sensor_model_contract,
@@ -111,12 +132,14 @@ __all__ = [
     "check_aligned_inputs_stream_as_batch",
     "check_builds",
     "check_config_round_trip",
+    "check_declared_sizes",
     "check_deterministic",
     "check_knobs",
     "check_lazy_import",
     "check_map_contract",
     "check_map_extremes",
     "check_map_ranks_scattered_points",
+    "check_map_refuses_bad_query_points",
     "check_map_streaming_matches_batch",
     "check_numerical_extremes",
     "check_planner_contract",
@@ -125,6 +148,7 @@ __all__ = [
     "check_robot_contract",
     "check_robot_extremes",
     "check_robot_halt",
+    "check_robot_refuses_bad_depth",
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "check_sensor_contract",
@@ -138,6 +162,7 @@ __all__ = [
     "check_streaming_matches_batch",
     "checks_for",
     "drive_sensor",
+    "iter_checks",
     "located_measurement",
     "make_component",
     "map_observations",

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, TypeVar, overload
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 
 from hapticframe._kind import Kind
 from hapticframe._manager import get_registry
@@ -77,8 +77,7 @@ class KitMap(Map):
         if len(hits):
             self.center = hits.mean(axis=0)
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
-        p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
+    def _query(self, p: NDArray[np.float64]) -> MapEstimate:
         if self.center is None:
             return MapEstimate(np.full(len(p), 0.5), np.full(len(p), 0.5))
         d2 = np.sum((p - self.center) ** 2, axis=1)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,7 +11,7 @@ from hapticframe._specs import PluginSpec
 from hapticframe.testing._common import CHECKS, CheckFunction
 from hapticframe.testing._harness import CheckFailure
 
-__all__ = ["CheckResult", "checks_for", "parametrize_with_checks", "run_checks"]
+__all__ = ["CheckResult", "checks_for", "iter_checks", "parametrize_with_checks", "run_checks"]
 
 ExpectedFailures = Mapping[str, str] | Callable[[PluginSpec], Mapping[str, str]] | None
 
@@ -36,6 +36,32 @@ def _expected(spec: PluginSpec, expected: ExpectedFailures) -> Mapping[str, str]
     return expected(spec) if callable(expected) else expected
 
 
+def iter_checks(
+    spec: PluginSpec,
+    *,
+    registry: Registry | None = None,
+    expected_failed_checks: ExpectedFailures = None,
+) -> Iterator[CheckResult]:
+    """Run every applicable check on ``spec``, yielding each result as it finishes (never
+    raises); :func:`run_checks` collects them. Parameters as for :func:`run_checks`."""
+    expected = _expected(spec, expected_failed_checks)
+    for func in checks_for(spec):
+        name = func.__name__
+        try:
+            func(spec, registry=registry)
+        except CheckFailure as exc:
+            yield CheckResult(name, "XFAIL" if name in expected else "FAIL", str(exc))
+            continue
+        except Exception as exc:  # a crash inside a check is the plugin's failure too
+            yield CheckResult(name, "XFAIL" if name in expected else "FAIL",
+                              f"{type(exc).__name__}: {exc}")
+            continue
+        if name in expected:
+            yield CheckResult(name, "XPASS", f"expected to fail: {expected[name]}")
+        else:
+            yield CheckResult(name, "PASS")
+
+
 def run_checks(
     spec: PluginSpec,
     *,
@@ -53,25 +79,8 @@ def run_checks(
         ``{check_name: reason}`` (or a function of the spec returning one): these checks
         are reported as XFAIL when they fail, and as XPASS (a failure) when they pass.
     """
-    expected = _expected(spec, expected_failed_checks)
-    results = []
-    for func in checks_for(spec):
-        name = func.__name__
-        try:
-            func(spec, registry=registry)
-        except CheckFailure as exc:
-            status = "XFAIL" if name in expected else "FAIL"
-            results.append(CheckResult(name, status, str(exc)))
-            continue
-        except Exception as exc:  # a crash inside a check is the plugin's failure too
-            status = "XFAIL" if name in expected else "FAIL"
-            results.append(CheckResult(name, status, f"{type(exc).__name__}: {exc}"))
-            continue
-        if name in expected:
-            results.append(CheckResult(name, "XPASS", f"expected to fail: {expected[name]}"))
-        else:
-            results.append(CheckResult(name, "PASS"))
-    return results
+    return list(iter_checks(spec, registry=registry,
+                            expected_failed_checks=expected_failed_checks))
 
 
 def parametrize_with_checks(

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -46,6 +49,7 @@ __all__ = [
     "KitMap",
     "check_planner_extremes",
     "check_robot_extremes",
+    "check_robot_refuses_bad_depth",
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "located_measurement",
@@ -268,6 +272,40 @@ def check_map_extremes(spec: PluginSpec, *, registry: Registry | None = None) ->
             release_component(the_map)
 
 
+@check(Kind.MAP)
+def check_map_refuses_bad_query_points(
+    spec: PluginSpec, *, registry: Registry | None = None
+) -> None:
+    """``query()`` refuses NaN or infinite points and arrays that are not ``(q, 2)`` with a
+    ``ValueError``, and answers one ``(2,)`` point with one estimate. ``Map.query`` does this
+    before it calls the plugin's ``_query``: a map that overrides ``query`` itself must too."""
+    the_map = make_component(spec, registry=registry, interface=Map)
+    cases: dict[str, ArrayLike] = {
+        "a NaN query point": [[np.nan, 0.1]],
+        "an infinite query point": [[0.1, np.inf]],
+        "query points of shape (2, 3)": np.full((2, 3), 0.1),
+    }
+    try:
+        for what, points in cases.items():
+            try:
+                estimate = the_map.query(np.asarray(points, dtype=np.float64))
+            except ValueError as exc:
+                if not str(exc) or raised_by_record_validation(exc):
+                    raise _invalid(spec, what, exc) from exc
+                continue
+            raise CheckFailure(
+                f"query() accepted {what} (mean {np.asarray(estimate.mean).tolist()}): it must "
+                "raise ValueError; implement Map._query and leave the checks to Map.query"
+            )
+        one = the_map.query(np.array([0.1, 0.1]))
+        if np.shape(one.mean) != (1,):
+            raise CheckFailure(
+                f"query() of one (2,) point returned mean of shape {np.shape(one.mean)}, not (1,)"
+            )
+    finally:
+        release_component(the_map)
+
+
 def _auc(score: np.ndarray, truth: np.ndarray) -> float:
     """Area under the ROC curve: the chance a true point outranks a free one (ties half)."""
     pos, neg = score[truth], score[~truth]
@@ -411,8 +449,8 @@ class FixedMap(KitMap):
     def update(self, observations: Observations) -> None:
         pass
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
-        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+    def _query(self, points_m: np.ndarray) -> MapEstimate:
+        n = len(points_m)
         return MapEstimate(np.full(n, self.level[0]), np.full(n, self.level[1]))
 
 
@@ -629,6 +667,36 @@ def check_robot_refuses_outside_workspace(
         release_component(robot)
 
 
+@check(Kind.ROBOT)
+def check_robot_refuses_bad_depth(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """``begin()`` refuses a movement whose depth is zero, negative or NaN with a
+    ``ValueError``, and no step follows. ``Robot.begin`` does this before it calls the
+    plugin's ``_begin``: a robot that overrides ``begin`` itself must too."""
+    robot = make_component(spec, registry=registry, interface=Robot)
+    try:
+        inside = _inside_movement(robot)
+        for what, depth in (("a negative depth", -0.01), ("a zero depth", 0.0),
+                            ("a NaN depth", math.nan)):
+            movement = dataclasses.replace(inside, depth_m=depth)
+            try:
+                robot.begin(movement)
+            except ValueError as exc:
+                if not str(exc) or raised_by_record_validation(exc):
+                    raise _invalid(spec, what, exc) from exc
+                if robot.step() is not None:
+                    raise CheckFailure(
+                        f"begin() refused {what}, but step() then returned a state"
+                    ) from None
+                continue
+            robot.halt("kit")
+            raise CheckFailure(
+                f"begin() accepted {what} ({depth} m): it must raise ValueError; implement "
+                "Robot._begin and leave the checks to Robot.begin"
+            )
+    finally:
+        release_component(robot)
+
+
 def _robot_cases() -> dict[str, tuple[ExploratoryMovement, int]]:
     """Extreme movements, each with how many steps it may take at most (beyond its length)."""
     region = DEFAULT_SCENE.region.to_region()
@@ -698,9 +766,14 @@ def _check_states(states: list[RobotState], robot: Robot, what: str, last_t: flo
 # --- determinism -----------------------------------------------------------------------------
 
 
-def _exercise(spec: PluginSpec, registry: Registry | None) -> list[Any]:
+def _exercise(
+    spec: PluginSpec, registry: Registry | None, config: Mapping[str, Any] | None = None
+) -> list[Any]:
+    """Build ``spec`` (with ``config``, default its check config) and drive it as its kind
+    is driven; the outputs."""
     # Built as the interface of its kind, so the branches below follow spec.kind.
-    component = make_component(spec, registry=registry, seed=11, interface=INTERFACES[spec.kind])
+    component = make_component(spec, registry=registry, seed=11, config=config,
+                               interface=INTERFACES[spec.kind])
     try:
         if isinstance(component, Sensor):
             return sensor_outputs(component, spec)

@@ -40,13 +40,16 @@ __all__ = [
     "check_sensor_valid_samples_finite",
     "drive_sensor",
     "exercise_stream",
+    "undeclared_end",
 ]
 
 _EXTREMES = ("zero", "constant", "huge", "tiny", "nan")
 
 
-#: Reads of a live (not ``finite``) sensor in one drive.
-LIVE_READS = 30
+#: Reads of a live sensor (one that does not end) in one drive: it is read until it ends
+#: or this many reads (or :data:`MAX_FINITE_DURATION_S` of its own clock) have been made,
+#: so that a sensor which ends without declaring ``finite`` is found out.
+LIVE_READS = 1000
 #: Bounds on driving a finite sensor to its end: reads, and seconds of its own clock.
 MAX_FINITE_READS = 20_000
 MAX_FINITE_DURATION_S = 600.0
@@ -55,20 +58,21 @@ MAX_FINITE_DURATION_S = 600.0
 def drive_sensor(
     sensor: Sensor, reads: int | None = None, *, finite: bool = False
 ) -> list[SampleBatch]:
-    """Read ``sensor`` repeatedly, stepping the robot it is mounted on (if any).
+    """Read ``sensor`` until it ends, stepping the robot it is mounted on (if any).
 
-    A ``finite`` sensor (its spec declares the capability) is read to its end: until
-    ``exhausted``, bounded by :data:`MAX_FINITE_READS` reads and
-    :data:`MAX_FINITE_DURATION_S` seconds of its own timestamps (a :class:`CheckFailure`
-    when it has not ended by then). Other sensors are read :data:`LIVE_READS` times.
-    ``reads`` overrides both: at most that many reads.
+    Every sensor is read until ``exhausted`` or a bound: a ``finite`` one (its spec declares
+    the capability) at most :data:`MAX_FINITE_READS` reads (a :class:`CheckFailure` when it
+    has not ended by then), any other at most :data:`LIVE_READS`; both at most
+    :data:`MAX_FINITE_DURATION_S` seconds of their own timestamps. ``reads`` overrides the
+    read bound. Whether a sensor that does not declare ``finite`` ended is
+    ``sensor.exhausted`` afterwards (see :func:`undeclared_end`).
     """
     robots = [c for c in sensor.context.inputs.values() if isinstance(c, Robot)]
     robot = robots[0] if robots else None
     if robot is not None:
         robot.begin(crossing_movement(sensor.context.scene))
     to_end = reads is None and finite
-    limit = reads if reads is not None else (MAX_FINITE_READS if to_end else LIVE_READS)
+    limit = reads if reads is not None else (MAX_FINITE_READS if finite else LIVE_READS)
     batches: list[SampleBatch] = []
     first_t: float | None = None
     for _ in range(limit):
@@ -79,7 +83,7 @@ def drive_sensor(
             return batches
         batch = sensor.read()
         batches.append(batch)
-        if to_end and len(batch):
+        if len(batch):
             first_t = float(batch.timestamps_s[0]) if first_t is None else first_t
             if float(batch.timestamps_s[-1]) - first_t > MAX_FINITE_DURATION_S:
                 break
@@ -91,6 +95,18 @@ def drive_sensor(
             "source must end, and its check_config should describe a short one"
         )
     return batches
+
+
+def undeclared_end(spec: PluginSpec, sensor: Sensor, batches: list[SampleBatch]) -> str:
+    """The advice for a sensor that ended without declaring ``finite`` ("" otherwise)."""
+    if "finite" in spec.capabilities or not sensor.exhausted:
+        return ""
+    return (
+        f"sensor {spec.name!r} ended (exhausted) after {len(batches)} reads but does not "
+        "declare the 'finite' capability: add \"finite\" to its spec's capabilities, so that "
+        "runs, training and the kit treat it as a source that ends (the kit then checks its "
+        "read_all() and iter_recordings() against its reads)"
+    )
 
 
 def _span_s(batches: list[SampleBatch]) -> float:
@@ -129,8 +145,8 @@ def _drive(spec: PluginSpec, sensor: Sensor) -> list[SampleBatch]:
 def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None) -> None:
     """Declared channels arrive as float64 ``(n, *shape)`` with strictly increasing times.
 
-    A ``finite`` sensor is read to its end (bounded: see :func:`drive_sensor`), a live one
-    30 times.
+    Every sensor is read until it ends (bounded: see :func:`drive_sensor`); one that ends
+    without declaring the ``finite`` capability fails, told to declare it.
     """
     sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
@@ -165,6 +181,9 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
                 delivered += len(batch)
         if not delivered:
             raise CheckFailure(f"{len(batches)} reads delivered no samples")
+        advice = undeclared_end(spec, sensor, batches)
+        if advice:
+            raise CheckFailure(advice)
     finally:
         release_component(sensor)
 
@@ -177,6 +196,7 @@ def check_sensor_valid_samples_finite(
 
     A sensor that cannot measure a sample (a corrupted word, a stale reading) marks it
     invalid in ``batch.valid``; a NaN or infinity it calls valid would reach the models.
+    Every sample is looked at: the sensor is read until it ends (or the kit's bound).
     """
     sensor = make_component(spec, registry=registry, interface=Sensor)
     try:
@@ -246,13 +266,16 @@ def check_sensor_read_all_matches_reads(
     """A finite sensor's ``read_all()`` and ``iter_recordings()`` give its successive ``read()``s.
 
     Batch use (training, ``read_all``) and streaming use (the run loop's ``read``) must see
-    the same samples. Sensors without the ``finite`` capability pass without further checks.
+    the same samples. A sensor without the ``finite`` capability is checked the same when
+    it ends within the kit's bound (and told to declare ``finite``); a live one passes.
     """
-    if "finite" not in spec.capabilities:
-        return
     streamed = make_component(spec, registry=registry, interface=Sensor)
     try:
-        reads = _whole(_drive(spec, streamed), streamed, "the successive read()s")
+        batches = _drive(spec, streamed)
+        if "finite" not in spec.capabilities and not streamed.exhausted:
+            return  # a live source: it has no whole to read
+        advice = undeclared_end(spec, streamed, batches)
+        reads = _whole(batches, streamed, "the successive read()s")
     finally:
         release_component(streamed)
     drained = make_component(spec, registry=registry, interface=Sensor)
@@ -267,7 +290,7 @@ def check_sensor_read_all_matches_reads(
         raise CheckFailure(
             f"read_all() and successive read()s of fresh sensors built with the same seed "
             f"differ: {difference} ({len(reads)} samples read one batch at a time). Batch "
-            "and streaming use must deliver the same samples"
+            "and streaming use must deliver the same samples" + (f"; {advice}" if advice else "")
         )
     split = make_component(spec, registry=registry, interface=Sensor)
     try:

@@ -24,15 +24,33 @@ palm) and on over the palm (140°, the limit).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
-__all__ = ["BarrettHandRobotConfig", "FingerGeometryConfig"]
+__all__ = ["PUCK_FAULT_KINDS", "BarrettHandRobotConfig", "FingerGeometryConfig"]
 
+#: The emulated CAN bus's fault kinds (hapticframe_barrett._emulator.FAULT_KINDS); no byte
+#: harness sits in front of a CAN bus. ``validate`` refuses any other kind and parameter.
+_NODE = {"node": FaultParam(1, 31, integer=True)}
+PUCK_FAULT_KINDS: dict[str, FaultKind] = {
+    "never_wakes": FaultKind("a puck (params.node) never wakes; params.absent=1: not on the bus",
+                             {**_NODE, "absent": FaultParam(0, 1, integer=True)}),
+    "late_reply": FaultKind("one reply params.delay_s late",
+                            {**_NODE, "delay_s": FaultParam(0.0, 60.0)}),
+    "malformed_reply": FaultKind("one reply malformed as params.how", {
+        **_NODE, "how": FaultParam(choices=("bit7", "byte1", "short", "wrong_property"))}),
+    "duplicate_reply": FaultKind("one reply sent params.count more times",
+                                 {"count": FaultParam(1, 1000, integer=True)}),
+    "missing_position": FaultKind("one puck's position missing from a group read", _NODE),
+    "estop": FaultKind("the E-stop is pressed"),
+    "error_frame": FaultKind("params.count CAN error frames",
+                             {"count": FaultParam(1, 1000, integer=True)}),
+    "bus_off": FaultKind("the CAN controller goes bus-off"),
+}
 #: Inner-joint angle at which the default fingertip link points straight down (the
 #: dissertation's "vertical orientation"): inner + inner / 3 + 50° = 90°, i.e. 30°.
 VERTICAL_TIP_RAD = math.radians(30.0)
@@ -163,7 +181,7 @@ class BarrettHandRobotConfig(PluginConfig):
         None, description="Emulator: the pucks on the bus (default 11-14; leave one out "
         "to emulate a missing puck)."
     )
-    faults: FaultSetting = Field(
+    faults: Annotated[FaultValue, FaultKinds(PUCK_FAULT_KINDS, byte_faults=False)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (rare reply faults and error frames), "
         "or a list of PuckBus fault events ({kind, at_s | rate_hz, duration_s, params}).",

@@ -55,7 +55,6 @@ from hapticframe.kinds import (
     BuildContext,
     ExploratoryMovement,
     PhysicalTruthSource,
-    Region,
     Robot,
     RobotState,
     RunOutcome,
@@ -174,39 +173,11 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         self._transit_speed = config.transit_speed_m_per_s
         self._stopped = False  # the safety system stopped the arm: send nothing until activate
 
-    # --- Robot interface -----------------------------------------------------------------
+    # --- Robot interface (the base checks depth and workspace, then calls _begin) ------------
 
-    @property
-    def control_rate_hz(self) -> float:
-        return float(self.config.control_rate_hz)
-
-    @property
-    def state(self) -> RobotState:
-        return self._state
-
-    @property
-    def halt_reason(self) -> str:
-        return self._halt_reason
-
-    @property
-    def workspace(self) -> Region:
-        return self._workspace
-
-    def begin(self, movement: ExploratoryMovement) -> None:
+    def _begin(self, movement: ExploratoryMovement, depth: float) -> None:
         self._active = False
         config = self.config
-        depth = config.depth_m if movement.depth_m is None else float(movement.depth_m)
-        if not (math.isfinite(depth) and depth > 0):
-            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
-        region = self._workspace
-        ends = np.vstack([movement.start_m, movement.end_m])
-        outside = ends[~region.contains(ends)]
-        if len(outside):
-            x, y = outside[0].tolist()
-            raise ValueError(
-                f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, {y:.4g}) m "
-                f"(x {region.x_min_m:g}...{region.x_max_m:g} m, "
-                f"y {region.y_min_m:g}...{region.y_max_m:g} m)")
         self._require_active()
         start = np.array([*movement.start_m, -depth])
         end = np.array([*movement.end_m, -depth])

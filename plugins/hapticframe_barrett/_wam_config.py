@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import FaultKinds, FaultValue
+
+from ._hand_config import PUCK_FAULT_KINDS
 
 __all__ = ["BarrettWamConfig", "DHRow"]
 
@@ -161,7 +163,7 @@ class BarrettWamConfig(PluginConfig):
         True, description="Emulator: the operator presses Shift-Activate when the robot "
         "activates (false: the pucks stay IDLE and activation fails)."
     )
-    faults: FaultSetting = Field(
+    faults: Annotated[FaultValue, FaultKinds(PUCK_FAULT_KINDS, byte_faults=False)] = Field(
         "none", description="Emulator only: 'none', 'standard' (rare puck faults), or a list "
         "of fault events ({kind, at_s | rate_hz, duration_s, params}) of PuckBus."
     )

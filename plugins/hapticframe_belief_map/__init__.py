@@ -6,7 +6,9 @@ no matplotlib).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe import lazy_exports
 
 from ._config import BeliefMapConfig, ContactPointConfig
 
@@ -16,14 +18,10 @@ if TYPE_CHECKING:
 
 __all__ = ["BeliefMap", "BeliefMapConfig", "ContactPoint", "ContactPointConfig"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "BeliefMap": "._belief_map",
+    "ContactPoint": "._contact_point",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "BeliefMap":
-        from ._belief_map import BeliefMap
-
-        return BeliefMap
-    if name == "ContactPoint":
-        from ._contact_point import ContactPoint
-
-        return ContactPoint
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

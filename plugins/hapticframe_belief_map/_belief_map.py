@@ -382,17 +382,8 @@ class BeliefMap(Map):
         """The mean on observed ground while no classifier is fitted: the smoothed contact share."""
         return fn.smoothed_fraction(self._contact_weight, self._total_weight)
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
-        """``P(object | x)`` and the Bernoulli spread ``sqrt(p (1 - p))`` at ``points_m``."""
-        p = np.asarray(points_m, dtype=np.float64)
-        if p.size == 0:
-            return MapEstimate(np.empty(0), np.empty(0))
-        if p.ndim == 1 and p.shape == (2,):
-            p = p[None, :]
-        if p.ndim != 2 or p.shape[1] != 2:
-            raise ValueError(f"points_m must have shape (q, 2), got {p.shape}")
-        if not np.isfinite(p).all():
-            raise ValueError("query points must be finite (got NaN or infinity)")
+    def _query(self, p: FloatArray) -> MapEstimate:
+        """``P(object | x)`` and the Bernoulli spread ``sqrt(p (1 - p))`` at points ``p``."""
         if self._current is None:
             mean = _blend(
                 np.full(len(p), self.prior()), p,

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe import plotting
+from hapticframe.kinds import OUTLINE_LEVEL
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -80,7 +81,7 @@ def draw_belief(
     title: str,
     path_m: FloatArray | None = None,
     outlines: Sequence[FloatArray] = (),
-    outline_level: float | None = 0.6,
+    outline_level: float | None = OUTLINE_LEVEL,
 ) -> Figure:
     """``P(object)`` on the grid ``(ny, nx)`` in red-blue, the true outlines, the estimated
     outline at ``outline_level`` and the fingertip's path with a ring where it is."""
@@ -118,7 +119,7 @@ def save_belief_figure(
     title: str,
     path_m: FloatArray | None = None,
     outlines: Sequence[FloatArray] = (),
-    outline_level: float | None = 0.6,
+    outline_level: float | None = OUTLINE_LEVEL,
 ) -> Path:
     """Write :func:`draw_belief` as PNG at ``path``."""
     figure = draw_belief(xs, ys, mean, title=title, path_m=path_m, outlines=outlines,

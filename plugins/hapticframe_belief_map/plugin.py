@@ -32,6 +32,7 @@ def hapticframe_maps() -> Iterator[MapSpec]:
         summary="RBF SVC with Platt scaling over fingertip positions (Jia 2022, App. A.4).",
         config=BeliefMapConfig,
         factory="hapticframe_belief_map._belief_map:BeliefMap",
+        validator="hapticframe_belief_map._checks:check",
         capabilities=frozenset({"binned"}),
         requires=("sklearn",),
         install_hint="pip install scikit-learn  (figures need matplotlib)",

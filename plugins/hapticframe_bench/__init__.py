@@ -18,7 +18,9 @@ Runner modules load on first use, so importing this package stays light.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe import lazy_exports
 
 if TYPE_CHECKING:
     from ._aggregate import aggregate_trials, trial_figures
@@ -97,15 +99,4 @@ _HOMES = {
     "check_targets": "._targets",
 }
 
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib
-
-    return getattr(importlib.import_module(home, __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES)

@@ -221,8 +221,10 @@ def _limit_memory() -> None:  # runs in the child before exec
     resource.setrlimit(resource.RLIMIT_AS, (RUN_MEMORY_BYTES, RUN_MEMORY_BYTES))
 
 
-def check_mutant(mutant: Mutant, workdir: Path, *, run: bool = True) -> Outcome:
-    """Validate ``mutant`` here; run it in a child process when accepted (and ``run``)."""
+def check_mutant(mutant: Mutant, workdir: Path, *, run: bool = True,
+                 max_movements: int = MAX_MOVEMENTS) -> Outcome:
+    """Validate ``mutant`` here; run it in a child process when accepted (and ``run``), for
+    at most ``max_movements`` movements."""
     started = time.perf_counter()
     workdir.mkdir(parents=True, exist_ok=True)
     experiment = workdir / "experiment.yaml"
@@ -247,14 +249,14 @@ def check_mutant(mutant: Mutant, workdir: Path, *, run: bool = True) -> Outcome:
                        time.perf_counter() - started)
     if not (run and mutant.runnable):
         return Outcome(mutant, "accepted", True, "", time.perf_counter() - started)
-    return _run_child(mutant, workdir, started)
+    return _run_child(mutant, workdir, started, max_movements)
 
 
-def _run_child(mutant: Mutant, workdir: Path, started: float) -> Outcome:
+def _run_child(mutant: Mutant, workdir: Path, started: float, max_movements: int) -> Outcome:
     data = copy.deepcopy(mutant.data)
     data.setdefault("run", {})
     if isinstance(data["run"], dict):
-        data["run"].update({"max_movements": MAX_MOVEMENTS, "figures": False})
+        data["run"].update({"max_movements": max_movements, "figures": False})
     experiment = workdir / "run-experiment.yaml"
     experiment.write_text(yaml.safe_dump(data, allow_unicode=True), encoding="utf-8")
     out = workdir / "run"

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from hapticframe import atomic_path
+from hapticframe.kinds import OUTLINE_LEVEL
 
 from ._targets import record_rows
 
@@ -229,7 +230,8 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
         "Centroid RMSE is the root mean square of the per-trial centroid errors, with their "
         "mean ± std in brackets (the thesis reports RMSE ± std). The Hausdorff distance is "
         "the larger of the two directed distances between the estimated outline (occupancy "
-        f"{summary.get('outline_level', 0.6)} of the evaluated map) and the true outline. "
+        f"{summary.get('outline_level', OUTLINE_LEVEL)} of the evaluated map) and the true "
+        "outline. "
         "Standard deviations are population standard deviations. Lengths are summarised "
         "over the trials that found the object; movement counts over all completed trials.",
         "",

@@ -29,7 +29,7 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     )
     yield BenchSpec(
         name="search-scenes",
-        summary="Haptic search beyond Table 3.2 (issue 19): an L-shape, a 5-point star, and "
+        summary="Haptic search beyond Table 3.2: an L-shape, a 5-point star, and "
         "two and three objects at once, every object scored.",
         factory="hapticframe_bench._search:run_search_scenes",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
@@ -37,20 +37,20 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     yield BenchSpec(
         name="search-devices",
         summary="Haptic search through emulated FT 300 + BNO055 and the force observer "
-        "beside the pure simulation (issue 14): accuracy, per-step cost, calibration, health.",
+        "beside the pure simulation: accuracy, per-step cost, calibration, health.",
         factory="hapticframe_bench._search_devices:run_search_devices",
         install_hint="pip install 'hapticframe[hardware]'  (pyserial for the emulated ports)",
     )
     yield BenchSpec(
         name="search-dynamixel",
         summary="Haptic search on a whole emulated rig: a Dynamixel gantry, FT 300, BNO055 "
-        "and the force observer, the sandbox following the gantry (issue 15).",
+        "and the force observer, the sandbox following the gantry.",
         factory="hapticframe_bench._search_dynamixel:run_search_dynamixel",
         install_hint="pip install 'hapticframe[hardware]'  (dynamixel-sdk, pyserial)",
     )
     yield BenchSpec(
         name="fuzz",
-        summary="Mutants of the examples (issue 16): each refused at validate with located "
+        summary="Mutants of the examples: each refused at validate with located "
         "issues, or run to a clean end; --trials mutants (default 320).",
         factory="hapticframe_bench._fuzz:run_fuzz",
     )
@@ -77,7 +77,7 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "
-        "220,000 samples against PyEMD (issue 18).",
+        "220,000 samples against PyEMD.",
         factory="hapticframe_bench._emd_fidelity:run_emd_fidelity",
         install_hint="pip install 'hapticframe[learn]' EMD-signal  (PyEMD for the cross-check)",
     )

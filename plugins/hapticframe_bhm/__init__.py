@@ -7,7 +7,9 @@ its config model) does not import scipy. Its timing benchmark is ``hapticframe b
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe import lazy_exports
 
 from ._config import BayesianHilbertMapConfig
 
@@ -16,10 +18,9 @@ if TYPE_CHECKING:
 
 __all__ = ["BayesianHilbertMap", "BayesianHilbertMapConfig"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "BayesianHilbertMap": "._map",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "BayesianHilbertMap":
-        from ._map import BayesianHilbertMap
-
-        return BayesianHilbertMap
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

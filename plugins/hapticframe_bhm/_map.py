@@ -81,64 +81,37 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+from hapticframe.kinds import (
+    BuildContext,
+    Map,
+    MapEstimate,
+    Observations,
+    Region,
+    RunOutcome,
+    query_points,
+)
 from hapticframe.threads import blas_threads
 
 from . import _functional as fn
+from ._checks import MAX_WEIGHTS
 from ._config import BayesianHilbertMapConfig
-from ._separable import grid_activation_samples, grid_predictive_moments
+from ._dense import DenseBelief, HilbertBelief
 from ._tiled import TiledBeliefs
-from ._windowed import DenseRows, WindowedRows, window_half_width
 
 __all__ = ["BayesianHilbertMap"]
 
 FloatArray = NDArray[np.float64]
-
-#: Targets above this count as interaction observations for region-dependent smoothing.
-_INTERACTION_TARGET = 0.5
-#: Largest weight-vector length of one dense posterior (the precision is a D x D matrix).
-_MAX_WEIGHTS = 5000
-#: Smallest batch whose variational update uses windowed features (below it, dense BLAS
-#: products over all hinges are cheaper than the per-window loop).
-_WINDOWED_MIN_ROWS = 1000
-#: Query rows processed at once: at most 16,384, and at most this many feature entries per
-#: chunk (2 M doubles, 16 MB), so that a chunk's (rows x D) matrices stay small when D is large.
-_QUERY_CHUNK = 16384
-_QUERY_ENTRIES = 1 << 21
-#: Default region when neither the config nor a scene gives one (thesis: 75 x 50 cm).
-
-
-
-
-
-def _grid_axes(points: FloatArray) -> tuple[FloatArray, FloatArray] | None:
-    """``(xs, ys)`` when ``points`` is the row-major grid ``meshgrid(xs, ys)`` (x fastest),
-    with at least 64 points and both axes strictly increasing; else None."""
-    n = points.shape[0]
-    if n < 64:
-        return None
-    y0 = points[0, 1]
-    # The first row: the leading run of points with the first point's y.
-    nx = int(np.argmax(points[:, 1] != y0)) if np.any(points[:, 1] != y0) else n
-    if nx < 2 or n % nx:
-        return None
-    grid = points.reshape(n // nx, nx, 2)
-    xs, ys = grid[0, :, 0], grid[:, 0, 1]
-    if grid.shape[0] < 2 or np.any(np.diff(xs) <= 0) or np.any(np.diff(ys) <= 0):
-        return None
-    if not (np.array_equal(grid[:, :, 0], np.broadcast_to(xs, grid.shape[:2]))
-            and np.array_equal(grid[:, :, 1], np.broadcast_to(ys[:, None], grid.shape[:2]))):
-        return None
-    return xs.copy(), ys.copy()
 
 
 class BayesianHilbertMap(Map):
     """Continuous occupancy map with weight uncertainty (Senanayake & Ramos's BHM).
 
     Built as ``BayesianHilbertMap(config, context)``; see the module docstring for the
-    update rule, region-dependent smoothing and the uncertainty estimate. A map with more
-    than ``dense_weights_max`` weights is split into local tiles (:mod:`._tiled`), each an
-    instance of this class over a sub-grid of the hinges.
+    update rule, region-dependent smoothing and the uncertainty estimate. The weights live in
+    one belief (:mod:`._dense`): a :class:`~hapticframe_bhm._dense.DenseBelief` over every
+    hinge or, with more than ``dense_weights_max`` weights, a
+    :class:`~hapticframe_bhm._tiled.TiledBeliefs` of dense beliefs over local tiles. The map
+    checks inputs and sets the BLAS threads; the belief computes.
     """
 
     config: BayesianHilbertMapConfig
@@ -149,72 +122,26 @@ class BayesianHilbertMap(Map):
         spacing = config.hinge_spacing_m
         xs = fn.hinge_axis(region.x_min_m, region.x_max_m, spacing)
         ys = fn.hinge_axis(region.y_min_m, region.y_max_m, spacing)
-        self._tiled: TiledBeliefs | None = None
-        if xs.size * ys.size + int(config.bias) <= config.dense_weights_max:
-            self._setup(region, xs, ys)
-            return
         self._region, self._hinge_xs, self._hinge_ys = region, xs, ys
-        self._rng = context.rng
-        self._tile_priors: dict[int, fn.GaussianWeights] = {}
-        self._tiled = TiledBeliefs(config, xs, ys, self._make_tile, context.rng)
-        largest = self._tiled.layout.largest_tile_hinges() + int(config.bias)
-        if largest > _MAX_WEIGHTS:
+        self._beliefs: HilbertBelief
+        if xs.size * ys.size + int(config.bias) <= config.dense_weights_max:
+            self._beliefs = DenseBelief(config, region, xs, ys, context.rng, context.id)
+            return
+        tiled = TiledBeliefs(config, xs, ys, context.rng, context.id)
+        largest = tiled.layout.largest_tile_hinges() + int(config.bias)
+        if largest > MAX_WEIGHTS:
             raise ValueError(
                 f"map {context.id!r}: a tile of {largest} weights (hinge spacing {spacing} m, "
                 f"length scale {config.length_scale_free_m} m) exceeds the dense limit of "
-                f"{_MAX_WEIGHTS}; increase hinge_spacing_m or set a smaller tile_size_m"
+                f"{MAX_WEIGHTS}; increase hinge_spacing_m or set a smaller tile_size_m"
             )
-        self.reset()
-
-    def _make_tile(self, xs: FloatArray, ys: FloatArray) -> BayesianHilbertMap:
-        """A dense map with this map's settings over the hinge sub-grid ``xs x ys``."""
-        tile = BayesianHilbertMap.__new__(BayesianHilbertMap)
-        Map.__init__(tile, self.config, self.context)
-        tile._tiled = None
-        tile._setup(Region(float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1])), xs, ys)
-        # Tiles of one size share one prior (it is only read): its dense diagonal matrices
-        # would otherwise double the memory of the tiles.
-        shared = self._tile_priors.setdefault(tile._prior.dimension, tile._prior)
-        tile._prior = tile._belief = shared
-        return tile
-
-    def _setup(self, region: Region, xs: FloatArray, ys: FloatArray) -> None:
-        """Hinges, prior and state of one dense posterior over the hinge grid ``xs x ys``."""
-        config = self.config
-        self._region = region
-        self._hinge_xs, self._hinge_ys = xs, ys
-        self._hinges = fn.hinge_points(self._hinge_xs, self._hinge_ys)
-        dimension = self._hinges.shape[0] + int(config.bias)
-        if dimension > _MAX_WEIGHTS:
-            raise ValueError(
-                f"map {self.context.id!r}: {dimension} weights (hinge spacing "
-                f"{config.hinge_spacing_m} m over {region}) exceed the dense limit of "
-                f"{_MAX_WEIGHTS}; increase hinge_spacing_m or lower dense_weights_max"
-            )
-        self._rng = self.context.rng
-        prior_mean = np.zeros(dimension)
-        if config.bias:
-            prior_mean[-1] = float(np.log(config.prior_occupancy / (1.0 - config.prior_occupancy)))
-        self._prior = fn.GaussianWeights.isotropic(dimension, config.prior_variance, prior_mean)
-        self.reset()
+        self._beliefs = tiled
 
     # --- state --------------------------------------------------------------------------
 
     def reset(self) -> None:
         """Forget all observations: back to the prior and free-regime hinges."""
-        self.last_update_info: fn.UpdateInfo | None = None
-        if self._tiled is not None:
-            self._tiled.reset()
-            return
-        shape = (self._hinge_xs.size, self._hinge_ys.size)
-        self._interaction = np.zeros(shape, dtype=bool)
-        self._learned_scales: FloatArray | None = None
-        self._learned_at = 0
-        self._belief = self._prior
-        self._history: list[Observations] = []
-        self._batches = 0
-        self._weight_samples: FloatArray | None = None
-        self._refits = 0
+        self._beliefs.reset()
 
     @property
     def region(self) -> Region:
@@ -228,61 +155,58 @@ class BayesianHilbertMap(Map):
     @property
     def tiled(self) -> TiledBeliefs | None:
         """The tiles of a map split into local posteriors, or None for one dense posterior."""
-        return self._tiled
+        return self._beliefs if isinstance(self._beliefs, TiledBeliefs) else None
+
+    @property
+    def last_update_info(self) -> fn.UpdateInfo | None:
+        """What the last variational update reported (None before one, and for a tiled map)."""
+        return self._beliefs.last_update_info
 
     @property
     def interaction_hinges(self) -> NDArray[np.bool_]:
         """``(nx, ny)`` True where a hinge uses the interaction length scale."""
-        if self._tiled is not None:
-            return self._tiled.core_values(lambda t: t._interaction, False).astype(bool)
-        return self._interaction.copy()
+        return self._beliefs.interaction_hinges
 
     @property
     def length_scales(self) -> FloatArray:
         """``(nx, ny)`` current kernel length scale of every hinge, in metres."""
-        cfg = self.config
-        if self._tiled is not None:
-            scales = self._tiled.core_values(lambda t: t.length_scales, cfg.length_scale_free_m)
-            return np.asarray(scales, dtype=np.float64)
-        if self._learned_scales is not None:
-            return self._learned_scales.copy()
-        return np.where(self._interaction, cfg.length_scale_interaction_m, cfg.length_scale_free_m)
+        return self._beliefs.length_scales
+
+    def _dense(self, what: str) -> DenseBelief:
+        if not isinstance(self._beliefs, DenseBelief):
+            raise AttributeError(
+                f"map {self.id!r} is tiled (more than dense_weights_max weights): each tile of "
+                f"map.tiled.tiles has its own {what}"
+            )
+        return self._beliefs
 
     @property
     def belief(self) -> fn.GaussianWeights:
         """The current Gaussian belief over the weights (hinges x-major, then bias).
 
         A tiled map has none: each tile has its own (:attr:`tiled`)."""
-        if self._tiled is not None:
-            raise AttributeError(
-                f"map {self.id!r} is tiled (more than dense_weights_max weights): each tile of "
-                "map.tiled.tiles has its own belief"
-            )
-        return self._belief
+        return self._dense("belief").posterior
+
+    @property
+    def prior(self) -> fn.GaussianWeights:
+        """The belief before any observation (dense maps only)."""
+        return self._dense("prior").prior
 
     @property
     def batches_fused(self) -> int:
         """Number of batches fused since the last reset (a refit counts as one; in a tiled
         map, the most any tile fused)."""
-        if self._tiled is not None:
-            return max((t._batches for t in self._tiled.tiles.values()), default=0)
-        return self._batches
+        return self._beliefs.batches_fused
 
     @property
     def refits(self) -> int:
         """Refits of all data since the last reset (region-dependent smoothing; summed over
         the tiles of a tiled map)."""
-        if self._tiled is not None:
-            return sum(t._refits for t in self._tiled.tiles.values())
-        return self._refits
+        return self._beliefs.refits
 
     def features(self, points_m: ArrayLike) -> FloatArray:
         """Feature rows of ``points_m`` under the current length scales (dense maps only)."""
-        if self._tiled is not None:
-            raise AttributeError(f"map {self.id!r} is tiled: features belong to its tiles")
-        return fn.separable_hinge_features(
-            points_m, self._hinge_xs, self._hinge_ys, self.length_scales, self.config.bias
-        )
+        return self._dense("features").features(points_m)
 
     # --- updates ------------------------------------------------------------------------
 
@@ -293,171 +217,27 @@ class BayesianHilbertMap(Map):
         if len(observations) == 0:
             return
         with blas_threads(self.config.blas_threads):
-            if self._tiled is not None:
-                self._tiled.update(observations)
-                return
-            if self.config.automorphing_kernels:
-                self._history.append(observations)
-                seen = sum(len(batch) for batch in self._history)
-                if self._batches == 0 or seen >= 2 * self._learned_at:
-                    self._learn_length_scales(seen)
-                    return
-            if self.config.region_dependent_smoothing:
-                self._history.append(observations)
-                switched = self._switched_hinges(observations)
-                if switched.any():
-                    self._interaction |= switched
-                    self._refit()
-                    return
-            self._fuse(observations, first=self._batches == 0)
-
-    def _switched_hinges(self, observations: Observations) -> NDArray[np.bool_]:
-        """Hinges that enter the interaction regime with this batch (rule 2 above)."""
-        flags = np.zeros(self._interaction.shape, dtype=bool)
-        if self._batches > 0:
-            # p > 0.5 under the probit mean exactly when the mean activation is positive.
-            activation = self.features(self._hinges) @ self._belief.mean
-            flags |= activation.reshape(flags.shape) > 0.0
-        hits = (observations.targets > _INTERACTION_TARGET) & (observations.weights > 0)
-        if hits.any():
-            points = observations.points_m[hits]
-            radius = self.config.interaction_radius_m
-            near = np.zeros(self._hinges.shape[0], dtype=bool)
-            for start in range(0, points.shape[0], 1024):
-                block = points[start : start + 1024]
-                d2 = (block[:, None, 0] - self._hinges[None, :, 0]) ** 2 + (
-                    block[:, None, 1] - self._hinges[None, :, 1]
-                ) ** 2
-                near |= (d2 <= radius * radius).any(axis=0)
-            flags |= near.reshape(flags.shape)
-        return flags & ~self._interaction
-
-    def _learn_length_scales(self, seen: int) -> None:
-        """Learn the hinges' length scales on all data and refit (:mod:`._automorph`)."""
-        from ._automorph import learn_length_scales, length_scale_levels
-
-        cfg = self.config
-        everything = Observations.concatenate(self._history)
-        levels = length_scale_levels(cfg.length_scale_free_m, *cfg.automorphing_range,
-                                     cfg.automorphing_levels)
-        scales, self._belief, self.last_update_info = learn_length_scales(
-            everything.points_m, everything.targets, everything.weights,
-            self._hinge_xs, self._hinge_ys, self.length_scales, cfg.length_scale_free_m,
-            levels, self._prior, bias=cfg.bias, iterations=cfg.automorphing_iterations,
-            max_iterations=cfg.max_iterations_first, tolerance=cfg.tolerance,
-        )
-        self._learned_scales = scales
-        self._learned_at = seen
-        self._batches = 1
-        self._refits += 1
-        self._weight_samples = None
-
-    def _refit(self) -> None:
-        everything = Observations.concatenate(self._history)
-        self._belief = self._prior
-        self._batches = 0
-        self._refits += 1
-        self._fuse(everything, first=True)
-
-    def _rows(self, points_m: FloatArray) -> Any:
-        """Feature rows of ``points_m`` for the variational update: windowed when every hinge
-        has one length scale, a window holds under half the hinges and the batch is large
-        enough for the per-window bookkeeping to pay off; else dense (BLAS)."""
-        scales = self.length_scales
-        spacing = self.config.hinge_spacing_m
-        large = points_m.shape[0] >= _WINDOWED_MIN_ROWS
-        if large and np.all(scales == scales.flat[0]):
-            half = window_half_width(float(scales.flat[0]), spacing)
-            k = 2 * half + 1
-            fits = k <= min(self._hinge_xs.size, self._hinge_ys.size)
-            if fits and k * k <= self._hinges.shape[0] // 2:
-                return WindowedRows(
-                    points_m, self._hinge_xs, self._hinge_ys, float(scales.flat[0]),
-                    self.config.bias, half,
-                )
-        return DenseRows(self.features(points_m))
-
-    def _fuse(self, observations: Observations, *, first: bool) -> None:
-        cfg = self.config
-        phi = self._rows(observations.points_m)
-        cap = cfg.max_iterations_first if first else cfg.max_iterations_update
-        self._belief, self.last_update_info = fn.variational_update(
-            self._belief,
-            phi,
-            observations.targets,
-            observations.weights,
-            max_iterations=cap,
-            tolerance=cfg.tolerance,
-        )
-        self._batches += 1
-        self._weight_samples = None
+            self._beliefs.update(observations)
 
     # --- queries ------------------------------------------------------------------------
 
-    def _samples(self) -> FloatArray:
-        if self._weight_samples is None:
-            self._weight_samples = fn.sample_weights(
-                self._belief, self._rng, self.config.monte_carlo_samples
-            )
-        return self._weight_samples
-
-    @staticmethod
-    def _points(points_m: ArrayLike) -> FloatArray:
-        p = np.asarray(points_m, dtype=np.float64)
-        if p.size == 0:
-            return np.empty((0, 2))
-        if p.ndim == 1 and p.shape == (2,):
-            p = p[None, :]
-        if p.ndim != 2 or p.shape[1] != 2:
-            raise ValueError(f"points_m must have shape (q, 2), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise ValueError("points_m contains NaN or infinity")
-        return p
-
-    def query(self, points_m: ArrayLike) -> MapEstimate:
+    def _query(self, points_m: FloatArray) -> MapEstimate:
         """Occupancy probability (probit mean) and its standard deviation at ``points_m``.
 
         Points laid out as a row-major grid (``x`` fastest, as
         :func:`hapticframe.geometry.sample_grid` makes them) take the separable path of
         :meth:`probability_grid`: same values to rounding, far fewer operations.
         """
-        p = self._points(points_m)
-        axes = _grid_axes(p)
-        if axes is not None:
-            xs, ys = axes
-            mean_grid, std_grid = self._grid_moments(xs, ys)
-            return MapEstimate(mean_grid.reshape(-1), std_grid.reshape(-1))
-        if self._tiled is not None:
-            with blas_threads(self.config.blas_threads):
-                return MapEstimate(*self._tiled.query(p))
-        mean = np.empty(p.shape[0])
-        std = np.empty(p.shape[0])
-        chunk = max(256, min(_QUERY_CHUNK, _QUERY_ENTRIES // self._belief.dimension))
         with blas_threads(self.config.blas_threads):
-            for start in range(0, p.shape[0], chunk):
-                rows = slice(start, start + chunk)
-                phi = self.features(p[rows])
-                mu, var = fn.predictive_moments(self._belief, phi)
-                mean[rows] = fn.probit_probability(mu, var)
-                if self.config.std_method == "surrogate":
-                    std[rows] = fn.surrogate_std(mu, var)
-                else:
-                    activations = fn.activation_samples(phi, self._samples())
-                    std[rows] = fn.monte_carlo_probability(activations)[1]
-        return MapEstimate(mean, std)
+            return MapEstimate(*self._beliefs.query(points_m))
 
     def log_odds(self, points_m: ArrayLike) -> FloatArray:
         """``logit`` of the probit mean, ``kappa mu_a``, at ``points_m``."""
-        p = self._points(points_m)
+        p = query_points(points_m)
         if p.shape[0] == 0:
             return np.empty(0)
-        if self._tiled is not None:
-            with blas_threads(self.config.blas_threads):
-                return self._tiled.log_odds(p)
         with blas_threads(self.config.blas_threads):
-            mu, var = fn.predictive_moments(self._belief, self.features(p))
-        return fn.probit_kappa(var) * mu
-
+            return self._beliefs.log_odds(p)
     def probability_grid(
         self, spacing_m: float
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -479,19 +259,8 @@ class BayesianHilbertMap(Map):
 
     def _grid_moments(self, xs: FloatArray, ys: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Mean and std, ``(len(ys), len(xs))``, on the grid of axes ``xs`` and ``ys``."""
-        if self._tiled is not None:
-            with blas_threads(self.config.blas_threads):
-                return self._tiled.grid_moments(xs, ys)
-        args = (xs, ys, self._hinge_xs, self._hinge_ys, self.length_scales)
         with blas_threads(self.config.blas_threads):
-            mu, var = grid_predictive_moments(*args, self._belief, self.config.bias)
-            mean = fn.probit_probability(mu, var)
-            if self.config.std_method == "surrogate":
-                std = fn.surrogate_std(mu, var)
-            else:
-                activations = grid_activation_samples(*args, self._samples(), self.config.bias)
-                std = fn.monte_carlo_probability(activations)[1]
-        return mean, std
+            return self._beliefs.grid_moments(xs, ys)
 
     # --- results ------------------------------------------------------------------------
 

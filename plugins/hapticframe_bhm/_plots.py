@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe import plotting
-from hapticframe.kinds import MovementResult, Region
+from hapticframe.kinds import OUTLINE_LEVEL, MovementResult, Region
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -64,7 +64,7 @@ def save_map_figures(
     outlines: Sequence[FloatArray] = (),
     movements: Sequence[MovementResult] = (),
     interaction_hinges: FloatArray | None = None,
-    outline_level: float = 0.6,
+    outline_level: float = OUTLINE_LEVEL,
 ) -> list[Path]:
     """Write ``bhm_mean.png`` and ``bhm_std.png``; return the paths."""
     common: dict[str, Any] = {"outlines": outlines, "movements": movements}
@@ -86,7 +86,7 @@ def save_kernel_figure(
     ys: FloatArray,
     mean: FloatArray,
     *,
-    outline_level: float = 0.6,
+    outline_level: float = OUTLINE_LEVEL,
 ) -> Path:
     """``kernels.png``: every hinge coloured and sized by its learned length scale (as the
     thesis's Fig. 3.5c), over the ``outline_level`` curve of the occupancy mean."""

@@ -31,19 +31,16 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import Observations
+from hapticframe.kinds import Observations, Region
 
 from . import _functional as fn
 from ._config import BayesianHilbertMapConfig
+from ._dense import DenseBelief, grid_axes
 from ._windowed import window_half_width
-
-if TYPE_CHECKING:
-    from ._map import BayesianHilbertMap
 
 __all__ = ["TileLayout", "TiledBeliefs"]
 
@@ -122,26 +119,31 @@ class TileLayout:
 
 
 class TiledBeliefs:
-    """The tiles of a large BHM and the operations of the map over them.
+    """The tiles of a large BHM: a :class:`~hapticframe_bhm._dense.HilbertBelief` made of
+    :class:`~hapticframe_bhm._dense.DenseBelief` tiles.
 
     Parameters
     ----------
     config : BayesianHilbertMapConfig
     xs, ys : (nx,), (ny,) float64
         The whole hinge grid.
-    make_tile : callable
-        ``make_tile(xs_sub, ys_sub)`` builds a dense map over a sub-grid of hinges.
     rng : numpy.random.Generator
-        Draws the Monte-Carlo std of the prior where no tile exists.
+        Draws the Monte-Carlo std of the prior where no tile exists, and the tiles' weight
+        samples.
+    name : str
+        The map's id, for errors.
     """
+
+    #: A tiled map reports no single update (each tile fuses its own part of a batch).
+    last_update_info: fn.UpdateInfo | None = None
 
     def __init__(
         self,
         config: BayesianHilbertMapConfig,
         xs: FloatArray,
         ys: FloatArray,
-        make_tile: Callable[[FloatArray, FloatArray], BayesianHilbertMap],
         rng: np.random.Generator,
+        name: str,
     ) -> None:
         self.config = config
         self.xs, self.ys = xs, ys
@@ -157,9 +159,12 @@ class TiledBeliefs:
         else:
             core = max(1, round(config.tile_size_m / spacing))
         self.layout = TileLayout(xs.size, ys.size, core, reach)
-        self._make_tile = make_tile
         self._rng = rng
-        self.tiles: dict[tuple[int, int], BayesianHilbertMap] = {}
+        self._name = name
+        # Tiles of one size share one prior (it is only read): its dense diagonal matrices
+        # would otherwise double the memory of the tiles.
+        self._priors: dict[int, fn.GaussianWeights] = {}
+        self.tiles: dict[tuple[int, int], DenseBelief] = {}
         self._covariances: OrderedDict[tuple[int, int], None] = OrderedDict()
         self._packed: dict[tuple[int, int], tuple[FloatArray, FloatArray, FloatArray]] = {}
         self._tril: dict[int, tuple[IntArray, IntArray]] = {}
@@ -180,7 +185,16 @@ class TiledBeliefs:
             out.append(np.clip(index, 0, hinges.size - 1).astype(np.intp))
         return out[0], out[1]
 
-    def _tile(self, tile: tuple[int, int]) -> BayesianHilbertMap:
+    def _make_tile(self, xs: FloatArray, ys: FloatArray) -> DenseBelief:
+        """A dense belief with the map's settings over the hinge sub-grid ``xs x ys``."""
+        region = Region(float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1]))
+        dimension = xs.size * ys.size + int(self.config.bias)
+        tile = DenseBelief(self.config, region, xs, ys, self._rng, self._name,
+                           self._priors.get(dimension))
+        self._priors.setdefault(dimension, tile.prior)
+        return tile
+
+    def _tile(self, tile: tuple[int, int]) -> DenseBelief:
         """The tile, made if new, its belief unpacked if it was evicted."""
         existing = self.tiles.get(tile)
         if existing is None:
@@ -192,7 +206,7 @@ class TiledBeliefs:
             factor, shift, mean = packed
             lower = np.zeros((mean.size, mean.size))
             lower[self._lower_indices(mean.size)] = factor
-            existing._belief = fn.GaussianWeights(shift, lower, mean)
+            existing.posterior = fn.GaussianWeights(shift, lower, mean)
         return existing
 
     def _lower_indices(self, dimension: int) -> tuple[IntArray, IntArray]:
@@ -209,13 +223,13 @@ class TiledBeliefs:
         self._covariances[tile] = None
         while len(self._covariances) > _COVARIANCE_CACHE_TILES:
             old, _ = self._covariances.popitem(last=False)
-            bhm = self.tiles.get(old)
-            if bhm is None or old in self._packed or bhm._belief.diagonal:
+            dense = self.tiles.get(old)
+            if dense is None or old in self._packed or dense.posterior.diagonal:
                 continue
-            belief = bhm._belief
+            belief = dense.posterior
             factor = belief.cholesky[self._lower_indices(belief.dimension)]
             self._packed[old] = (factor, belief.shift, belief.mean)
-            del bhm._belief
+            del dense.posterior  # until _tile unpacks it
 
     # --- updates --------------------------------------------------------------------------
 
@@ -276,7 +290,12 @@ class TiledBeliefs:
         return mean, std
 
     def query(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Occupancy mean and std at ``points``, each from the tile that owns it."""
+        """Occupancy mean and std at ``points``, each from the tile that owns it (a
+        row-major grid: :meth:`grid_moments`)."""
+        axes = grid_axes(points)
+        if axes is not None:
+            mean_grid, std_grid = self.grid_moments(*axes)
+            return mean_grid.reshape(-1), std_grid.reshape(-1)
         mean, std = self._prior_estimate(points)
         if not self.tiles or points.shape[0] == 0:
             return mean, std
@@ -284,13 +303,14 @@ class TiledBeliefs:
         for tile in list(self.tiles):
             rows = np.flatnonzero(owner == tile[0] * self.layout.tiles_y + tile[1])
             if rows.size:
-                estimate = self._tile(tile).query(points[rows])
-                mean[rows], std[rows] = estimate.mean, estimate.std
+                mean[rows], std[rows] = self._tile(tile).query(points[rows])
                 self._touched(tile)
         return mean, std
 
     def log_odds(self, points: FloatArray) -> FloatArray:
         """``kappa mu_a`` at ``points``."""
+        if points.shape[0] == 0:
+            return np.empty(0)
         mu, var = self.prior_moments(points)
         out = fn.probit_kappa(var) * mu
         owner = self.layout.owners(*self._nearest(points))
@@ -320,7 +340,7 @@ class TiledBeliefs:
             rows = np.flatnonzero(row_tile == tile[1])
             if columns.size and rows.size:
                 # Contiguous runs: the tile's cells are a rectangle of the grid.
-                part_mean, part_std = self._tile(tile)._grid_moments(qx[columns], qy[rows])
+                part_mean, part_std = self._tile(tile).grid_moments(qx[columns], qy[rows])
                 block = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
                 mean[block], std[block] = part_mean, part_std
                 self._touched(tile)
@@ -328,7 +348,26 @@ class TiledBeliefs:
 
     # --- state of the whole grid ----------------------------------------------------------
 
-    def core_values(self, values: Callable[[BayesianHilbertMap], NDArray[np.generic]],
+    @property
+    def interaction_hinges(self) -> NDArray[np.bool_]:
+        return self.core_values(lambda t: t.interaction_hinges, False).astype(bool)
+
+    @property
+    def length_scales(self) -> FloatArray:
+        scales = self.core_values(lambda t: t.length_scales, self.config.length_scale_free_m)
+        return np.asarray(scales, dtype=np.float64)
+
+    @property
+    def batches_fused(self) -> int:
+        """The most batches any tile fused."""
+        return max((t.batches_fused for t in self.tiles.values()), default=0)
+
+    @property
+    def refits(self) -> int:
+        """Refits summed over the tiles."""
+        return sum(t.refits for t in self.tiles.values())
+
+    def core_values(self, values: Callable[[DenseBelief], NDArray[np.generic]],
                     fill: float | bool) -> NDArray[np.generic]:
         """``(nx, ny)`` array of a per-hinge tile property, each hinge from its tile's core."""
         out = np.full((self.xs.size, self.ys.size), fill)

@@ -20,6 +20,7 @@ SPECS = (
         ),
         config=BioTacSensorConfig,
         factory="hapticframe_biotac._sensor:BioTacSensor",
+        validator="hapticframe_biotac._checks:check",
         capabilities=frozenset({"finite"}),
         inputs=(),
         # The emulated SPI stream needs no files and exercises the decoder with every fault kind.

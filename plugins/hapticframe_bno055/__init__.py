@@ -6,8 +6,7 @@ driver and the emulator load on first attribute access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import EMULATED_PORT, Bno055SensorConfig
 
@@ -55,8 +54,4 @@ _LAZY = {
     "status_name": "._protocol",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -2,15 +2,38 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
-__all__ = ["EMULATED_PORT", "Bno055SensorConfig"]
+__all__ = ["FAULT_KINDS", "EMULATED_PORT", "Bno055SensorConfig"]
 
+#: The emulator's own fault kinds (hapticframe_bno055._emulator.MODEL_FAULT_KINDS); the
+#: harness adds the byte-level ones. ``validate`` refuses any other kind and parameter.
+_TIMES = {"count": FaultParam(1, 10**9, integer=True)}  # a counter: 1e9 = never answers
+FAULT_KINDS: dict[str, FaultKind] = {
+    "bus_overrun": FaultKind("params.count requests answered BUS_OVER_RUN_ERROR", _TIMES),
+    "status": FaultKind("params.count requests answered with status params.code",
+                        {**_TIMES, "code": FaultParam(0, 255, integer=True)}),
+    "no_reply": FaultKind("params.count requests left unanswered", _TIMES),
+    "rx_stall": FaultKind("params.count requests dropped by the character timeout", _TIMES),
+    "partial_reply": FaultKind("params.count replies cut to params.keep data bytes",
+                               {**_TIMES, "keep": FaultParam(0, 255, integer=True)}),
+    "wrong_length": FaultKind("params.count replies whose length byte is off by params.delta",
+                              {**_TIMES, "delta": FaultParam(-255, 255, integer=True)}),
+    "stale_bytes": FaultKind("params.count bytes of the previous reply before one reply",
+                             {"count": FaultParam(1, 255, integer=True)}),
+    "reset": FaultKind("the chip resets (silent for its boot time)"),
+    "calib_drop": FaultKind("the calibration status reads params.stat for duration_s",
+                            {"stat": FaultParam(0, 255, integer=True)}),
+    "bad_quaternion": FaultKind("the quaternion scaled by params.scale for duration_s",
+                                {"scale": FaultParam(-10.0, 10.0)}),
+    "bad_gravity": FaultKind("the gravity vector scaled by params.scale for duration_s",
+                             {"scale": FaultParam(-10.0, 10.0)}),
+}
 #: The ``port`` value that runs the built-in emulator behind a pseudo-terminal.
 EMULATED_PORT = "emulated"
 
@@ -89,7 +112,7 @@ class Bno055SensorConfig(PluginConfig):
     accel_noise_std_m_per_s2: float = Field(
         0.015, ge=0, le=10.0, description="Emulated only: accelerometer noise per axis."
     )
-    faults: FaultSetting = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulated only: no faults, the 'standard' schedule, or a list of "
         "FaultEvent entries ({kind, at_s | rate_hz, duration_s, params}).",

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hapticframe.devices import DeviceModel, FaultEvent, FaultSchedule
+from hapticframe.devices import DeviceModel, EmulatedPort, FakeClock, FaultEvent, FaultSchedule
 from hapticframe.geometry import (
     rotation_matrix_from_rpy_deg,
     rotation_matrix_from_wxyz,
@@ -74,6 +74,7 @@ __all__ = [
     "MODEL_FAULT_KINDS",
     "Bno055Model",
     "ServedRead",
+    "emulated_port",
     "standard_faults",
 ]
 
@@ -472,3 +473,35 @@ class Bno055Model(DeviceModel):
         gyro = r_wi.T @ omega_w
         return accel, lia, gravity, gyro, wxyz_from_rotation_matrix(r_wi)
 
+
+
+def emulated_port(
+    config: Any,
+    rng: np.random.Generator,
+    *,
+    truth: Callable[[float], Any] | None,
+    follow: Callable[[], float] | None,
+    start_s: float,
+    baudrate: int,
+) -> EmulatedPort:
+    """The ``port: emulated`` link: a :class:`Bno055Model` built from the sensor's config
+    (a ``Bno055SensorConfig``) behind a pseudo-terminal, on a fake clock that starts at
+    ``start_s`` and that each read moves to ``follow()`` (the robot's simulation time).
+    ``rng`` seeds the faults, the noise and the byte faults' choices."""
+    seeds = rng.integers(0, 2**63, size=3)
+    entries = config.faults
+    schedule: FaultSchedule | None = None
+    if entries == "standard":
+        schedule = FaultSchedule(standard_faults(), np.random.default_rng(int(seeds[0])))
+    elif isinstance(entries, tuple) and entries:  # fault entries (FaultSetting)
+        schedule = FaultSchedule.from_config(entries, np.random.default_rng(int(seeds[0])))
+    model = Bno055Model(
+        truth=truth,
+        faults=schedule,
+        rng=np.random.default_rng(int(seeds[1])),
+        mount_rpy_deg=config.mount_rpy_deg,
+        accel_noise_std_m_per_s2=config.accel_noise_std_m_per_s2,
+        baudrate=baudrate,
+    )
+    return EmulatedPort(model, FakeClock(start_s), faults=schedule, follow=follow,
+                        link_name="bno055", fragment_rng=np.random.default_rng(int(seeds[2])))

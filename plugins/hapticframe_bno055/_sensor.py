@@ -8,21 +8,19 @@ request, and a reply is accepted only when exactly its bytes arrived (the protoc
 checksum: a stale or garbage byte anywhere rejects the exchange). No valid reply for
 ``watchdog_s``, a disconnect, or data registers that read zero (the chip reset to CONFIG
 mode) start a recovery: reopen with backoff and reconfigure, at most ``max_recoveries`` times
-in a row before :class:`~hapticframe.devices.DeviceError`.
+in a row before :class:`~hapticframe.devices.DeviceError`. The recovery runs in steps, one
+per poll slot: a read waits for one request's reply at most, never for the backoff.
 
-With ``port: emulated`` the device is a :class:`Bno055Model` behind a real pseudo-terminal,
-paced by a :class:`~hapticframe.devices.FakeClock` that follows the simulation time of the
-robot input.
+The driver talks to a :class:`~hapticframe.devices.DevicePort`: a serial device, or with
+``port: emulated`` a :class:`Bno055Model` behind a real pseudo-terminal whose fake clock
+follows the simulation time of the robot input. The code path is the same for both.
 """
 
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
@@ -34,12 +32,12 @@ from hapticframe.devices import (
     DeviceError,
     DeviceHealth,
     DeviceLifecycle,
-    FakeClock,
+    DevicePort,
+    EmulatedPort,
     FaultSchedule,
     LifecycleState,
-    MonotonicClock,
     PtyEmulator,
-    SerialTransport,
+    SerialPort,
     TransportError,
 )
 from hapticframe.geometry import rotation_matrix_from_wxyz
@@ -53,7 +51,7 @@ from hapticframe.kinds import (
 )
 
 from ._config import Bno055SensorConfig
-from ._emulator import GRAVITY_M_PER_S2, Bno055Model, standard_faults
+from ._emulator import GRAVITY_M_PER_S2, Bno055Model, emulated_port
 from ._protocol import (
     CHIP_ID_VALUE,
     DATA_LENGTH,
@@ -133,36 +131,50 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
         ``inputs`` may hold one robot implementing
         :class:`hapticframe.kinds.PhysicalTruthSource`; it drives the emulated device (a
         real port ignores it).
+    port : DevicePort, optional
+        Where the link and the clock come from (default: ``config.port``, a serial device,
+        or the emulator for ``emulated``, whose clock follows the robot's simulation time).
     """
 
-    def __init__(self, config: Bno055SensorConfig, context: BuildContext) -> None:
+    def __init__(
+        self, config: Bno055SensorConfig, context: BuildContext, *,
+        port: DevicePort | None = None,
+    ) -> None:
         super().__init__(config, context)
         self.config: Bno055SensorConfig = config
         self.max_recoveries = config.max_recoveries
-        self.live = not config.emulated
         self._health = Bno055Health()
         self._truth_source = self._find_truth_source(context.inputs) if config.emulated else None
         self._period_s = 1.0 / config.rate_hz
         self._mode = _MODES[config.mode]
-        self._clock: Clock = MonotonicClock()
-        if config.emulated:
-            # The emulated device's clock is the simulation's: it starts at the robot's time.
-            start = 0.0 if self._truth_source is None else float(self._truth_source.truth_time_s)
-            self._clock = FakeClock(start)
+        if port is None:
+            port = self._default_port()
+        self.port: DevicePort = port
+        self.live = port.live
+        self._clock: Clock = port.clock
         self._channels = MappingProxyType({
             name: ChannelInfo(shape=shape, unit=unit, rate_hz=config.rate_hz)
             for name, (shape, unit) in CHANNELS.items()
         })
         self._data_request = encode_read(DATA_START, DATA_LENGTH)
         self._transport: ByteTransport | None = None
-        self._emulator: PtyEmulator | None = None
-        self._model: Bno055Model | None = None
-        self._faults: FaultSchedule | None = None
-        self._link_dir: str | None = None
         self._next_poll_s = 0.0
         self._last_valid_s = 0.0
         self._last_t = -math.inf
         self._reply_time_s = 0.0
+
+    def _default_port(self) -> DevicePort:
+        if not self.config.emulated:
+            return SerialPort(self.config.port)
+        robot = self._truth_source
+        # The emulated device's clock is the simulation's: it starts at the robot's time.
+        return emulated_port(
+            self.config, self.context.rng,
+            truth=None if robot is None else robot.physical_truth,
+            follow=None if robot is None else (lambda: float(robot.truth_time_s)),
+            start_s=0.0 if robot is None else float(robot.truth_time_s),
+            baudrate=BAUDRATE,
+        )
 
     def _find_truth_source(self, inputs: Mapping[str, Component]) -> PhysicalTruthSource | None:
         if not inputs:
@@ -194,23 +206,24 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     @property
     def clock(self) -> Clock:
-        """The host clock samples are stamped with (a FakeClock when emulated)."""
+        """The host clock samples are stamped with (the port's)."""
         return self._clock
 
     @property
     def model(self) -> Bno055Model | None:
-        """The emulated chip (None on a real port or before configure)."""
-        return self._model
+        """The emulated chip (None on a real port)."""
+        model = self.port.model if isinstance(self.port, EmulatedPort) else None
+        return model if isinstance(model, Bno055Model) else None
 
     @property
     def emulator(self) -> PtyEmulator | None:
         """The pseudo-terminal emulator (None on a real port or before configure)."""
-        return self._emulator
+        return self.port.emulator if isinstance(self.port, EmulatedPort) else None
 
     @property
     def faults(self) -> FaultSchedule | None:
         """The emulator's fault schedule (None without faults)."""
-        return self._faults
+        return self.port.faults if isinstance(self.port, EmulatedPort) else None
 
     def close(self) -> None:
         self.deactivate()
@@ -232,40 +245,34 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
                 "configure() and activate() it first",
                 device_id=self.id,
             )
-        target = self._target_time()
+        # A live port: the polls due by now. A paced one (emulated): its clock moves to the
+        # robot's simulation time, one poll at a time (without a robot: one poll per read).
+        target = self.port.read_until(max(0.0, self._next_poll_s - self._clock.now()))
         rows: list[tuple[float, dict[str, np.ndarray], dict[str, bool]]] = []
         polls = 0
         while self._next_poll_s <= target:
             if polls >= _MAX_POLLS_PER_READ:
                 self._skip_to(target)
                 break
-            if isinstance(self._clock, FakeClock):
-                self._clock.advance_to(self._next_poll_s)
+            self.port.wait_until(self._next_poll_s)
             row = self._poll_or_recover()
             polls += 1
             if row is not None:
                 rows.append(row)
             self._next_poll_s += self._period_s
-            self._skip_to(self._clock.now())
-        if isinstance(self._clock, FakeClock):
-            self._clock.advance_to(target)
+            # Polls a recovery's exchanges overran were not due: no device was there.
+            self._skip_to(self._clock.now(), count=not self.recovering)
+        self.port.wait_until(target)
         return self._batch(rows)
 
-    def _target_time(self) -> float:
-        if not isinstance(self._clock, FakeClock):
-            return self._clock.now()
-        if self._truth_source is not None:
-            return float(self._truth_source.truth_time_s)
-        # Without a robot the emulated IMU rests, and each read is one poll period.
-        return max(self._next_poll_s, self._clock.now())
-
-    def _skip_to(self, now_s: float) -> None:
+    def _skip_to(self, now_s: float, count: bool = True) -> None:
         """Polls more than one period late are not sent: count them as dropped."""
         late = now_s - self._next_poll_s
         if late > self._period_s:
             missed = math.floor(late / self._period_s)
             self._next_poll_s += missed * self._period_s
-            self._health.dropped_samples += missed
+            if count:
+                self._health.dropped_samples += missed
 
     def _batch(self, rows: list[tuple[float, dict[str, np.ndarray], dict[str, bool]]]
                ) -> SampleBatch:
@@ -282,14 +289,12 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
     def on_configure(self) -> None:
         """Start the emulator (emulated), open the port, identify the chip, set CONFIG mode,
         page 0 and the units."""
-        if self.config.emulated:
-            self._start_emulator()
         try:
             self._open()
             self._initialise()
         except Exception:
             self._close_transport()
-            self._stop_emulator()
+            self.port.stop()
             raise
 
     def on_activate(self) -> None:
@@ -310,18 +315,26 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     def on_cleanup(self) -> None:
         self._close_transport()
-        self._stop_emulator()
+        self.port.stop()
 
     def on_recover(self, error: Exception) -> None:
-        """Reopen the port with backoff and configure the chip again; raise when it cannot."""
+        """:meth:`recovery_steps` run to the end (waiting a poll period between steps)."""
+        for _ in self.recovery_steps(error):
+            self.port.elapse(self._period_s)
+
+    def recovery_steps(self, error: Exception) -> Iterator[None]:
+        """Reopen the port with backoff and configure the chip again; raise when it cannot.
+        The backoff is waited in steps, one per poll slot (a read never waits for it); an
+        attempt itself is a few bounded exchanges."""
         self._close_transport()
         last: Exception = error
         for delay in Backoff(initial_s=0.05, attempts=self.config.reconnect_attempts):
-            self._clock.sleep(delay)
+            yield from self._wait_steps(delay, stepping=True)
             try:
                 self._open()
                 self._health.reconnects += 1
-                self._initialise()
+                yield from self._initialise_steps()
+                yield
                 self._select_mode()
             except (TransportError, Bno055ProtocolError) as exc:
                 last = exc
@@ -333,46 +346,9 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
             return
         raise last
 
-    # --- emulator and transport ------------------------------------------------------------
-    def _start_emulator(self) -> None:
-        seeds = self.context.rng.integers(0, 2**63, size=3)
-        entries = self.config.faults
-        schedule: FaultSchedule | None = None
-        if entries == "standard":
-            schedule = FaultSchedule(standard_faults(), np.random.default_rng(int(seeds[0])))
-        elif isinstance(entries, tuple) and entries:  # fault entries (FaultSetting)
-            schedule = FaultSchedule.from_config(entries, np.random.default_rng(int(seeds[0])))
-        truth = self._truth_source.physical_truth if self._truth_source is not None else None
-        self._faults = schedule
-        self._model = Bno055Model(
-            truth=truth,
-            faults=schedule,
-            rng=np.random.default_rng(int(seeds[1])),
-            mount_rpy_deg=self.config.mount_rpy_deg,
-            accel_noise_std_m_per_s2=self.config.accel_noise_std_m_per_s2,
-            baudrate=BAUDRATE,
-        )
-        # A stable link path, as /dev/serial/by-id/...: it follows the pty across replugs.
-        self._link_dir = tempfile.mkdtemp(prefix="hapticframe-bno055-")
-        self._emulator = PtyEmulator(
-            self._model, clock=self._clock, faults=schedule,
-            link_path=Path(self._link_dir) / "bno055",
-            fragment_rng=np.random.default_rng(int(seeds[2])),
-        ).start()
-
-    def _stop_emulator(self) -> None:
-        if self._emulator is not None:
-            self._emulator.stop()
-            self._emulator = None
-        if self._link_dir is not None:
-            shutil.rmtree(self._link_dir, ignore_errors=True)
-            self._link_dir = None
-
-    def _port(self) -> str:
-        return self._emulator.path if self._emulator is not None else self.config.port
-
+    # --- transport -----------------------------------------------------------------------
     def _open(self) -> None:
-        transport = SerialTransport(self._port(), baudrate=BAUDRATE)
+        transport = self.port.transport(baudrate=BAUDRATE)
         transport.open()
         self._transport = transport
 
@@ -479,13 +455,30 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     def _initialise(self) -> None:
         """Identify the chip and bring it to CONFIG mode, page 0, SI-friendly units."""
+        for _ in self._initialise_steps(stepping=False):
+            pass
+
+    def _wait_steps(self, seconds: float, stepping: bool) -> Iterator[None]:
+        """Let ``seconds`` pass: in steps (a recovery under way), or sleeping (configure)."""
+        if not stepping:
+            self._clock.sleep(seconds)
+            return
+        deadline = self._clock.now() + seconds
+        while self._clock.now() < deadline:
+            yield
+
+    def _initialise_steps(self, stepping: bool = True) -> Iterator[None]:
+        """:meth:`_initialise` in steps of at most one request (a recovery's reads never
+        wait for more than one reply)."""
         link = self._link()
         if self.config.reset_on_configure:
             # The reset is never acknowledged in UART mode: write it blind and wait.
             link.write(encode_write(Register.SYS_TRIGGER, bytes((SYS_TRIGGER_RESET,))))
-            self._clock.sleep(_RESET_S)
+            yield from self._wait_steps(_RESET_S, stepping)
         chip_id: int | None = None
-        for _ in range(self.config.chip_id_attempts):
+        for attempt in range(self.config.chip_id_attempts):
+            if attempt:
+                yield
             try:
                 chip_id = self._read_register(Register.CHIP_ID, 1, what="read CHIP_ID")[0]
                 break
@@ -493,18 +486,21 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
                 continue
         if chip_id is None:
             raise Bno055ProtocolError(
-                f"device {self.id!r} on {self._port()!r} did not answer a CHIP_ID read "
+                f"device {self.id!r} on {self.port.name!r} did not answer a CHIP_ID read "
                 f"({self.config.chip_id_attempts} attempts): is it a BNO055 in UART mode at "
                 f"{BAUDRATE} baud?"
             )
         if chip_id != CHIP_ID_VALUE:
             raise Bno055ProtocolError(
-                f"device {self.id!r} on {self._port()!r} has CHIP_ID 0x{chip_id:02X}, not "
+                f"device {self.id!r} on {self.port.name!r} has CHIP_ID 0x{chip_id:02X}, not "
                 f"0x{CHIP_ID_VALUE:02X}: not a BNO055"
             )
+        yield
         self._write_register(Register.PAGE_ID, 0)
+        yield
         self._write_register(Register.OPR_MODE, OperationMode.CONFIG)
         self._clock.sleep(_TO_CONFIG_S)
+        yield
         self._write_register(Register.UNIT_SEL, UNIT_SEL_SI)
 
     def _select_mode(self) -> None:
@@ -513,10 +509,16 @@ class Bno055Sensor(Sensor, DeviceLifecycle):
 
     # --- polling ----------------------------------------------------------------------------
     def _poll_or_recover(self) -> tuple[float, dict[str, np.ndarray], dict[str, bool]] | None:
+        """One poll slot: a step of a recovery under way, or one poll (starting a recovery
+        when it fails). DeviceError when the device cannot go on."""
+        if self.recovering:
+            self.continue_recovery()
+            return None
         try:
             return self._poll()
         except (TransportError, Bno055ProtocolError, _DeviceWasReset) as exc:
-            self.recover(exc)  # DeviceError when it cannot go on
+            self.begin_recovery(exc)
+            self.continue_recovery()
             return None
 
     def _poll(self) -> tuple[float, dict[str, np.ndarray], dict[str, bool]] | None:

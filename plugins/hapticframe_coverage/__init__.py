@@ -8,20 +8,16 @@ Implementations are imported on first use, so importing this package stays light
 
 from __future__ import annotations
 
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import CoverageConfig, TwoPhaseCoverageConfig
 
 __all__ = ["BoustrophedonCoverage", "CoverageConfig", "TwoPhaseCoverage", "TwoPhaseCoverageConfig"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "TwoPhaseCoverage": "._two_phase",
+    "BoustrophedonCoverage": "._coverage",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "TwoPhaseCoverage":
-        from ._two_phase import TwoPhaseCoverage
-
-        return TwoPhaseCoverage
-    if name == "BoustrophedonCoverage":
-        from ._coverage import BoustrophedonCoverage
-
-        return BoustrophedonCoverage
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

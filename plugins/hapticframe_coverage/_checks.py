@@ -12,9 +12,14 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from hapticframe import Finding, Kind, ValidationContext
+from hapticframe import Finding, Kind, Size, ValidationContext
 
 __all__ = ["check"]
+
+
+def _ceil(value: float) -> float:
+    """``math.ceil`` that keeps an infinite count (a spacing of 5e-324 m) infinite."""
+    return float(math.ceil(value)) if math.isfinite(value) else value
 
 #: The thesis's 75 x 50 cm search area: the region when neither config, map nor scene gives one.
 _DEFAULT_REGION = (0.0, 0.75, 0.0, 0.50)
@@ -91,8 +96,50 @@ def _speed(config: Any, context: ValidationContext) -> Iterator[Finding]:
             )
 
 
-def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
-    """Yield the coverage planner's cross-component findings (see the module docstring)."""
+#: Bytes a planner holds per candidate line (offsets, end points, clipping temporaries),
+#: per sampled point of a line score (coordinates, line index, map mean and std, score
+#: terms) and per approach direction (direction, room, masks, gap scores).
+_LINE_BYTES = 96
+_POINT_BYTES = 64
+_DIRECTION_BYTES = 48
+
+
+def _lines(width: float, height: float, spacing: float) -> float:
+    """Lines of ``spacing`` across the rectangle at the worst angle (its diagonal)."""
+    return max(1.0, _ceil(math.hypot(width, height) / spacing - 1e-9))
+
+
+def _sizes(config: Any, width: float, height: float) -> Iterator[Size]:
+    """What the planner's spacings and steps allocate and iterate over, per decision."""
+    region = f"the {width:.3g} x {height:.3g} m search region"
+    lines = _lines(width, height, config.line_spacing_m)
+    yield Size("line_spacing_m", f"{lines:.3g} coverage lines across {region}",
+               bytes=_LINE_BYTES * lines, iterations=lines, remedy="increase line_spacing_m")
+    phase2 = getattr(config, "phase2_line_spacing_m", None)
+    if phase2 is None:
+        return
+    candidates = _lines(width, height, phase2)
+    yield Size("phase2_line_spacing_m",
+               f"{candidates:.3g} candidate lines across {region} per phase-2 movement",
+               bytes=_LINE_BYTES * candidates, iterations=candidates,
+               remedy="increase phase2_line_spacing_m")
+    directions = _ceil(360.0 / config.gap_step_deg - 1e-9)
+    yield Size("gap_step_deg", f"{directions:.3g} approach directions per phase-2 movement",
+               bytes=_DIRECTION_BYTES * directions, iterations=directions,
+               remedy="increase gap_step_deg")
+    points = candidates * math.hypot(width, height) / config.score_step_m
+    yield Size("score_step_m",
+               f"{points:.3g} map samples along {candidates:.3g} candidate lines per phase-2 "
+               "movement", bytes=_POINT_BYTES * points, iterations=points,
+               remedy="increase score_step_m or phase2_line_spacing_m")
+    grid = (width / config.grid_spacing_m + 1) * (height / config.grid_spacing_m + 1)
+    yield Size("grid_spacing_m", f"{grid:.3g} map samples of the centroid grid over {region}",
+               bytes=_POINT_BYTES * grid, iterations=grid, remedy="increase grid_spacing_m")
+
+
+def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
+    """Yield the coverage planner's cross-component findings (see the module docstring)
+    and the sizes of its lines, directions and map samples."""
     x0, x1, y0, y1 = _region(config, context)
     width, height = x1 - x0, y1 - y0
     spacing = config.line_spacing_m
@@ -103,6 +150,7 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
             field="line_spacing_m",
         )
     yield from _speed(config, context)
+    yield from _sizes(config, width, height)
     map_id = getattr(config, "map_id", None)
     if map_id is not None and map_id not in context.inputs:
         yield Finding(

@@ -19,8 +19,7 @@ fixed list of rates, and a pty does not enforce any).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import AxisConfig, DynamixelRobotConfig, GantryConfig, JointConfig, TwoLinkConfig
 from ._control_table import (
@@ -73,6 +72,7 @@ from ._protocol import (
     ERR_INSTRUCTION,
     ERR_RESULT_FAIL,
     ERROR_NAMES,
+    INST_BULK_READ,
     INST_PING,
     INST_READ,
     INST_REBOOT,
@@ -85,6 +85,7 @@ from ._protocol import (
     ParserCounters,
     ProtocolError,
     StatusPacket,
+    bulk_read_packet,
     crc16_dxl,
     decode_instruction,
     decode_status,
@@ -141,6 +142,7 @@ __all__ = [
     "INST_STATUS",
     "INST_SYNC_READ",
     "INST_SYNC_WRITE",
+    "INST_BULK_READ",
     "INST_WRITE",
     "PULSES_PER_REV",
     "VELOCITY_UNIT_RPM",
@@ -172,6 +174,7 @@ __all__ = [
     "rpm_to_velocity",
     "stuff",
     "sync_read_packet",
+    "bulk_read_packet",
     "sync_write_packet",
     "to_signed",
     "unstuff",
@@ -179,9 +182,10 @@ __all__ = [
     "write_packet",
 ]
 
+#: Public names that load on first use, and their modules (the robot imports dynamixel_sdk:
+#: only when asked for).
+_LAZY = {
+    "DynamixelRobot": "._robot",
+}
 
-def __getattr__(name: str) -> Any:
-    # The robot imports dynamixel_sdk: only when asked for.
-    if name == "DynamixelRobot":
-        return importlib.import_module("._robot", __name__).DynamixelRobot
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

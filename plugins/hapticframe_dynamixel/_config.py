@@ -8,9 +8,10 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
 __all__ = [
+    "FAULT_KINDS",
     "AxisConfig",
     "DynamixelRobotConfig",
     "GantryConfig",
@@ -19,6 +20,30 @@ __all__ = [
     "TwoLinkConfig",
 ]
 
+#: The emulator's own fault kinds (hapticframe_dynamixel._emulator.FAULT_KINDS describes
+#: them); the harness adds the byte-level ones. ``validate`` refuses any other kind and
+#: parameter.
+_SERVO = {"id": FaultParam(0, 252, integer=True)}
+FAULT_KINDS: dict[str, FaultKind] = {
+    "no_reply": FaultKind("one status packet is not sent", _SERVO),
+    "bad_crc": FaultKind("one status packet with a corrupted CRC", _SERVO),
+    "error_code": FaultKind("one status packet carries ERR params.error",
+                            {**_SERVO, "error": FaultParam(1, 7, integer=True)}),
+    "late_reply": FaultKind("one status packet params.delay_s late",
+                            {**_SERVO, "delay_s": FaultParam(0.0, 60.0)}),
+    "late_duplicate": FaultKind("one status packet sent again before the next", _SERVO),
+    "junk": FaultKind("params.count random bytes (params.half=1: half a packet) before one "
+                      "status packet", {**_SERVO, "count": FaultParam(1, 4096, integer=True),
+                                        "half": FaultParam(0, 1, integer=True)}),
+    "stuffing": FaultKind("the shaft found at the multi-turn position params.position",
+                          {**_SERVO, "position": FaultParam(-(2**31), 2**31 - 1, integer=True)}),
+    "sync_missing": FaultKind("one servo leaves one SYNC_READ unanswered", _SERVO),
+    "hardware_error": FaultKind("Hardware Error Status bit params.bit latched",
+                                {**_SERVO, "bit": FaultParam(0, 7, integer=True)}),
+    "current_spike": FaultKind("Present Current raised by params.amps for duration_s",
+                               {**_SERVO, "amps": FaultParam(-100.0, 100.0)}),
+    "power_loss": FaultKind("a servo loses its supply for an instant", _SERVO),
+}
 
 class AxisConfig(BaseModel):
     """One gantry axis: a servo driving a lead screw or a pulley.
@@ -192,7 +217,7 @@ class DynamixelRobotConfig(PluginConfig):
         None, description="Emulator: the servo IDs on the emulated bus (default: the "
         "kinematics' IDs; leave one out to emulate a missing servo)."
     )
-    faults: FaultSetting = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (rare status faults), or a list of "
         "fault events ({kind, at_s | rate_hz, duration_s, params}) of DynamixelBus.",

@@ -3,7 +3,7 @@
 :class:`DynamixelBus` is a :class:`hapticframe.devices.DeviceModel`: behind a
 :class:`~hapticframe.devices.PtyEmulator` it is a pseudo-terminal that the unmodified
 ``dynamixel_sdk.PortHandler`` opens by name. Every servo answers PING, READ, WRITE,
-SYNC_READ, SYNC_WRITE and REBOOT as an XM430-W350 does (Status Return Level, the EEPROM
+SYNC_READ, SYNC_WRITE, BULK_READ and REBOOT as an XM430-W350 does (Status Return Level, the EEPROM
 lock while torque is on, the position limits, the Alert bit), and moves in the model's clock
 time: Present Position tracks Goal Position with a first-order lag, and an external load on
 the servo (a function of time) raises Present Current; a current beyond the overload
@@ -45,6 +45,7 @@ from ._protocol import (
     ERR_DATA_RANGE,
     ERR_INSTRUCTION,
     ERR_RESULT_FAIL,
+    INST_BULK_READ,
     INST_PING,
     INST_READ,
     INST_REBOOT,
@@ -449,6 +450,8 @@ class DynamixelBus(DeviceModel):
                     delay += 14e-6 * 10  # 14 bytes at 1 Mbit/s
             elif inst == INST_SYNC_READ:
                 self._sync_read(params, now_s)
+            elif inst == INST_BULK_READ:
+                self._bulk_read(params, now_s)
             elif inst == INST_SYNC_WRITE:
                 self._sync_write(params, now_s)
             elif inst == INST_WRITE and len(params) >= 2:
@@ -596,6 +599,27 @@ class DynamixelBus(DeviceModel):
             if servo_id == missing:
                 self.sent.append(SentStatus(due, servo_id, 0, "sync_missing"))
                 continue
+            error, data = self._read(servo, address, length)
+            self._reply(servo, error, data, due, required=1)
+            due += (11 + length) * 10e-6  # the previous status on the wire at 1 Mbit/s
+
+    def _bulk_read(self, params: bytes, now_s: float) -> None:
+        """BULK_READ: (id, address, length) per servo; each answers in the listed order,
+        after the previous status is on the wire."""
+        if not params or len(params) % 5:
+            self.stats["ignored"] += 1
+            return
+        entries = [(params[k], params[k + 1] | (params[k + 2] << 8),
+                    params[k + 3] | (params[k + 4] << 8)) for k in range(0, len(params), 5)]
+        if len({servo_id for servo_id, _, _ in entries}) != len(entries):
+            self.stats["ignored"] += 1  # an ID listed twice: the packet is invalid
+            return
+        due = now_s
+        for servo_id, address, length in entries:
+            servo = self._find(servo_id)
+            if servo is None:
+                continue
+            due += self._return_delay_s(servo)
             error, data = self._read(servo, address, length)
             self._reply(servo, error, data, due, required=1)
             due += (11 + length) * 10e-6  # the previous status on the wire at 1 Mbit/s

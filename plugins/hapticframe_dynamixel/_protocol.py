@@ -30,6 +30,7 @@ __all__ = [
     "ERR_INSTRUCTION",
     "ERR_RESULT_FAIL",
     "HEADER",
+    "INST_BULK_READ",
     "INST_PING",
     "INST_READ",
     "INST_REBOOT",
@@ -44,6 +45,7 @@ __all__ = [
     "ParserCounters",
     "ProtocolError",
     "StatusPacket",
+    "bulk_read_packet",
     "crc16_dxl",
     "decode_instruction",
     "decode_status",
@@ -75,6 +77,7 @@ INST_REBOOT = 0x08
 INST_STATUS = 0x55
 INST_SYNC_READ = 0x82
 INST_SYNC_WRITE = 0x83
+INST_BULK_READ = 0x92
 
 #: Bit 7 of the status ERR byte: a hardware error is latched (Hardware Error Status, reg 70).
 ERR_ALERT = 0x80
@@ -216,6 +219,19 @@ def sync_read_packet(address: int, length: int, ids: Sequence[int]) -> bytes:
     return encode_instruction(
         BROADCAST_ID, INST_SYNC_READ, _u16(address) + _u16(length) + bytes(ids)
     )
+
+
+def bulk_read_packet(entries: Sequence[tuple[int, int, int]]) -> bytes:
+    """BULK_READ (0x92, broadcast): ``(id, address, length)`` per servo, each ID once; each
+    servo answers with its own status, in the order listed."""
+    ids = [servo_id for servo_id, _, _ in entries]
+    if len(set(ids)) != len(ids):
+        raise ProtocolError(f"a bulk read lists a servo twice: {ids}")
+    params = bytearray()
+    for servo_id, address, length in entries:
+        params.append(servo_id)
+        params += _u16(address) + _u16(length)
+    return encode_instruction(BROADCAST_ID, INST_BULK_READ, bytes(params))
 
 
 def sync_write_packet(address: int, length: int, data: Mapping[int, bytes]) -> bytes:

@@ -10,12 +10,13 @@ a movement's start is interpolated in joint space (within the limits wherever it
 
 ``port: emulated`` runs a :class:`DynamixelBus` behind a :class:`PtyEmulator` that the
 unmodified SDK opens by name. The SDK blocks waiting for replies, so the emulator serves the
-pty in a thread; the bus's time is a :class:`FakeClock` that :meth:`DynamixelRobot.step`
-advances by one control period (and pumps once, so that the servos move under the previous
-goal) before it writes the next goals. Servo dynamics therefore run in simulation time and a
-run is deterministic. Status packets are emitted up to :data:`EMULATOR_LEAD_S` of model time
-after their request (the return delay and the wire take microseconds a frozen clock would
-never reach): the servos' state is read that much later than the step's timestamp.
+pty in a thread (an :class:`EmulatedPort`); the bus's time is the port's fake clock, which
+:meth:`DynamixelRobot.step` advances by one control period (and pumps once, so that the
+servos move under the previous goal) before it writes the next goals. Servo dynamics
+therefore run in simulation time and a run is deterministic. Status packets are emitted up
+to :data:`EMULATOR_LEAD_S` of model time after their request (the return delay and the wire
+take microseconds a frozen clock would never reach): the servos' state is read that much
+later than the step's timestamp.
 :meth:`DynamixelRobot.couple_environment` loads the emulated servos with a simulated
 environment's force on the fingertip (``τ = −Jᵀ f``): Present Current follows it.
 """
@@ -25,10 +26,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
-import shutil
-import tempfile
 from collections.abc import Callable, Mapping
-from pathlib import Path
 from typing import Any
 
 import dynamixel_sdk  # type: ignore[import-untyped]
@@ -38,9 +36,10 @@ from numpy.typing import NDArray
 from hapticframe.devices import (
     Clock,
     DeviceError,
-    FakeClock,
-    MonotonicClock,
+    DevicePort,
+    EmulatedPort,
     PtyEmulator,
+    SerialPort,
 )
 from hapticframe.kinds import (
     BuildContext,
@@ -63,8 +62,7 @@ from ._bus import (
     BusLink,
     HardwareAlert,
     _emulated_port,
-    _schedule,
-    _SteppedBus,
+    emulated_bus_port,
 )
 from ._config import DynamixelRobotConfig, GantryConfig, TwoLinkConfig
 from ._control_table import XM430_W350_MODEL_NUMBER
@@ -147,7 +145,9 @@ class DynamixelRobot(Robot, BusLink):
     ----------
     kinematics : Gantry or TwoLink
     clock : Clock
-        A :class:`FakeClock` (simulation time) when emulated, else the monotonic clock.
+        The port's: simulation time when emulated, else the monotonic clock.
+    port : DevicePort
+        The serial device, or the emulated bus's pty (``port: emulated``).
     bus : DynamixelBus or None
         The emulated servos (``port: emulated``, after configure).
     stats : dict of str to int
@@ -179,11 +179,13 @@ class DynamixelRobot(Robot, BusLink):
             )
         self._dt = 1.0 / config.control_rate_hz
         self.live = not config.emulated
-        self.clock: Clock = FakeClock(0.0) if config.emulated else MonotonicClock()
-        self._rng = context.rng
+        self.port: DevicePort
         self.bus: DynamixelBus | None = None
-        self.emulator: PtyEmulator | None = None
-        self._link_dir: Path | None = None
+        if config.emulated:
+            self.port, self.bus = emulated_bus_port(config, context.rng, self._ids)
+        else:
+            self.port = SerialPort(config.port)
+        self.clock: Clock = self.port.clock
         self._port: Any = None
         self._ph: Any = None
         self.stats = {"hardware_errors": 0, "status_errors": 0, "sdk_index_errors": 0,
@@ -199,39 +201,11 @@ class DynamixelRobot(Robot, BusLink):
         self._halt_reason = ""
         self._pose = np.array([*region.center_m, config.depth_m])
 
-    # --- Robot interface -----------------------------------------------------------------
+    # --- Robot interface (the base checks depth and workspace, then calls _begin) ------------
 
-    @property
-    def control_rate_hz(self) -> float:
-        return float(self.config.control_rate_hz)
-
-    @property
-    def state(self) -> RobotState:
-        return self._state
-
-    @property
-    def halt_reason(self) -> str:
-        return self._halt_reason
-
-    @property
-    def workspace(self) -> Region:
-        return self._workspace
-
-    def begin(self, movement: ExploratoryMovement) -> None:
+    def _begin(self, movement: ExploratoryMovement, depth: float) -> None:
         self._active = False
-        depth = self.config.depth_m if movement.depth_m is None else float(movement.depth_m)
-        if not (math.isfinite(depth) and depth > 0):
-            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
-        region = self._workspace
         ends = np.vstack([movement.start_m, movement.end_m])
-        outside = ends[~region.contains(ends)]
-        if len(outside):
-            x, y = outside[0].tolist()
-            raise ValueError(
-                f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, {y:.4g}) m "
-                f"(x {region.x_min_m:g}...{region.x_max_m:g} m, "
-                f"y {region.y_min_m:g}...{region.y_max_m:g} m)"
-            )
         poses = np.column_stack([ends, [depth, depth]])
         problem = line_problem(self.kinematics, poses[0], poses[1])
         if problem is not None:
@@ -275,6 +249,11 @@ class DynamixelRobot(Robot, BusLink):
     def close(self) -> None:
         self.deactivate()
         self.cleanup()
+
+    @property
+    def emulator(self) -> PtyEmulator | None:
+        """The emulated bus's pseudo-terminal (``port: emulated``, once configured)."""
+        return self.port.emulator if isinstance(self.port, EmulatedPort) else None
 
     # --- the environment's load (EnvironmentCoupled) -------------------------------------------
 
@@ -353,12 +332,11 @@ class DynamixelRobot(Robot, BusLink):
     def _tick(self, paced: bool) -> None:
         """One control period passes: simulation time advances (and the servos move under
         the previous goal), or a live robot waits when nobody else paces it."""
-        if isinstance(self.clock, FakeClock):
-            self.clock.advance(self._dt)
-            if self.emulator is not None:
-                self.emulator.pump()
-        elif paced:
-            self.clock.sleep(self._dt)
+        until = self.clock.now() + self._dt
+        self.port.wait_until(until)  # a port that owns time (the emulator's) moves it
+        remaining = until - self.clock.now()
+        if paced and remaining > 0:  # a live robot that nobody else paces waits itself
+            self.clock.sleep(remaining)
 
     def _command(self, pulses: NDArray[np.float64], paced: bool) -> NDArray[np.float64]:
         """Command joint positions and read back the measured pose (one control period)."""
@@ -367,12 +345,14 @@ class DynamixelRobot(Robot, BusLink):
         lo = np.array([s.min_pulse for s in self.kinematics.servos])
         hi = np.array([s.max_pulse for s in self.kinematics.servos])
         self._sync_write(np.clip(np.rint(pulses), lo, hi).astype(int))
-        positions, current = self._sync_read()
-        self._measured(positions)
-        self.present_current_a = current
         self._commands += 1
         if self._commands % self._check_every == 0:
-            self._check_torque()
+            # The torque check rides on the state read: one BULK_READ, one round trip.
+            positions, current = self._sync_read_with_torque()
+        else:
+            positions, current = self._sync_read()
+        self._measured(positions)
+        self.present_current_a = current
         return self._pose
 
     def _measured(self, positions: NDArray[np.float64]) -> None:
@@ -429,12 +409,9 @@ class DynamixelRobot(Robot, BusLink):
 
     def on_configure(self) -> None:
         config = self.config
-        if config.emulated:
-            self._start_emulator()
-            assert self.emulator is not None
-            port = _emulated_port(self.emulator.path, config.reply_timeout_ms)
-        else:
-            port = dynamixel_sdk.PortHandler(config.port)
+        path = self.port.path  # the device's, or the emulator's pty (started here)
+        port = (_emulated_port(path, config.reply_timeout_ms) if config.emulated
+                else dynamixel_sdk.PortHandler(path))
         self._ph = dynamixel_sdk.PacketHandler(2.0)
         try:
             opened = port.openPort()
@@ -477,12 +454,7 @@ class DynamixelRobot(Robot, BusLink):
             with contextlib.suppress(*_LINK_ERRORS):
                 self._port.closePort()
             self._port = None
-        if self.emulator is not None:
-            self.emulator.stop()
-            self.emulator = None
-        if self._link_dir is not None:
-            shutil.rmtree(self._link_dir, ignore_errors=True)
-            self._link_dir = None
+        self.port.stop()
 
     def on_recover(self, error: Exception) -> None:
         """Wait a backoff on the robot's clock, reopen the port after a link error, ping every
@@ -492,12 +464,7 @@ class DynamixelRobot(Robot, BusLink):
         if port is None:
             raise error
         backoff = RECOVERY_BACKOFF_S * 2 ** self.recovery_streak
-        if isinstance(self.clock, FakeClock):
-            self.clock.advance(backoff)
-            if self.emulator is not None:
-                self.emulator.pump()
-        else:
-            self.clock.sleep(backoff)
+        self.port.elapse(backoff)
         port.is_using = False
         if isinstance(error, OSError) or not port.is_open:
             with contextlib.suppress(*_LINK_ERRORS):
@@ -527,22 +494,6 @@ class DynamixelRobot(Robot, BusLink):
                         f"servo {servo_id} lost its torque (power cycled?)")
 
     # --- the bus -------------------------------------------------------------------------------
-
-    def _start_emulator(self) -> None:
-        config = self.config
-        assert isinstance(self.clock, FakeClock)
-        fault_rng, bus_rng = self._rng.spawn(2)
-        schedule = _schedule(config.faults, fault_rng)
-        ids = list(config.emulated_ids) if config.emulated_ids is not None else list(self._ids)
-        self.bus = DynamixelBus(ids, faults=schedule, rng=bus_rng,
-                                time_constant_s=config.time_constant_s)
-        if self.environment is not None:
-            self._install_loads()
-        self._link_dir = Path(tempfile.mkdtemp(prefix="hapticframe-dxl-"))
-        self.emulator = PtyEmulator(
-            _SteppedBus(self.bus, EMULATOR_LEAD_S), clock=self.clock, faults=schedule,
-            link_path=self._link_dir / "ttyDXL", thread=True,
-        ).start()
 
 
 def _unit(movement: ExploratoryMovement) -> NDArray[np.float64]:

@@ -8,20 +8,16 @@ first use, so importing this package stays light.
 
 from __future__ import annotations
 
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import FailureZoneConfig
 
 __all__ = ["FailureZoneAngleWarning", "FailureZoneConfig", "FailureZoneKernel"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "FailureZoneKernel": "._kernel",
+    "FailureZoneAngleWarning": "._functional",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "FailureZoneKernel":
-        from ._kernel import FailureZoneKernel
-
-        return FailureZoneKernel
-    if name == "FailureZoneAngleWarning":
-        from ._functional import FailureZoneAngleWarning
-
-        return FailureZoneAngleWarning
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

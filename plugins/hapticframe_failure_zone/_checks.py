@@ -6,7 +6,7 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from hapticframe import Finding, Kind, ValidationContext
+from hapticframe import Finding, Kind, Size, ValidationContext
 
 __all__ = ["check"]
 
@@ -14,7 +14,7 @@ __all__ = ["check"]
 MAX_SECTOR_POINTS = 200_000
 
 
-def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
+def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
     """Refuse a kernel without a robot or a classifier, and a sector grid too fine to hold."""
     kinds = {view.kind for view in context.inputs.values()}
     if Kind.ROBOT not in kinds:
@@ -32,6 +32,13 @@ def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
     reach = config.max_range_m * max(1.0, config.jamming_range_scale, config.free_range_scale)
     reach = max(reach, config.jamming_disc_radius_m)
     points = math.pi * (reach / config.sector_spacing_m + 1.0) ** 2
+    # One sector per sample of a batch at worst (observation_spacing_m 0); a batch holds up
+    # to run.lookahead_steps samples.
+    batch = max(1, int(getattr(context.run, "lookahead_steps", 1)))
+    yield Size("sector_spacing_m",
+               f"sectors of up to {points:.3g} points over the {reach:g} m range, for each of "
+               f"up to {batch} samples of a batch", bytes=32.0 * points * batch,
+               iterations=points * batch, remedy="increase sector_spacing_m")
     if points > MAX_SECTOR_POINTS:
         yield Finding(
             f"sector spacing {config.sector_spacing_m:g} m gives up to {points:.3g} points per "

@@ -6,8 +6,7 @@ extractor (scipy) and the fitting functions load on first attribute access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import ForceObserverConfig
 
@@ -28,8 +27,4 @@ _LAZY = {
     "ForceObserver": "._observer",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

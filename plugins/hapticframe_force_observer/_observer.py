@@ -6,9 +6,10 @@ dataflow to hold the IMU's latest sample onto the force sensor's timestamps
 
 Filtering
 ---------
-Both inputs go through the same Butterworth low-pass filter (``scipy.signal.butter`` in
-second-order sections, ``sosfilt`` with the state carried across updates), so a stream fed
-in any chunking gives the batch result. Each input's filter starts at rest on its first
+Both inputs go through the same Butterworth low-pass filter (second-order sections from
+:func:`hapticframe.filters.butterworth_sos`, the design every plugin shares, run by scipy's
+``sosfilt`` with the state carried across updates), so a stream fed in any chunking gives
+the batch result. Each input's filter starts at rest on its first
 valid sample (no step response from zero, which a downstream force-rate classifier would
 take for an impact). Filtering both sides of the linear Eq. 3.10 with one linear filter
 keeps the relation, so the parameters fitted on filtered data apply to filtered data.
@@ -39,6 +40,7 @@ from scipy import signal
 
 from hapticframe import atomic_write, save_npz
 from hapticframe.artifacts import read_json_object, read_npz_arrays, schema_error
+from hapticframe.filters import butterworth_sos, sos_step_state
 from hapticframe.geometry import rotation_matrix_from_wxyz
 from hapticframe.kinds import BuildContext, ChannelInfo, FeatureExtractor, SampleBatch
 
@@ -74,7 +76,7 @@ class _HeldFilter:
 
     def __init__(self, sos: FloatArray) -> None:
         self._sos = sos
-        self._unit_zi = np.asarray(signal.sosfilt_zi(sos), dtype=np.float64)  # (sections, 2)
+        self._unit_zi = sos_step_state(sos)  # (sections, 2)
         self.state = _FilterState(None, None)
 
     def process(self, values: FloatArray, ok: NDArray[np.bool_]) -> FloatArray:
@@ -118,12 +120,7 @@ class ForceObserver(FeatureExtractor):
                 f"feature extractor {self.id!r}: cutoff_hz ({config.cutoff_hz}) must be below "
                 f"the Nyquist frequency of the force input ({nyquist} Hz)"
             )
-        self._sos = np.asarray(
-            signal.butter(
-                config.filter_order, config.cutoff_hz, fs=self._sample_rate_hz, output="sos"
-            ),
-            dtype=np.float64,
-        )
+        self._sos = butterworth_sos(config.cutoff_hz, self._sample_rate_hz, config.filter_order)
         self._force = _HeldFilter(self._sos)
         self._accel = _HeldFilter(self._sos)
         self._training: dict[str, Any] = {}

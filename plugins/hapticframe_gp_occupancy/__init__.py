@@ -7,7 +7,9 @@ so importing the package stays light. ``hapticframe bench bhm`` times it beside 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe import lazy_exports
 
 from ._config import GPOccupancyConfig
 
@@ -16,10 +18,9 @@ if TYPE_CHECKING:
 
 __all__ = ["GPOccupancyConfig", "GPOccupancyMap"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "GPOccupancyMap": "._map",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "GPOccupancyMap":
-        from ._map import GPOccupancyMap
-
-        return GPOccupancyMap
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

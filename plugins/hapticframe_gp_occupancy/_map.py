@@ -33,7 +33,15 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hapticframe.kinds import BuildContext, Map, MapEstimate, Observations, Region, RunOutcome
+from hapticframe.kinds import (
+    BuildContext,
+    Map,
+    MapEstimate,
+    Observations,
+    Region,
+    RunOutcome,
+    query_points,
+)
 from hapticframe.threads import blas_threads
 
 from . import _functional as fn
@@ -210,22 +218,9 @@ class GPOccupancyMap(Map):
 
     # --- queries ------------------------------------------------------------------------
 
-    @staticmethod
-    def _query_points(points_m: ArrayLike) -> FloatArray:
-        p = np.asarray(points_m, dtype=np.float64)
-        if p.size == 0:
-            return np.empty((0, 2))
-        if p.ndim == 1 and p.shape == (2,):
-            p = p[None, :]
-        if p.ndim != 2 or p.shape[1] != 2:
-            raise ValueError(f"points_m must have shape (q, 2), got {p.shape}")
-        if not np.all(np.isfinite(p)):
-            raise ValueError("points_m contains NaN or infinity")
-        return p
-
     def latent_moments(self, points_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Posterior mean (prior mean included) and variance of the latent ``f``."""
-        p = self._query_points(points_m)
+        p = query_points(points_m)
         mu = np.full(p.shape[0], self._prior_mean)
         var = np.full(p.shape[0], self._signal_variance)
         with blas_threads(self.config.blas_threads):
@@ -247,7 +242,7 @@ class GPOccupancyMap(Map):
                 var[rows] = v
         return mu, var
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
+    def _query(self, points_m: FloatArray) -> MapEstimate:
         """Occupancy ``E[Phi(alpha f)]`` and its exact standard deviation at ``points_m``."""
         mu, var = self.latent_moments(points_m)
         mean, std = fn.probit_moments(mu, var, self.config.link_scale)

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe import plotting
-from hapticframe.kinds import MovementResult, Region
+from hapticframe.kinds import OUTLINE_LEVEL, MovementResult, Region
 
 __all__ = ["save_map_figures"]
 
@@ -30,7 +30,7 @@ def save_map_figures(
     *,
     outlines: Sequence[FloatArray] = (),
     movements: Sequence[MovementResult] = (),
-    outline_level: float = 0.6,
+    outline_level: float = OUTLINE_LEVEL,
     method: str = "",
 ) -> list[Path]:
     """Write ``gp_mean.png`` and ``gp_std.png``; return the paths."""

@@ -5,7 +5,9 @@ The implementation module loads lazily, so importing the package stays light.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from hapticframe import lazy_exports
 
 from ._config import OccupancyGridConfig
 
@@ -14,10 +16,9 @@ if TYPE_CHECKING:
 
 __all__ = ["OccupancyGrid", "OccupancyGridConfig"]
 
+#: Public names that load on first use, and their modules.
+_LAZY = {
+    "OccupancyGrid": "._grid",
+}
 
-def __getattr__(name: str) -> Any:
-    if name == "OccupancyGrid":
-        from ._grid import OccupancyGrid
-
-        return OccupancyGrid
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -121,16 +121,9 @@ class OccupancyGrid(Map):
             self._log_odds, cells[inside], increments[inside], self._log_low, self._log_high
         )
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
+    def _query(self, points_m: NDArray[np.float64]) -> MapEstimate:
         """Probability of the nearest cell (0.5 outside the region) and ``sqrt(p (1 - p))``."""
-        p = np.asarray(points_m, dtype=np.float64)
-        if p.size == 0:
-            return MapEstimate(np.empty(0), np.empty(0))
-        if p.ndim == 1 and p.shape == (2,):
-            p = p[None, :]
-        if p.ndim != 2 or p.shape[1] != 2:
-            raise ValueError(f"points_m must have shape (q, 2), got {p.shape}")
-        cells, inside = self._cells(p)
+        cells, inside = self._cells(points_m)
         log_odds = np.where(inside, self._log_odds[cells], 0.0)
         mean = fn.occupancy_probability(log_odds)
         return MapEstimate(mean, fn.occupancy_std(mean))
@@ -172,7 +165,8 @@ class OccupancyGrid(Map):
                 self.config.cell_size_m,
                 values.reshape(self._shape),
                 (self._log_low, self._log_high),
-                title=f"Occupancy log odds{f' at the end of {phase}' if phase else ''}",
+                title=(f"Map {self.id!r} (occupancy grid): log odds"
+                       f"{f' at the end of {phase}' if phase else ''}"),
                 outlines=outlines,
                 movements=shown,
             )

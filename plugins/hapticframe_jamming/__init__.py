@@ -6,8 +6,7 @@ classifier and calibration code (scipy) load on first attribute access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import ForceRateJammingConfig
 
@@ -30,8 +29,4 @@ _LAZY = {
     "evaluate_detection": "._calibration",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

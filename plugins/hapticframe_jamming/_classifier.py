@@ -6,8 +6,8 @@ is placed against the thresholds of thesis Figure 3.4.
 
 Speed
 -----
-The Butterworth sections are designed in numpy (:func:`._functional.butterworth_sos`), so
-building a classifier does not import ``scipy.signal`` (about 0.6 s), and a closed loop's
+The Butterworth sections are designed in numpy (:func:`hapticframe.filters.butterworth_sos`),
+so building a classifier does not import ``scipy.signal`` (about 0.6 s), and a closed loop's
 one-sample updates run the filter, the rate and the softmax in plain floats
 (:meth:`ForceRateJammingClassifier._scalar_row`, about 10 µs instead of 0.45 ms). Batches of
 up to :data:`ROW_BY_ROW_MAX` samples (a closed loop that looks ahead classifies a few dozen
@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from hapticframe import atomic_write
 from hapticframe.artifacts import read_json_object, schema_error
+from hapticframe.filters import butterworth_sos, sos_filter, sos_step_state
 from hapticframe.kinds import (
     BuildContext,
     Classifier,
@@ -209,8 +210,8 @@ class ForceRateTracker:
         start = int(np.argmax(initialised))  # initialised rows form a suffix
         if self._zi is None:
             # Start at rest on the first valid value: no step response from zero.
-            self._zi = F.sos_step_state(self._sos) * held[start]
-        y, self._zi = F.sos_filter(self._sos, held[start:], self._zi)
+            self._zi = sos_step_state(self._sos) * held[start]
+        y, self._zi = sos_filter(self._sos, held[start:], self._zi)
         previous_y = y[0] if self._last_y is None else self._last_y
         previous_t = t[start] - 1.0 if self._last_t is None else self._last_t
         force[start:] = y
@@ -288,7 +289,7 @@ class ForceRateJammingClassifier(Classifier):
     def _build(self) -> None:
         cfg = self.config
         try:
-            sos = F.butterworth_sos(cfg.cutoff_hz, self._sample_rate_hz, cfg.filter_order)
+            sos = butterworth_sos(cfg.cutoff_hz, self._sample_rate_hz, cfg.filter_order)
         except ValueError as exc:
             raise ValueError(f"classifier {self.id!r}: {exc}") from exc
         self._tracker = ForceRateTracker(sos, cfg.restart_after_gap_s)

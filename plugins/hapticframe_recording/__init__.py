@@ -8,8 +8,7 @@ annotations. Importing this package is cheap; the replay code loads on first att
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import TraceRecordingConfig
 from ._mcap_config import McapRecordingConfig
@@ -44,8 +43,4 @@ _LAZY = {
     "RecordingSensor": "._mcap",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

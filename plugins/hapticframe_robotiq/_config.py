@@ -2,13 +2,37 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.devices import FaultSetting
+from hapticframe.devices import FaultKind, FaultKinds, FaultParam, FaultValue
 
-__all__ = ["EMULATED_PORT", "Ft300Config"]
+__all__ = ["FAULT_KINDS", "EMULATED_PORT", "Ft300Config"]
 
+#: The emulator's own fault kinds (hapticframe_robotiq._emulator.FAULT_KINDS describes them);
+#: the harness adds the byte-level ones. ``validate`` refuses any other kind and parameter.
+FAULT_KINDS: dict[str, FaultKind] = {
+    "boots_streaming": FaultKind("already streaming when the host connects"),
+    "partial_jam": FaultKind("a jam (run of 0xFF) that does not stop the stream"),
+    "bad_crc": FaultKind("one stream frame with a corrupted CRC"),
+    "frame_drop_bytes": FaultKind("params.count bytes lost inside one stream frame",
+                                  {"count": FaultParam(1, 13, integer=True)}),
+    "header_in_payload": FaultKind("a frame whose payload holds 0x20 0x4E at params.offset",
+                                   {"offset": FaultParam(0, 10, integer=True)}),
+    "stream_stop": FaultKind("the stream stops silently for duration_s"),
+    "saturation": FaultKind("every value pinned at the range limit for duration_s"),
+    "offset_drift": FaultKind("the force offset drifts at params.rate_n_per_s",
+                              {"rate_n_per_s": FaultParam(-1000.0, 1000.0)}),
+    "frozen": FaultKind("the same frame repeated, CRC valid, for duration_s"),
+    "no_reply": FaultKind("one Modbus request left unanswered"),
+    "modbus_bad_crc": FaultKind("one Modbus reply with a corrupted CRC"),
+    "wrong_slave": FaultKind("one Modbus reply from another slave id"),
+    "exception_reply": FaultKind("one Modbus request answered with exception 4"),
+    "missing_echo": FaultKind("the function 16 echo is missing while the stream starts"),
+    "dead": FaultKind("the sensor falls silent to everything for duration_s"),
+}
 #: The ``port`` that runs the sensor's emulator behind a pseudo-terminal.
 EMULATED_PORT = "emulated"
 
@@ -96,7 +120,7 @@ class Ft300Config(PluginConfig):
     )
 
     # -- emulator (port: emulated) -----------------------------------------------------------
-    faults: FaultSetting = Field(
+    faults: Annotated[FaultValue, FaultKinds(FAULT_KINDS)] = Field(
         "none",
         description="Emulator only: 'none', 'standard' (a mix of the fault matrix at moderate "
         "rates for long runs), or a list of fault events ({kind, at_s | rate_hz, duration_s, "

@@ -26,7 +26,14 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.devices import DeviceModel, FaultEvent, FaultSchedule, append_crc16
+from hapticframe.devices import (
+    DeviceModel,
+    EmulatedPort,
+    FakeClock,
+    FaultEvent,
+    FaultSchedule,
+    append_crc16,
+)
 from hapticframe.geometry import rotation_matrix_from_wxyz
 
 from ._protocol import (
@@ -61,6 +68,7 @@ __all__ = [
     "Ft300Physics",
     "SentFrame",
     "TruthLike",
+    "emulated_port",
     "schedule_from",
     "standard_schedule",
     "wrench_from_truth",
@@ -547,3 +555,37 @@ def schedule_from(
     if isinstance(faults, str):
         raise ValueError(f"faults must be 'none', 'standard' or a list, got {faults!r}")
     return FaultSchedule.from_config(list(faults), rng)
+
+
+def emulated_port(
+    config: Any,
+    rng: np.random.Generator,
+    *,
+    truth: Callable[[float], TruthLike] | None,
+    follow: Callable[[], float] | None,
+    start_s: float,
+) -> EmulatedPort:
+    """The ``port: emulated`` link: an :class:`Ft300Model` built from the sensor's config
+    (an ``Ft300Config``) behind a pseudo-terminal, on a fake clock that starts at
+    ``start_s`` and that each read moves to ``follow()`` (the robot's simulation time), or
+    one frame period on without it. ``rng`` seeds the noise and the faults."""
+    noise_rng, fault_rng = rng.spawn(2)
+    schedule = schedule_from(config.faults, fault_rng)
+    physics = Ft300Physics(
+        noise_std_n=config.noise_std_n,
+        noise_std_nm=config.noise_std_nm,
+        offset_n=config.offset_n,
+        lever_arm_m=config.lever_arm_m,
+        range_n=config.range_n,
+        range_nm=config.range_nm,
+    )
+    model = Ft300Model(
+        rng=noise_rng,
+        faults=schedule,
+        truth=truth,
+        physics=physics,
+        slave_id=config.slave_id,
+        firmware=config.emulator_firmware,
+    )
+    return EmulatedPort(model, FakeClock(start_s), faults=schedule, follow=follow,
+                        link_name="ft300")

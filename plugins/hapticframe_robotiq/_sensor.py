@@ -8,18 +8,20 @@ stall, no valid frame for ``frame_timeout_s`` recovers (reconnect with backoff w
 dropped, re-jam, restart the stream), at most ``max_recoveries`` times in a row before
 :class:`~hapticframe.devices.DeviceError`. Every wait is bounded by the clock.
 
-With ``port: emulated`` the same code talks to :class:`Ft300Model` behind a pseudo-terminal,
-paced by a :class:`~hapticframe.devices.FakeClock` that each ``read`` advances to the
-simulation time of the robot input (one frame period per read without a robot).
+A read never waits: recovery runs in steps, one per look at the port (a reconnect's backoff,
+the jam's silence and the restart are deadlines on the clock, not sleeps), and a read of a
+recovering sensor returns what it has — nothing — at once, so the run loop's safety checks go
+on while the sensor is away.
+
+The driver talks to a :class:`~hapticframe.devices.DevicePort`: a serial device, or with
+``port: emulated`` an :class:`Ft300Model` behind a pseudo-terminal whose fake clock each read
+moves to the robot's simulation time. The code path is the same for both.
 """
 
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
-from collections.abc import Callable, Mapping
-from pathlib import Path
+from collections.abc import Callable, Generator, Iterator, Mapping
 from types import MappingProxyType
 from typing import Any, TypeVar
 
@@ -29,16 +31,15 @@ from hapticframe.devices import (
     Backoff,
     ByteTransport,
     Clock,
-    ClockSync,
     DeviceError,
     DeviceLifecycle,
-    FakeClock,
+    DevicePort,
+    EmulatedPort,
     FixedFrameParser,
     LifecycleState,
-    MonotonicClock,
     PtyEmulator,
-    SerialTransport,
     TransportError,
+    port_for,
 )
 from hapticframe.kinds import (
     BuildContext,
@@ -50,7 +51,8 @@ from hapticframe.kinds import (
 )
 
 from ._config import Ft300Config
-from ._emulator import FRAME_PERIOD_S, Ft300Model, Ft300Physics, schedule_from
+from ._emulator import FRAME_PERIOD_S, Ft300Model, emulated_port
+from ._numbering import StreamNumbering
 from ._protocol import (
     FORCE_COUNTS_PER_N,
     JAM_BYTES,
@@ -86,11 +88,15 @@ POLL_S = 0.004
 _JAM_SETTLE_S = 0.1
 #: A jam is given this long (at least) to silence the stream before the next burst.
 _JAM_LISTEN_S = 0.5
+#: Bound on the steps of one wait (each wait also ends on its deadline in time).
+_MAX_STEPS = 100_000
 #: Emulated mode: the device clock starts this long (plus tare_s) before the simulation so
 #: that the handshake and the tare are over when the simulation begins.
 _EMULATED_LEAD_S = 0.5
 
 T = TypeVar("T")
+#: A step of the handshake: yields where it waits for the device, returns its result.
+Steps = Generator[None, None, T]
 
 
 def _truth_source(context: BuildContext) -> PhysicalTruthSource | None:
@@ -125,12 +131,16 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
     context : BuildContext
         ``inputs`` may hold the robot the sensor is mounted on (emulated mode reads its
         physical truth; a real port ignores it).
+    port : DevicePort, optional
+        Where the link and the clock come from (default: ``config.port``, a serial device,
+        or the emulator for ``emulated``).
     transport : ByteTransport, optional
         Use this link instead of opening ``config.port`` (a lab's own adapter, or an
-        :class:`~hapticframe.devices.EmulatedTransport` in fast tests).
+        :class:`~hapticframe.devices.EmulatedTransport` in fast tests); with ``clock``,
+        made into a port by :func:`~hapticframe.devices.port_for`.
     clock : Clock, optional
-        The driver's clock (default: a monotonic clock, or a fake clock in emulated mode).
-        When it is a :class:`~hapticframe.devices.FakeClock`, each read advances it.
+        The driver's clock for ``transport`` (a :class:`~hapticframe.devices.FakeClock`
+        is moved by each read, one frame period at a time).
 
     Attributes
     ----------
@@ -148,19 +158,20 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         config: Ft300Config,
         context: BuildContext,
         *,
+        port: DevicePort | None = None,
         transport: ByteTransport | None = None,
         clock: Clock | None = None,
     ) -> None:
         super().__init__(config, context)
         self.config: Ft300Config = config
         self.max_recoveries = config.max_recoveries
-        self.live = not config.emulated and not isinstance(clock, FakeClock)
         self._robot = _truth_source(context) if config.emulated else None
-        self._given_transport = transport
-        self._transport: ByteTransport | None = transport
-        if clock is None:
-            clock = self._emulated_clock() if config.emulated else MonotonicClock()
-        self.clock: Clock = clock
+        if port is None:
+            port = self._default_port(transport, clock)
+        self.port: DevicePort = port
+        self.live = port.live
+        self.clock: Clock = port.clock
+        self._transport: ByteTransport | None = None
         self._origin_s = self.clock.now() if self._robot is None else float(
             self._robot.truth_time_s
         )
@@ -171,9 +182,6 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         })
         self._parser = FixedFrameParser(STREAM_HEADER, STREAM_FRAME_LENGTH)
         self.device_info: DeviceInfo | None = None
-        self.model: Ft300Model | None = None
-        self.emulator: PtyEmulator | None = None
-        self._link_dir: Path | None = None
         self.modbus_errors = {"crc": 0, "wrong_reply": 0, "exception": 0, "timeout": 0}
         self._offset = np.zeros(6)
         self._tare_until: float | None = None
@@ -186,22 +194,38 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         self._last_counts: tuple[int, ...] | None = None
         self._same_run = 0
         self._last_t = -math.inf
-        # The stream's own clock: a frame every 10 ms, counted from the stream's start and
-        # mapped onto host time (receipt times only say when a read found the frames). No
-        # drift fit: over its one-second window a crystal's drift is a few microseconds,
-        # while a slope fitted to jittery receipts would swing the mapping by milliseconds.
-        self._stream_clock = ClockSync(FRAME_PERIOD_S, window=100, max_drift=0.0)
-        self._stream_seq: int | None = None
+        # The stream's own clock: a frame every 10 ms, numbered from the stream's start and
+        # mapped onto host time (receipt times only say when a read found the frames).
+        self._numbering = StreamNumbering(FRAME_PERIOD_S)
         self._rejected_frames = 0  # frames that failed their CRC since the last valid one
         self._rows: list[tuple[float, tuple[int, ...], bool, bool]] = []
         saturation = (round(config.range_n * FORCE_COUNTS_PER_N),
                       round(config.range_nm * TORQUE_COUNTS_PER_NM))
         self._saturation_counts = saturation
 
-    def _emulated_clock(self) -> FakeClock:
-        robot = _truth_source(self.context)
+    def _default_port(self, transport: ByteTransport | None, clock: Clock | None) -> DevicePort:
+        config, robot = self.config, self._robot
+        if transport is not None or clock is not None or not config.emulated:
+            return port_for(config.port, transport=transport, clock=clock)
         start = 0.0 if robot is None else float(robot.truth_time_s)
-        return FakeClock(start - _EMULATED_LEAD_S - self.config.tare_s)
+        return emulated_port(
+            config, self.context.rng,
+            truth=None if robot is None else robot.physical_truth,
+            follow=None if robot is None else (lambda: float(robot.truth_time_s)),
+            start_s=start - _EMULATED_LEAD_S - config.tare_s,
+        )
+
+    @property
+    def model(self) -> Ft300Model | None:
+        """The emulated device (``port: emulated``)."""
+        port = self.port
+        model = port.model if isinstance(port, EmulatedPort) else None
+        return model if isinstance(model, Ft300Model) else None
+
+    @property
+    def emulator(self) -> PtyEmulator | None:
+        """The emulator's pseudo-terminal (``port: emulated``, once configured)."""
+        return self.port.emulator if isinstance(self.port, EmulatedPort) else None
 
     # -- Sensor ------------------------------------------------------------------------------
 
@@ -225,20 +249,9 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             When the sensor stopped and bounded recovery could not bring it back.
         """
         self._ensure_active()
-        clock = self.clock
-        if isinstance(clock, FakeClock):
-            if self._robot is not None:
-                target = float(self._robot.truth_time_s)
-            else:
-                target = clock.now() + FRAME_PERIOD_S
-            self._poll()
-            # Sub-steps as a live driver polls: watchdogs and receipt times in device time.
-            for _ in range(100_000):
-                if clock.now() >= target:
-                    break
-                clock.advance_to(min(target, clock.now() + POLL_S))
-                self._poll()
-        else:
+        # A live port looks once; a paced one every POLL_S up to the simulation's time, as
+        # a live driver polls: watchdogs, recovery and receipt times run in device time.
+        for _ in self.port.poll_times(FRAME_PERIOD_S, POLL_S):
             self._poll()
         return self._take_batch()
 
@@ -282,16 +295,14 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
     # -- lifecycle hooks ---------------------------------------------------------------------
 
     def on_configure(self) -> None:
-        if self.config.emulated and self.emulator is None:
-            self._start_emulator()
         self._open()
-        self._jam()
+        self._block(self._jam())
         self.device_info = self._identify()
 
     def on_activate(self) -> None:
         if self._transport is None or not self._transport.is_open:
             self._open()
-        self._start_stream()
+        self._block(self._start_stream())
         if self.config.tare_s > 0:
             self.tare(wait=True)
         self._rows.clear()  # what came during the handshake and the tare is not data
@@ -302,66 +313,49 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         if transport is not None and transport.is_open:
             transport.write(JAM_BYTES)
             # Let the bytes reach the device (and a clock-paced emulator hear them).
-            self.clock.sleep(POLL_S)
+            self.port.elapse(POLL_S)
 
     def on_cleanup(self) -> None:
-        self._release()
+        if self._transport is not None:
+            self._transport.close()
+        self.port.stop()
 
-    def on_recover(self, error: Exception) -> None:
+    def recovery_steps(self, error: Exception) -> Iterator[None]:
+        """Reconnect (after a link error), jam, restart the stream: in steps that never
+        wait, one per look at the port (see :meth:`DeviceLifecycle.begin_recovery`)."""
         transport = self._transport
         if isinstance(error, TransportError) or transport is None or not transport.is_open:
-            self._reconnect()
-        self._jam()
-        self._start_stream()
+            yield from self._reconnect()
+        # Frames of the lost stream that arrive while the jam silences it are discarded:
+        # they are the frames the stream's sequence lost.
+        yield from self._jam(count_discarded=True)
+        yield from self._start_stream()
 
-    def _release(self) -> None:
-        if self._transport is not None and self._transport is not self._given_transport:
-            self._transport.close()
-            self._transport = None
-        elif self._given_transport is not None:
-            self._given_transport.close()
-        if self.emulator is not None:
-            self.emulator.stop()
-            self.emulator = None
-        if self._link_dir is not None:
-            shutil.rmtree(self._link_dir, ignore_errors=True)
-            self._link_dir = None
+    def on_recover(self, error: Exception) -> None:
+        self._block(self.recovery_steps(error))
+
+    def _block(self, steps: Steps[T] | Iterator[None]) -> T | None:
+        """Run steps to the end, pausing one poll between them (the handshake before the
+        loop starts, where waiting is what the caller asked for)."""
+        while True:
+            try:
+                next(steps)
+            except StopIteration as stop:
+                result: T | None = stop.value
+                return result
+            self.port.elapse(POLL_S)
+
+    def _wait(self, seconds: float) -> Steps[None]:
+        """Steps until ``seconds`` have passed on the clock."""
+        deadline = self.clock.now() + seconds
+        while self.clock.now() < deadline:
+            yield
 
     # -- link --------------------------------------------------------------------------------
 
-    def _start_emulator(self) -> None:
-        config = self.config
-        if not isinstance(self.clock, FakeClock):
-            raise DeviceError(f"device {self.id!r}: the emulated port needs a fake clock",
-                              device_id=self.id)
-        noise_rng, fault_rng = self.context.rng.spawn(2)
-        schedule = schedule_from(config.faults, fault_rng)
-        robot = self._robot
-        physics = Ft300Physics(
-            noise_std_n=config.noise_std_n,
-            noise_std_nm=config.noise_std_nm,
-            offset_n=config.offset_n,
-            lever_arm_m=config.lever_arm_m,
-            range_n=config.range_n,
-            range_nm=config.range_nm,
-        )
-        self.model = Ft300Model(
-            rng=noise_rng,
-            faults=schedule,
-            truth=None if robot is None else robot.physical_truth,
-            physics=physics,
-            slave_id=config.slave_id,
-            firmware=config.emulator_firmware,
-        )
-        self._link_dir = Path(tempfile.mkdtemp(prefix="hapticframe-ft300-"))
-        self.emulator = PtyEmulator(
-            self.model, clock=self.clock, faults=schedule, link_path=self._link_dir / "ft300"
-        ).start()
-
     def _open(self) -> None:
         if self._transport is None:
-            port = self.emulator.path if self.emulator is not None else self.config.port
-            self._transport = SerialTransport(port, baudrate=self.config.baudrate)
+            self._transport = self.port.transport(baudrate=self.config.baudrate)
         self._transport.open()
         self._parser.reset()
 
@@ -370,13 +364,13 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             raise TransportError(f"{self.config.port} is not open")
         return self._transport
 
-    def _reconnect(self) -> None:
-        """Close and reopen the port, waiting a growing delay before each attempt."""
+    def _reconnect(self) -> Steps[None]:
+        """Close and reopen the port, a growing delay before each attempt."""
         if self._transport is not None:
             self._transport.close()
         last: Exception | None = None
         for delay in Backoff(attempts=self.config.reconnect_attempts):
-            self.clock.sleep(delay)
+            yield from self._wait(delay)
             try:
                 self._open()
             except TransportError as exc:
@@ -398,14 +392,17 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
 
     # -- handshake ---------------------------------------------------------------------------
 
-    def _jam(self) -> None:
-        """Silence a running stream: 0xFF bursts until no byte comes for ``byte_timeout_s``."""
+    def _jam(self, count_discarded: bool = False) -> Steps[None]:
+        """Silence a running stream: 0xFF bursts until no byte comes for ``byte_timeout_s``.
+        With ``count_discarded``, the stream's frames discarded meanwhile are dropped
+        samples."""
         link = self._link()
         self._streaming = False
+        self._parser.reset()
         for _ in range(self.config.jam_attempts):
             link.write(JAM_BYTES)
-            if self._await_silence():
-                self.clock.sleep(_JAM_SETTLE_S)
+            if (yield from self._await_silence(count_discarded)):
+                yield from self._wait(_JAM_SETTLE_S)
                 link.reset_input()
                 self._parser.reset()
                 return
@@ -414,17 +411,20 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             "jams (0xFF bursts)"
         )
 
-    def _await_silence(self) -> bool:
+    def _await_silence(self, count_discarded: bool) -> Steps[bool]:
         clock = self.clock
         quiet_s = self.config.byte_timeout_s
         start = last = clock.now()
         listen = max(_JAM_LISTEN_S, 4 * quiet_s)
-        for _ in range(math.ceil(listen / POLL_S) + 2):
-            clock.sleep(POLL_S)
+        # Bounded in time; the count only guards a clock that does not move.
+        for _ in range(_MAX_STEPS):
+            yield
             data = self._link().read_available()
             now = clock.now()
             if data:
                 self.health.bytes += len(data)
+                if count_discarded:
+                    self.health.dropped_samples += len(self._parser.feed(data))
                 last = now
             elif now - last >= quiet_s:
                 return True
@@ -438,7 +438,7 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         buffer = bytearray()
         deadline = clock.now() + self.config.modbus_timeout_s
         for _ in range(math.ceil(self.config.modbus_timeout_s / POLL_S) + 2):
-            clock.sleep(POLL_S)
+            self.port.elapse(POLL_S)
             buffer += link.read_available()
             length = reply_length(buffer, expected)
             if length is not None and len(buffer) >= length:
@@ -494,10 +494,9 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         )
         return DeviceInfo(firmware, decode_serial_number(registers[:4]), registers[4])
 
-    def _start_stream(self) -> None:
+    def _start_stream(self) -> Steps[None]:
         """Write 0x0200 to register 410; accept the echo, or stream frames when it is lost."""
-        self._stream_clock.reset()  # a new stream: its frames count from zero again
-        self._stream_seq = None
+        self._numbering.restart()  # a new stream: its frames count from zero again
         self._rejected_frames = 0
         slave = self.config.slave_id
         request = write_request(REGISTER_OUTPUT_MODE, [STREAM_MODE_VALUE], slave=slave)
@@ -511,8 +510,8 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             buffer = bytearray()
             echo: bool | None = None
             deadline = clock.now() + self.config.modbus_timeout_s
-            for _ in range(math.ceil(self.config.modbus_timeout_s / POLL_S) + 2):
-                clock.sleep(POLL_S)
+            for _ in range(_MAX_STEPS):
+                yield
                 data = link.read_available()
                 now = clock.now()
                 if echo is None:
@@ -559,13 +558,17 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
     # -- stream ------------------------------------------------------------------------------
 
     def _poll(self) -> None:
-        """One look at the port: parse, deliver, run the watchdogs (recover when they fire)."""
+        """One look at the port: a step of a recovery under way, or parse, deliver and run
+        the watchdogs (starting a recovery when they fire). Never waits."""
+        if self.recovering:
+            self.continue_recovery()
+            return
         now = self.clock.now()
         silent_since = self._last_byte_s
         try:
             data = self._read_link()
         except TransportError as exc:
-            self.recover(exc)
+            self._lose_stream(now, exc)
             return
         rejected_before = self._parser.stats.crc_errors
         frames = self._parser.feed(data)
@@ -579,19 +582,26 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             self.health.stalls += 1
         if now - self._last_frame_s > self.config.frame_timeout_s:
             self.health.timeouts += 1
-            self.recover(
-                TimeoutError(
-                    f"no valid frame from {self.config.port} for "
-                    f"{now - self._last_frame_s:.3f} s"
-                )
-            )
+            self._lose_stream(now, TimeoutError(
+                f"no valid frame from {self.config.port} for {now - self._last_frame_s:.3f} s"
+            ))
+
+    def _lose_stream(self, now: float, error: Exception) -> None:
+        """The stream is gone: recover (its frames that still arrive are counted lost)."""
+        self._numbering.restart()
+        self._streaming = False
+        self.begin_recovery(error)
+        self.continue_recovery()
 
     def _accept(self, frames: list[bytes], now: float, silent_s: float = 0.0) -> None:
         self._last_frame_s = now
         n = len(frames)
         if not n:
             return
-        times = self._sample_times(n, now, silent_s)
+        rejected, self._rejected_frames = self._rejected_frames, 0
+        missing = self._numbering.missing
+        times = self._numbering.times(n, now, rejected, silent_s)
+        self.health.dropped_samples += self._numbering.missing - missing
         for k, frame in enumerate(frames):
             counts = decode_stream_frame(frame)
             t = max(times[k], self._last_t + 1e-6)
@@ -619,44 +629,6 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
             if t >= self._origin_s:
                 self._rows.append((t, counts, force_ok, torque_ok))
 
-    def _sample_times(self, n: int, now: float, silent_s: float) -> list[float]:
-        """Host times of ``n`` frames that one read found at ``now``.
-
-        Frames that arrive together were sent one period apart, so each is first dated back
-        from ``now``. Those receipt times still jitter with the reads (a frame found 8 ms
-        late behind a slow write, the next on time), and a force rate over them would swing
-        with the jitter: instead each frame is numbered on the stream's own 100 Hz clock and
-        :class:`~hapticframe.devices.ClockSync` maps the numbers onto host time through the
-        promptest receipts. Frames lost before these are counted from the evidence: the
-        frames that failed their CRC, or, for frames that never came (a stall that dropped
-        them), a silent link and a receipt whole periods past the next frame's slot. A late
-        frame on a busy link (a slow adapter delivering a backlog) is late, not a sign of
-        lost ones. Where the evidence is unclear the count errs low: a frame counted lost
-        that was not would date the next one a period early, onto its predecessor, while
-        one missed shifts the dates by a period for a window's length, evenly spaced.
-        """
-        sync = self._stream_clock
-        rejected, self._rejected_frames = self._rejected_frames, 0
-        numbers = []
-        for k in range(n):
-            receipt = now - (n - 1 - k) * FRAME_PERIOD_S
-            if self._stream_seq is None:  # a new stream: the outage before it cost frames
-                number = 0
-                if math.isfinite(self._last_t):
-                    outage = receipt - self._last_t
-                    self.health.dropped_samples += max(0, round(outage / FRAME_PERIOD_S) - 1)
-            else:  # frames the device sent and we never got are dropped samples
-                late = receipt - sync.host_time((self._stream_seq + 1) * FRAME_PERIOD_S)
-                silent = k == 0 and silent_s >= 1.5 * FRAME_PERIOD_S
-                lost_in_time = max(0, math.floor(late / FRAME_PERIOD_S)) if silent else 0
-                lost = max(lost_in_time, rejected if k == 0 else 0)
-                number = self._stream_seq + 1 + lost
-                self.health.dropped_samples += lost
-            self._stream_seq = number
-            sync.update(number * FRAME_PERIOD_S, receipt)
-            numbers.append(number)
-        return [sync.host_time(number * FRAME_PERIOD_S) for number in numbers]
-
     def _finish_tare(self) -> None:
         needed = max(1, math.floor(0.5 * self.config.tare_s / FRAME_PERIOD_S))
         if self._tare_n >= needed:
@@ -670,7 +642,7 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         for _ in range(math.ceil(budget / POLL_S) + 2):
             if self._tare_until is None:
                 break
-            clock.sleep(POLL_S)
+            self.port.elapse(POLL_S)
             self._poll()
             if self._tare_until is not None and clock.now() >= self._tare_until + \
                     self.config.frame_timeout_s:

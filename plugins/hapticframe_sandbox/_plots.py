@@ -52,7 +52,7 @@ def draw_movement_forces(log: GroundTruthLog, movements: Sequence[MovementTruth]
         colour = palette[number % len(palette)]
         t = log.timestamps_s[rows]
         f = magnitude[rows]
-        label = f"EM {truth.index + 1} (d={100 * truth.depth_m:.2f} cm)"
+        label = f"EM {truth.index + 1}, depth {100 * truth.depth_m:.2f} cm"
         ax_all.plot(t - truth.start_time_s, f, color=colour, lw=1.0, label=label)
         for name, onset in (("jamming onset", truth.jamming_onset_s),
                             ("contact onset", truth.contact_onset_s)):

@@ -44,7 +44,6 @@ from hapticframe.kinds import (
     MovementResult,
     PhysicalTruth,
     PhysicalTruthSource,
-    Region,
     Robot,
     RobotFollower,
     RobotState,
@@ -156,24 +155,16 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         if isinstance(self._followed, EnvironmentCoupled):
             self._followed.couple_environment(self)
 
-    # --- Robot interface -----------------------------------------------------------------
+    # --- Robot interface (the base checks depth and workspace, then calls _begin) ------------
+
+    #: A micrometre of slack: a line cut at a neighbouring arm's workspace boundary ends
+    #: there up to rounding.
+    workspace_slack_m = WORKSPACE_SLACK_M
 
     @property
-    def control_rate_hz(self) -> float:
-        return float(self.config.control_rate_hz)
-
-    @property
-    def state(self) -> RobotState:
-        return self._state
-
-    @property
-    def halt_reason(self) -> str:
-        return self._halt_reason
-
-    @property
-    def workspace(self) -> Region | None:
-        """``config.workspace`` as a region (None: the fingertip may go anywhere)."""
-        return self._workspace
+    def default_depth_m(self) -> float:
+        """The depth schedule's current depth (:attr:`current_depth_m`)."""
+        return self.current_depth_m
 
     def begin(self, movement: ExploratoryMovement) -> None:
         if self._followed is not None:
@@ -181,22 +172,15 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
                 f"robot {self.id!r} follows {self._followed.id!r}: it makes no movements of "
                 f"its own (give them to {self._followed.id!r})"
             )
-        region = self._workspace
-        if region is not None:
-            ends = np.vstack([movement.start_m, movement.end_m])
-            # A micrometre of slack: a line cut at a neighbouring arm's workspace boundary
-            # ends there up to rounding.
-            outside = ends[~region.contains(ends, WORKSPACE_SLACK_M)]
-            if len(outside):
-                x, y = outside[0].tolist()
-                raise ValueError(
-                    f"robot {self.id!r}: the movement leaves the workspace at ({x:.4g}, "
-                    f"{y:.4g}) m (x {region.x_min_m:g}...{region.x_max_m:g} m, y "
-                    f"{region.y_min_m:g}...{region.y_max_m:g} m)"
-                )
-        self._start_movement(movement)
+        # The movement before ends here, before the checks: booking it moves the depth
+        # schedule that an open depth reads (and a refused movement leaves none running).
+        self._close_movement()
+        super().begin(movement)
 
-    def _start_movement(self, movement: ExploratoryMovement) -> None:
+    def _begin(self, movement: ExploratoryMovement, depth_m: float) -> None:
+        self._start_movement(movement, depth_m)
+
+    def _start_movement(self, movement: ExploratoryMovement, depth: float) -> None:
         """Set up the physics of a new movement (or part of one) from ``movement``."""
         self._close_movement()
         cfg = self.config
@@ -205,9 +189,6 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         self._halt_reason = ""
         world = self._world
         self._em = world.settled
-        depth = world.schedule_depth if movement.depth_m is None else float(movement.depth_m)
-        if not (math.isfinite(depth) and depth > 0):
-            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
         self._depth = depth
         self._speed = float(movement.speed_m_per_s)
         self._length = movement.length_m
@@ -316,7 +297,7 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
             raise ValueError(f"robot {self.id!r} follows no robot (set 'follows')")
         if movement.depth_m is None:
             movement = dataclasses.replace(movement, depth_m=self._world.schedule_depth)
-        self._start_movement(movement)
+        self._start_movement(movement, self._checked_depth_m(movement))
         self._profile = None  # the followed robot's own motion sets speed and acceleration
         self._follow_xy = self._start_xy
         self._follow_speed = 0.0

@@ -17,7 +17,7 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         config=SandboxRobotConfig,
         factory="hapticframe_sandbox._robot:SandboxRobot",
         validator="hapticframe_sandbox._checks:check",
-        capabilities=frozenset({"simulated"}),
+        capabilities=frozenset({"simulated", "needs-scene"}),
         knobs=(
             Knob("control_rate_hz", "more control steps per second: finer force and contact "
                  "timing, more steps (classifier and safety work) per movement",

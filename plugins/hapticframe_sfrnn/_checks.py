@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from hapticframe import Finding, ValidationContext
+from hapticframe import Finding, Size, ValidationContext
 
 from ._config import MODALITIES, amplitude_channel, code_channel
 
@@ -57,8 +57,54 @@ def _reads(config: Any) -> dict[str, str]:
     return fields
 
 
-def check(config: Any, context: ValidationContext) -> Iterator[Finding]:
-    """Yield what a classifier cannot read, or reads untrained (module docstring)."""
+#: Copies of every parameter while training (the weights, their gradients, Adam's two
+#: moments), and of every unit's activation kept for the backward pass (the GRU's gates).
+_PARAMETER_COPIES = 4
+_ACTIVATION_COPIES = 6
+
+
+def _gru(inputs: int, units: int, layers: int) -> int:
+    """Parameters of a stack of single-layer GRUs (three gates, two biases each)."""
+    return 3 * (inputs + units + 2) * units + (layers - 1) * 3 * (2 * units + 2) * units
+
+
+def _sizes(config: Any) -> Iterator[Size]:
+    """The network's parameters and a training batch's activations, in float64."""
+    if hasattr(config, "inputs"):  # linear-svm: one weight per input column and fold
+        columns = sum(int(n) for n in config.inputs.values())
+        yield Size("inputs", f"{columns} input columns per frame in "
+                   f"{config.calibration_folds} calibrated folds",
+                   bytes=8.0 * columns * (config.calibration_folds + 1),
+                   remedy="name the input channels with their real sizes")
+        yield Size("max_iter", f"up to {config.max_iter} LinearSVC iterations",
+                   iterations=float(config.max_iter), remedy="lower max_iter")
+        return
+    sizes = {m: sum(config.input_groups(m).values()) for m in config.modalities}
+    total = sum(sizes.values())
+    if hasattr(config, "gru_units"):
+        field, units, layers = "gru_units", config.gru_units, config.gru_layers
+        parameters = total * config.fusion_units + _gru(config.fusion_units, units, layers)
+        width = layers * units + config.fusion_units
+    else:
+        field, units, layers = "branch_units", config.branch_units, config.branch_layers
+        parameters = sum(_gru(n, units, layers) for n in sizes.values())
+        parameters += len(sizes) * units * config.fusion_units
+        width = len(sizes) * layers * units + config.fusion_units
+    yield Size(field, f"{parameters:.3g} network parameters while training",
+               bytes=8.0 * _PARAMETER_COPIES * parameters,
+               remedy=f"fewer units or layers ({field})")
+    activations = config.batch_size * config.window_frames * (total + _ACTIVATION_COPIES * width)
+    for field in ("window_frames", "batch_size"):
+        yield Size(field, f"activations of a training batch of {config.batch_size} windows of "
+                   f"{config.window_frames} frames", bytes=8.0 * activations,
+                   iterations=float(config.window_frames),
+                   remedy="lower window_frames or batch_size")
+
+
+def check(config: Any, context: ValidationContext) -> Iterator[Finding | Size]:
+    """Yield what a classifier cannot read, or reads untrained (module docstring), and what
+    its network holds."""
+    yield from _sizes(config)
     yield from _untrained(config, context)
     delivered = {i: _delivered(v) for i, v in context.inputs.items()}
     if not delivered or any(c is None for c in delivered.values()):

@@ -8,8 +8,7 @@ implementation a setting runs).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import MODALITIES, EMDFeaturesConfig, SparseCodingConfig
 
@@ -86,12 +85,4 @@ def encoder_in_use(encoder: str = "auto") -> str:
 
     return "numba" if _use_numba(encoder) else "sklearn"
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

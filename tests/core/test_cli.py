@@ -194,18 +194,18 @@ def test_the_library_logs_and_the_cli_prints_its_warnings(lab_dir, capsys):
     logging.getLogger("hapticframe.test").warning("outside a command")
     assert "outside a command" not in capsys.readouterr().err
 
-    from hapticframe.cli import _cli
-    original = _cli.cmd_plugins
+    from hapticframe.cli import _plugins
+    original = _plugins.cmd_plugins
 
     def noisy(args):  # type: ignore[no-untyped-def]
         logging.getLogger("hapticframe.test").warning("the port is slow")
         return original(args)
 
     try:
-        _cli.cmd_plugins = noisy
+        _plugins.cmd_plugins = noisy
         parser_default = main(["plugins"])
     finally:
-        _cli.cmd_plugins = original
+        _plugins.cmd_plugins = original
     assert parser_default == 0
     assert "warning: the port is slow" in capsys.readouterr().err
 
@@ -221,3 +221,23 @@ def test_the_run_summary_keeps_the_few_figures_a_person_reads(lab_dir, capsys):
     # The largest force on the console is the one metrics.json records.
     assert f"max_measured_force_n={metrics['max_measured_force_n']:.4g}" in line
     assert "contact_frames" not in line and "contact_frames" in metrics  # the rest stays there
+
+
+def test_a_run_without_a_search_prints_no_movement_count():
+    from hapticframe.cli._common import summary_line
+
+    perception = {"movements": 0, "contact_balanced_accuracy": 0.93, "wall_time_s": 31.0}
+    search = {"movements": 0, "object_found": False, "wall_time_s": 2.0}
+    assert "movements" not in summary_line(perception)
+    assert "contact_balanced_accuracy=0.93" in summary_line(perception)
+    assert summary_line(search).startswith("movements=0, object_found=no")
+
+
+def test_check_says_what_it_checks_before_each_result(capsys):
+    assert main(["check", "occupancy-grid"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("[1/1] map/occupancy-grid: ") and lines[0].endswith(" checks")
+    count = int(lines[0].split(": ")[1].split()[0])
+    results = [line for line in lines[1:-1] if line.startswith("PASS ")]
+    assert len(results) == count and all(line.endswith(" s)") for line in results)
+    assert lines[-1] == "all checks passed"

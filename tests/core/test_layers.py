@@ -34,10 +34,7 @@ RANKS = {"devices": 0, "kernel": 1, "run": 2, "record": 3, "testing": 3, "live":
 PACKAGE_LAYERS = ("devices", "run", "record", "testing", "live", "sweep", "cli")
 FACADES = ("hapticframe", "hapticframe.recording", "hapticframe.__main__")
 #: Upward imports still to remove (each names the module pair); the list only shrinks.
-KNOWN_UPWARD = {
-    # The run opens its own run.mcap writer; it is to take one from its caller instead.
-    ("hapticframe.run._run", "hapticframe.record._recording"),
-}
+KNOWN_UPWARD: set[tuple[str, str]] = set()
 
 
 def module_name(path: Path, root: Path = CORE) -> str:

@@ -129,7 +129,8 @@ counts = np.concatenate([b.channels["force_n"][:, 0] for b in batches]) / 0.01 +
 times = np.concatenate([b.timestamps_s for b in batches])
 sent = iter(model.sent)
 report = {
-    "path": sensor.emulator.path,
+    # A stable link (as /dev/serial/by-id/...) to the pty that pyserial opened.
+    "path": __import__("os").path.realpath(sensor.emulator.path),
     "live": sensor.live,
     "state": sensor.lifecycle_state.name,
     "delivered": len(counts),

@@ -14,7 +14,8 @@ from mcap.reader import make_reader
 
 from hapticframe.cli._cli import main
 from hapticframe.kinds import ClassProbabilities, SampleBatch
-from hapticframe.record._recording import RECORDING, RunRecording, read_recording, recover
+from hapticframe.record._recording import RECORDING, RunRecording, read_recording
+from hapticframe.record._recover import recover
 from hapticframe.run._results import STAGING
 from tests.core.test_outputs_atomic import kill_self, killed_at, needs_fork, record, run
 
@@ -127,10 +128,18 @@ def test_a_truncated_recording_is_recovered_up_to_the_cut(tmp_path, fraction, ca
     # Every chunk that ended before the cut is recovered.
     whole = [c for c in summary.chunk_indexes
              if c.chunk_start_offset + c.chunk_length + c.message_index_length <= cut]
+    target = cut_file.with_name("run.recovered.mcap")
+    if not any(c.chunk_start_offset + c.chunk_length <= cut for c in summary.chunk_indexes):
+        # Not one whole chunk: nothing to recover, said so (exit 1), nothing written.
+        assert main(["recover", str(cut_file.parent)]) == 1
+        assert "not one message of" in capsys.readouterr().err
+        assert not target.exists() and cut_file.read_bytes() == data[:cut]
+        return
     assert main(["recover", str(cut_file.parent)]) == 0
     out = capsys.readouterr().out
-    assert "cut short" in out and f"wrote {cut_file}" in out
-    recovered = read_recording(cut_file)
+    assert "cut short" in out and f"wrote {target}" in out
+    assert cut_file.read_bytes() == data[:cut]  # written beside, never in place
+    recovered = read_recording(target)
     kept = sum(len(v) for v in recovered.values())
     for topic, messages in recovered.items():
         assert messages == original[topic][:len(messages)]  # a prefix, exactly
@@ -139,7 +148,7 @@ def test_a_truncated_recording_is_recovered_up_to_the_cut(tmp_path, fraction, ca
         assert max(t for v in recovered.values() for t, _ in v) >= latest
     assert kept <= sum(len(v) for v in original.values())
     # The result is a complete, indexed recording.
-    with open(cut_file, "rb") as stream:
+    with open(target, "rb") as stream:
         reader = make_reader(stream)
         assert sum(1 for _ in reader.iter_messages()) == kept
 

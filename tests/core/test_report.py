@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
 
 import numpy as np
 import pytest
 
+from hapticframe._lock import LOCK_FILE, lock_directory
 from hapticframe.cli._cli import main
 from hapticframe.kinds import SampleBatch
 from hapticframe.record._recording import RECORDING, RunRecording
@@ -37,7 +39,7 @@ def test_the_report_rebuilds_the_runs_trace(short_search, tmp_path, capsys):
     out = tmp_path / "report"
     assert main(["report", str(short_search), "--out", str(out)]) == 0
     assert f"into {out}" in capsys.readouterr().out
-    ours, theirs = np.load(out / "trace.npz"), np.load(short_search / "trace.npz")
+    ours, theirs = np.load(out / "report_trace.npz"), np.load(short_search / "trace.npz")
     assert sorted(ours.files) == sorted(theirs.files)
     for key in theirs.files:
         assert _same(ours[key], theirs[key]), key
@@ -45,15 +47,46 @@ def test_the_report_rebuilds_the_runs_trace(short_search, tmp_path, capsys):
         assert (out / name).read_bytes().startswith(b"\x89PNG"), name
 
 
-def test_the_report_goes_into_the_run_and_is_listed(short_search, tmp_path):
+def test_the_report_goes_beside_the_runs_results_and_is_listed(short_search, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(short_search, run)
-    (run / "trace.npz").unlink()
+    before = {name: (run / name).read_bytes() for name in ("trace.npz", "metrics.json")}
     assert main(["report", str(run), "--no-figures"]) == 0
     files = json.loads((run / "run.json").read_text())["files"]
-    assert "trace.npz" in files and not any(f.startswith("report_") for f in files)
-    assert _same(np.load(run / "trace.npz")["robot/arm/position_m"],
+    assert "report_trace.npz" in files and "trace.npz" in files
+    # The run's own results are never written over: the report's trace lies beside them.
+    assert {name: (run / name).read_bytes() for name in before} == before
+    assert _same(np.load(run / "report_trace.npz")["robot/arm/position_m"],
                  np.load(short_search / "trace.npz")["robot/arm/position_m"])
+    assert not (run / LOCK_FILE).exists()  # the lock is let go
+
+
+def test_a_recording_of_another_run_is_not_reported_into_a_run(short_search, tmp_path,
+                                                               capsys):
+    """Issue 26 §1: another experiment's run.mcap copied into a run is refused, and the
+    run's trace.npz and metrics.json stay as they were."""
+    run = tmp_path / "run"
+    shutil.copytree(short_search, run)
+    record = json.loads((run / "run.json").read_text())
+    record["started_utc"] = "2020-01-01T00:00:00+00:00"  # another run of the same file
+    (run / "run.json").write_text(json.dumps(record))
+    before = sorted((p.name, p.read_bytes()) for p in run.iterdir())
+    assert main(["report", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert "is not the recording of the run in" in err and "started_utc" in err
+    assert "Traceback" not in err
+    assert sorted((p.name, p.read_bytes()) for p in run.iterdir()) == before
+
+
+def test_a_report_waits_for_no_one(short_search, tmp_path, capsys):
+    """Issue 26 §2: a directory another command writes into is refused at once, naming it."""
+    run = tmp_path / "run"
+    shutil.copytree(short_search, run)
+    with lock_directory(run, "run"):
+        assert main(["report", str(run), "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert f"is in use by run (pid {os.getpid()}, started " in err
+    assert not (run / "report_trace.npz").exists()
 
 
 def test_a_killed_runs_recording_is_reported_up_to_its_cut(short_search, tmp_path, capsys):
@@ -63,7 +96,7 @@ def test_a_killed_runs_recording_is_reported_up_to_its_cut(short_search, tmp_pat
     (killed / STAGING / RECORDING).write_bytes(data[:int(len(data) * 0.6)])
     assert main(["report", str(killed), "--no-figures"]) == 0
     assert "cut short" in capsys.readouterr().out
-    ours, theirs = np.load(killed / "trace.npz"), np.load(short_search / "trace.npz")
+    ours, theirs = np.load(killed / "report_trace.npz"), np.load(short_search / "trace.npz")
     for key in ("robot/arm/timestamps_s", "sensor/wrist/force_n", "classifier/jamming/"
                 "probabilities"):
         n = len(ours[key])
@@ -74,7 +107,7 @@ def test_a_killed_runs_recording_is_reported_up_to_its_cut(short_search, tmp_pat
     assert main(["report", str(killed), "--out", str(tmp_path / "recovered")]) == 0
     assert (tmp_path / "recovered" / "report_paths.png").is_file()
     for key in ours.files:
-        assert _same(np.load(tmp_path / "recovered" / "trace.npz")[key], ours[key]), key
+        assert _same(np.load(tmp_path / "recovered" / "report_trace.npz")[key], ours[key]), key
 
 
 def test_the_figures_draw_every_legend_entry_and_the_truth(short_search):

@@ -193,6 +193,33 @@ def test_the_stall_check_can_be_switched_off(lab_dir):
     assert "safety_halts" not in read(out, "run.json")["details"]
 
 
+def test_a_read_stuck_in_a_live_run_does_not_stop_the_stall_check(lab_dir, monkeypatch):
+    """Issue 26 §6: the watchdog halts the arm while a device call is stuck (the read blocks
+    until a halt frees it, or for 10 s). No wall time is asserted: the read is freed by
+    the halt, not by its own timeout."""
+    from hapticframe.run import _loop
+
+    monkeypatch.setattr(_loop, "_sleep", lambda seconds: None)  # no pacing: a fast test
+    code, out = run(lab_dir, scripted("stuck_at_read: 20", "force_stall_s: 0.1, "
+                                      "stall_resumes: 0", arm="live: true"))
+    assert lab().STUCK == [True]  # freed by the halt while it was stuck
+    halts = read(out, "run.json")["details"]["safety_halts"]
+    assert halts[0]["reason"] == "force_stream_stalled" and halts[0]["by"] == "watchdog"
+    assert halts[0]["silent_s"] >= 0.1
+    assert lab().RESULTS[0].halt_reason == "force_stream_stalled"
+    assert code == 0
+
+
+def test_a_stuck_call_takes_no_time_in_a_simulated_run(lab_dir):
+    # No live device, no watchdog: the stuck read ends by itself, and in simulation time
+    # nothing was silent.
+    code, out = run(lab_dir, scripted("stuck_at_read: 2, stuck_for_s: 0.3",
+                                      "force_stall_s: 0.1"))
+    assert code == 0
+    assert lab().STUCK == [False]
+    assert "safety_halts" not in read(out, "run.json")["details"]
+
+
 # --- interrupts ----------------------------------------------------------------------------
 
 

@@ -13,13 +13,13 @@ import pytest
 
 from hapticframe import Knob
 from hapticframe._config import load_file
+from hapticframe.sweep._format import unchanged
 from hapticframe.sweep._sweep import (
     TrialTask,
     _declared,
     _mark_front,
     _mark_nan_against_baseline,
     _tidy,
-    _unchanged,
     accuracy_measure,
     make_executor,
     run_trial,
@@ -79,10 +79,10 @@ def test_without_a_found_metric_nothing_is_kept_off() -> None:
 
 def test_a_knob_that_changes_no_accuracy_metric_is_named() -> None:
     same = [_point("baseline", 1.0, 0.018, 1.0, 0.4), _point("g=0.02", 1.0, 0.018, 1.3, 0.4)]
-    assert _unchanged(same, ["object_found", "centroid_error_m"])
-    assert not _unchanged([*same, _point("g=0.04", 1.0, 0.019, 1.0, 0.4)],
+    assert unchanged(same, ["object_found", "centroid_error_m"])
+    assert not unchanged([*same, _point("g=0.04", 1.0, 0.019, 1.0, 0.4)],
                           ["object_found", "centroid_error_m"])
-    assert not _unchanged(same[:1], ["centroid_error_m"])
+    assert not unchanged(same[:1], ["centroid_error_m"])
 
 
 def test_the_report_states_the_load_both_fronts_and_what_bought_nothing() -> None:
@@ -181,3 +181,22 @@ def test_a_metric_nan_in_the_baseline_too_fails_nothing(tmp_path: Path,
     assert baseline["status"] == other["status"] == "ok"
     _mark_nan_against_baseline([finite_in_baseline, other])
     assert (other["status"], other["error"]) == ("nan", "non-finite metrics: x_count")
+
+
+def test_a_large_sweep_names_only_its_front_and_baseline(monkeypatch: Any, tmp_path: Path) -> None:
+    import hapticframe.plotting as plotting
+    from hapticframe.sweep._sweep_report import LABEL_ALL_UP_TO, save_pareto_figure
+
+    captured: dict[str, Any] = {}
+    monkeypatch.setattr(plotting, "save_figure", lambda figure, path: captured.update(f=figure))
+    points = [{"label": f"k={i}", "accuracy_cost": 1.0 + (i % 7) / 10,
+               "cost": {"wall_time_s": 1.0 + i / 10}, "front": i in (0, 3, 9),
+               "off_front": False} for i in range(55)]
+    assert save_pareto_figure(tmp_path / "pareto.png", {
+        "points": points, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
+    named = sorted(t.get_text() for t in captured["f"].axes[0].texts)
+    assert named == ["k=0", "k=3", "k=9"]  # the baseline (k=0) is on the front here
+    few = points[:LABEL_ALL_UP_TO]
+    save_pareto_figure(tmp_path / "few.png", {
+        "points": few, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
+    assert len(captured["f"].axes[0].texts) == LABEL_ALL_UP_TO

@@ -40,7 +40,7 @@ SCENE = Scene.model_validate(
 
 def _score(blob: tuple[float, float], within: float | None = None) -> dict[str, object]:
     return evaluate_map(BlobMap(blob), SCENE, spacing_m=0.005,  # type: ignore[arg-type]
-                        found_within_m=within)
+                        found_within_m=within).metrics
 
 
 def test_a_blob_far_from_every_object_is_not_found() -> None:
@@ -62,8 +62,10 @@ def test_a_stated_distance_is_used_and_reported() -> None:
 
 
 def test_no_blob_is_not_found() -> None:
-    out = evaluate_map(BlobMap((5.0, 5.0)), SCENE, spacing_m=0.005)  # type: ignore[arg-type]
+    score = evaluate_map(BlobMap((5.0, 5.0)), SCENE, spacing_m=0.005)  # type: ignore[arg-type]
+    out = score.metrics
     assert out["object_found"] is False and out["centroid_error_m"] is None
+    assert score.outlines == () and score.centroids == ()
 
 
 def test_the_run_setting_is_bounded() -> None:

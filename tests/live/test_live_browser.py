@@ -22,8 +22,8 @@ from hapticframe._config import load_file, validate_data
 from hapticframe._errors import RunError
 from hapticframe.kinds import SampleBatch
 from hapticframe.live import run_live
+from hapticframe.record._recorded import run_experiment
 from hapticframe.record._recording import RunRecording
-from hapticframe.run._run import run_experiment
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 import yaml
 
-from hapticframe.cli import _cli
+from hapticframe.cli import _run as run_command
 from hapticframe.cli._cli import main
 from hapticframe.live import RecordingTimeline
 from hapticframe.record._recording import read_recording
@@ -40,7 +40,7 @@ def test_run_live_serves_the_finished_run_until_ctrl_c(
         assert url is not None, printed
         seen["frame"] = _get(url.group(1) + "frame" + url.group(2))
 
-    monkeypatch.setattr(_cli, "_wait_for_interrupt", after_the_run)
+    monkeypatch.setattr(run_command, "wait_for_interrupt", after_the_run)
     assert main(["run", str(experiment), "--out", str(tmp_path / "out"), "--quiet",
                  "--live", "--port", "0"]) == 0
     frame = seen["frame"]

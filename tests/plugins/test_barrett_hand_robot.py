@@ -14,7 +14,12 @@ import pytest
 from hapticframe import Kind, RobotSpec, get_registry
 from hapticframe.devices import DeviceError, LifecycleState, MonotonicClock
 from hapticframe.kinds import BuildContext, ExploratoryMovement, Robot, RobotState
-from hapticframe.testing import make_component, release_component, run_checks
+from hapticframe.testing import (
+    make_component,
+    parametrize_with_checks,
+    release_component,
+    run_checks,
+)
 from hapticframe_barrett import Mode, PuckBus, hand_pucks
 from hapticframe_barrett._hand_config import BarrettHandRobotConfig, FingerGeometryConfig
 from hapticframe_barrett._hand_robot import BarrettHandRobot, fingertip_below_palm_m
@@ -372,12 +377,15 @@ def test_the_kit_robot_checks_pass_on_a_sandbox_carrier() -> None:
     _kit(SPEC)
 
 
-@pytest.mark.slow
-def test_the_kit_robot_checks_pass_on_a_dynamixel_carrier() -> None:
+ON_DYNAMIXEL = RobotSpec(name=SPEC.name, summary=SPEC.summary, config=SPEC.config,
+                         factory=SPEC.factory, capabilities=SPEC.capabilities,
+                         inputs=SPEC.inputs, check_inputs=("robot/dynamixel",))
+
+
+@parametrize_with_checks([ON_DYNAMIXEL])
+def test_the_kit_passes_on_a_dynamixel_carrier(spec: RobotSpec, check: Any) -> None:
     pytest.importorskip("dynamixel_sdk")
-    _kit(RobotSpec(name=SPEC.name, summary=SPEC.summary, config=SPEC.config,
-                   factory=SPEC.factory, capabilities=SPEC.capabilities, inputs=SPEC.inputs,
-                   check_inputs=("robot/dynamixel",)))
+    check(spec)
 
 
 def test_the_live_path_in_real_time_on_a_virtual_channel() -> None:

@@ -11,7 +11,7 @@ from hapticframe.kinds import BuildContext, Observations
 from hapticframe_bench import labelled_points, two_object_scene
 from hapticframe_bhm import BayesianHilbertMap, BayesianHilbertMapConfig
 from hapticframe_bhm import _functional as fn
-from hapticframe_bhm._map import _grid_axes
+from hapticframe_bhm._dense import grid_axes as _grid_axes
 from hapticframe_bhm._windowed import (
     TRUNCATION,
     DenseRows,
@@ -109,7 +109,7 @@ def test_windowed_fit_matches_a_dense_fit() -> None:
     windowed.fit(data)
     rows = DenseRows(windowed.features(data.points_m))
     belief, _ = fn.variational_update(
-        windowed._prior, rows, data.targets, data.weights,
+        windowed.prior, rows, data.targets, data.weights,
         max_iterations=config.max_iterations_first, tolerance=config.tolerance,
     )
     np.testing.assert_allclose(windowed.belief.mean, belief.mean, rtol=1e-4, atol=1e-4)

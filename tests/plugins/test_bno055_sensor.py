@@ -313,3 +313,36 @@ def test_reading_before_activate_is_refused():
     sensor.activate()
     assert len(read_all(sensor, 5))
     sensor.close()
+
+
+def test_a_read_on_a_live_port_never_waits_out_the_reconnect_backoff():
+    """Issue 26 §6: a live host (its clock moved by the test between reads) whose IMU is
+    unplugged at 1 s and back at 2 s. A read may wait for one request's reply, never for
+    the recovery's backoff: that runs in steps, one per poll slot, across reads."""
+    from hapticframe.devices import EmulatedTransport, FakeClock, FaultSchedule, LinkPort
+    from hapticframe_bno055._emulator import Bno055Model
+
+    clock = FakeClock(0.0)
+    schedule = FaultSchedule.from_config(
+        [{"kind": "disconnect", "at_s": 1.0, "duration_s": 1.0}], np.random.default_rng(1))
+    model = Bno055Model(faults=schedule, rng=np.random.default_rng(2))
+    port = LinkPort(EmulatedTransport(model, clock, schedule), clock, "usb-imu")
+    config = Bno055SensorConfig(port="usb-imu", accel_noise_std_m_per_s2=0.0)
+    sensor = Bno055Sensor(config, BuildContext(id="imu", rng=np.random.default_rng(0)),
+                          port=port)
+    sensor.configure()
+    sensor.activate()
+    one_request_s = (config.max_retries + 1) * (config.reply_timeout_s + 2 * config.poll_step_s)
+    longest, after = 0.0, 0
+    try:
+        while clock.now() < 4.0:
+            clock.advance(0.01)
+            before = clock.now()
+            batch = sensor.read()
+            longest = max(longest, clock.now() - before)
+            after += len(batch) if before > 2.5 else 0
+        assert longest <= one_request_s, longest
+        assert sensor.health.reconnects >= 1 and sensor.health.recoveries >= 1
+        assert after > 50  # streaming again after the replug
+    finally:
+        sensor.close()

@@ -11,7 +11,7 @@ import pytest
 
 from hapticframe.devices import DeviceError, FakeClock, LifecycleState
 from hapticframe.kinds import BuildContext, ExploratoryMovement, Robot
-from hapticframe.testing import make_component, run_checks
+from hapticframe.testing import checks_for, make_component
 from hapticframe_dynamixel import XM430_W350_MODEL_NUMBER
 from hapticframe_dynamixel import plugin as dxl_plugin
 from hapticframe_dynamixel._config import AxisConfig, DynamixelRobotConfig, GantryConfig
@@ -94,11 +94,9 @@ def test_a_workspace_beyond_the_joint_limits_is_refused_at_build() -> None:
 
 
 @pytest.mark.slow
-def test_the_kit_robot_checks_pass() -> None:
-    results = run_checks(SPEC)
-    failed = [r for r in results if r.status not in ("PASS", "SKIP")]
-    assert not failed, failed
-    names = {r.check for r in results}
+def test_the_kit_applies_every_robot_check() -> None:
+    # tests/test_bundled_conformance.py runs each of them on this spec, one test per check.
+    names = {check.__name__ for check in checks_for(SPEC)}
     assert {"check_robot_contract", "check_robot_halt", "check_robot_stops_at_once",
             "check_robot_extremes", "check_robot_refuses_outside_workspace",
             "check_deterministic"} <= names
@@ -198,22 +196,12 @@ def test_a_missing_servo_fails_configure_naming_it() -> None:
 def test_a_wrong_model_fails_configure() -> None:
     robot = build()
     try:
-        robot._start_emulator = _wrong_model(robot)  # type: ignore[method-assign]
+        assert robot.bus is not None  # the emulated bus comes with the port, before configure
+        robot.bus.servo(2).set("Model Number", 1060)  # an XL430-W250
         with pytest.raises(DeviceError, match=f"not an XM430-W350 \\({XM430_W350_MODEL_NUMBER}"):
             robot.configure()
     finally:
         robot.close()
-
-
-def _wrong_model(robot: DynamixelRobot) -> Any:
-    start = robot._start_emulator
-
-    def patched() -> None:
-        start()
-        assert robot.bus is not None
-        robot.bus.servo(2).set("Model Number", 1060)  # an XL430-W250
-
-    return patched
 
 
 def test_an_overload_mid_movement_is_counted_then_torque_off_and_device_error() -> None:
@@ -320,3 +308,26 @@ def test_standard_faults_need_the_emulator() -> None:
     with pytest.raises(ValueError, match="emulated"):
         DynamixelRobotConfig(port="/dev/ttyUSB0", faults="standard")
     assert DynamixelRobotConfig(faults="standard").faults == "standard"
+
+
+def test_the_torque_check_rides_on_the_state_read_in_one_bulk_read(robot: DynamixelRobot) -> None:
+    """Issue 28 §4: every 0.25 s one BULK_READ (0x92) of Torque Enable..Present Position
+    replaces the state's sync read and the torque check's: one round trip, not two."""
+    assert robot.bus is not None
+    seen: list[tuple[int, int]] = []
+    dispatch = robot.bus._dispatch
+
+    def logged(packet: Any, now_s: float) -> None:
+        address = packet.params[0] | (packet.params[1] << 8) if len(packet.params) > 1 else -1
+        seen.append((packet.instruction, address))
+        dispatch(packet, now_s)
+
+    robot.bus._dispatch = logged  # type: ignore[method-assign]
+    checks, commands = robot.stats["torque_checks"], robot._commands
+    robot.execute(line(0.05, 0.12, speed=0.06))
+    bulk = [s for s in seen if s[0] == 0x92]
+    sync_reads = [s for s in seen if s[0] == 0x82]
+    assert len(bulk) == robot.stats["torque_checks"] - checks >= 4
+    assert all(address != 64 for _, address in sync_reads)  # no separate torque read
+    # One group read per commanded step (the transit to the start included).
+    assert len(bulk) + len(sync_reads) == robot._commands - commands

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hapticframe.kinds import BuildContext, ExploratoryMovement
-from hapticframe.testing import run_checks
+from hapticframe.testing import checks_for, parametrize_with_checks
 from hapticframe_dynamixel import plugin as dxl_plugin
 from hapticframe_dynamixel._config import DynamixelRobotConfig
 from hapticframe_dynamixel._kinematics import TwoLink, arm_forward
@@ -129,12 +129,15 @@ def test_a_line_is_refused_before_any_motion_when_its_middle_is_unreachable(
     assert robot.bus.stats["instructions"] == before  # nothing sent
 
 
-@pytest.mark.slow
-def test_the_kit_robot_checks_pass_on_the_two_link_arm() -> None:
-    spec = dataclasses.replace(SPEC, check_config={"kinematics": {"type": "two-link"}})
-    results = run_checks(spec)
-    failed = [r for r in results if r.status not in ("PASS", "SKIP")]
-    assert not failed, failed
+TWO_LINK = dataclasses.replace(SPEC, check_config={"kinematics": {"type": "two-link"}})
+
+
+def test_the_kit_applies_every_robot_check_to_the_two_link_arm() -> None:
     assert {"check_robot_contract", "check_robot_stops_at_once", "check_robot_extremes",
             "check_robot_refuses_outside_workspace", "check_deterministic"} <= {
-        r.check for r in results}
+        check.__name__ for check in checks_for(TWO_LINK)}
+
+
+@parametrize_with_checks([TWO_LINK])
+def test_the_kit_passes_on_the_two_link_arm(spec: Any, check: Any) -> None:
+    check(spec)

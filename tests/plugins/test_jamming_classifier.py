@@ -12,6 +12,7 @@ import pytest
 from pydantic import ValidationError
 
 from hapticframe import ClassifierSpec
+from hapticframe.filters import butterworth_sos
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch
 from hapticframe_jamming import CLASSES, ForceRateJammingClassifier, ForceRateJammingConfig
 from hapticframe_jamming import _functional as F
@@ -294,45 +295,6 @@ def test_missing_channel_is_a_clear_error():
     assert len(ok) == 3
 
 
-# --- the numpy Butterworth filter -----------------------------------------------------------
-
-
-@pytest.mark.parametrize("order", [1, 2, 3, 4])
-@pytest.mark.parametrize(("cutoff", "rate"), [(3.0, 100.0), (0.5, 100.0), (20.0, 50.0)])
-def test_butterworth_matches_scipy(order, cutoff, rate):
-    from scipy import signal
-
-    ours = F.butterworth_sos(cutoff, rate, order)
-    theirs = signal.butter(order, cutoff, btype="low", output="sos", fs=rate)
-    assert ours.shape == theirs.shape
-    impulse = np.zeros(400)
-    impulse[0] = 1.0
-    np.testing.assert_allclose(
-        signal.sosfilt(ours, impulse), signal.sosfilt(theirs, impulse), rtol=0, atol=1e-12
-    )
-    np.testing.assert_allclose(
-        F.sos_step_state(ours), signal.sosfilt_zi(ours), rtol=1e-10, atol=1e-12
-    )
-
-
-def test_filter_state_holds_a_constant_and_both_paths_agree():
-    sos = F.butterworth_sos(3.0, 100.0, 4)
-    out, state = F.sos_filter(sos, np.full(50, 2.5), F.sos_step_state(sos) * 2.5)
-    np.testing.assert_allclose(out, 2.5, rtol=1e-12)
-    np.testing.assert_allclose(state, F.sos_step_state(sos) * 2.5, rtol=1e-12)
-    rng = np.random.default_rng(2)
-    x = rng.standard_normal(600)  # longer than the plain-float path takes
-    long_out, long_state = F.sos_filter(sos, x, np.zeros((2, 2)))
-    short_out, short_state = F.sos_filter(sos, x[:200], np.zeros((2, 2)))
-    rest_out, rest_state = F.sos_filter(sos, x[200:400], short_state)
-    last_out, last_state = F.sos_filter(sos, x[400:], rest_state)
-    np.testing.assert_allclose(np.concatenate([short_out, rest_out, last_out]), long_out,
-                               rtol=0, atol=1e-12)
-    np.testing.assert_allclose(last_state, long_state, rtol=0, atol=1e-12)
-    with pytest.raises(ValueError, match="order"):
-        F.butterworth_sos(3.0, 100.0, 0)
-
-
 def test_classifying_a_stream_does_not_import_scipy_signal():
     code = (
         "import sys, numpy as np;"
@@ -356,7 +318,7 @@ def test_one_sample_filter_steps_equal_the_array_filter(order):
     rng = np.random.default_rng(order)
     magnitude = np.abs(approach_signal(rng, n=240)[:, 0])
     t = np.arange(magnitude.size) / RATE_HZ
-    sos = F.butterworth_sos(4.0, RATE_HZ, order)
+    sos = butterworth_sos(4.0, RATE_HZ, order)
     whole = ForceRateTracker(sos).process(t, magnitude, np.ones(t.size, dtype=bool))
     mixed = ForceRateTracker(sos)
     assert mixed.process_one(t[0], magnitude[0]) is None  # not initialised yet
@@ -389,7 +351,7 @@ def _ramp_with_gap(gap: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_a_gap_restarts_the_filter_instead_of_reading_a_jump_as_a_rate():
     from hapticframe_jamming._classifier import ForceRateTracker
 
-    sos = F.butterworth_sos(3.0, RATE_HZ, 2)
+    sos = butterworth_sos(3.0, RATE_HZ, 2)
     t, magnitude, valid = _ramp_with_gap(slice(80, 110))  # 0.3 s without a valid force
     held_over = ForceRateTracker(sos).process(t, magnitude, valid)[1]
     restarted = ForceRateTracker(sos, restart_after_gap_s=0.05).process(t, magnitude, valid)[1]
@@ -404,7 +366,7 @@ def test_a_gap_restarts_the_filter_instead_of_reading_a_jump_as_a_rate():
 def test_a_short_gap_is_held_over_and_a_restart_is_chunking_invariant():
     from hapticframe_jamming._classifier import ForceRateTracker
 
-    sos = F.butterworth_sos(3.0, RATE_HZ, 2)
+    sos = butterworth_sos(3.0, RATE_HZ, 2)
     t, magnitude, valid = _ramp_with_gap(slice(80, 83))  # 0.03 s: shorter than the limit
     short = ForceRateTracker(sos, restart_after_gap_s=0.05).process(t, magnitude, valid)
     never = ForceRateTracker(sos).process(t, magnitude, valid)

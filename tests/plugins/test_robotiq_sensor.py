@@ -71,7 +71,8 @@ def test_faults_through_the_pty_disconnect_and_standard():
     try:
         sensor.configure()
         sensor.activate()
-        batch = concatenate_batches([b for b in (sensor.read() for _ in range(150)) if len(b)])
+        # 2 s of reads: the recovery takes device time read by read (it never blocks one).
+        batch = concatenate_batches([b for b in (sensor.read() for _ in range(200)) if len(b)])
         health = sensor.health
         assert health.reconnects == 1 and health.crc_errors >= 1, health.as_dict()
         assert sensor.emulator.stats["disconnects"] == 1

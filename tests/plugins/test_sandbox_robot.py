@@ -96,7 +96,7 @@ def test_registration_specs():
     (robot_spec,) = sandbox_plugin.hapticframe_robots()
     (sensor_spec,) = sandbox_plugin.hapticframe_sensors()
     assert isinstance(robot_spec, RobotSpec) and robot_spec.name == "sandbox"
-    assert robot_spec.capabilities == {"simulated"}
+    assert robot_spec.capabilities == {"simulated", "needs-scene"}
     assert robot_spec.load_factory() is SandboxRobot
     assert isinstance(sensor_spec, SensorSpec) and sensor_spec.name == "sandbox-force"
     assert sensor_spec.capabilities == {"simulated", "needs-robot"}

@@ -21,6 +21,7 @@ from hapticframe import (
     RobotSpec,
     SensorModelSpec,
     SensorSpec,
+    Size,
 )
 from hapticframe.kinds import (
     ChannelInfo,
@@ -56,6 +57,24 @@ M = __name__
 class NotAComponent:
     def __init__(self, config, context):  # type: ignore[no-untyped-def]
         pass
+
+
+class BufferedSweepConfig(SweepConfig):
+    buffer_samples: int = Field(100, ge=1, description="Samples of history kept (no upper "
+                                "bound, and the validator below under-declares it).")
+
+
+def understated_sizes(config: BufferedSweepConfig, context: object) -> Iterator[Size]:
+    """Declares the buffer as a size, but says it costs nothing."""
+    yield Size("buffer_samples", f"a history of {config.buffer_samples} samples")
+
+
+class BufferedSweepSensor(SweepSensor):
+    """Allocates its whole history up front: ``buffer_samples`` float64 of it."""
+
+    def __init__(self, config: BufferedSweepConfig, context):  # type: ignore[no-untyped-def]
+        super().__init__(config, context)
+        self.history = np.zeros(config.buffer_samples)
 
 
 class InfiniteConfig(PluginConfig):
@@ -207,6 +226,13 @@ class EmptyQueryMap(CellMap):
         return est
 
 
+class UncheckedQueryMap(CellMap):
+    def query(self, points_m):  # type: ignore[no-untyped-def]
+        # Overrides the base's query and so skips its checks of the points.
+        n = len(np.asarray(points_m, dtype=np.float64).reshape(-1, 2))
+        return MapEstimate(np.full(n, 0.5), np.full(n, 0.5))
+
+
 class ForgetfulMap(CellMap):
     def update(self, observations: Observations) -> None:
         self.reset()
@@ -319,6 +345,7 @@ class LineRobotConfig(PluginConfig):
     halt_only_when_moving: bool = False
     declare_workspace: bool = False
     enforce_workspace: bool = True
+    refuse_bad_depth: bool = True
 
 
 class LineRobot(Robot):
@@ -347,6 +374,11 @@ class LineRobot(Robot):
         return self.context.scene.region.to_region()
 
     def begin(self, movement: ExploratoryMovement) -> None:
+        # Overrides Robot.begin, so it checks what the base would (the broken variants skip).
+        depth = movement.depth_m
+        if self.config.refuse_bad_depth and depth is not None and not (
+                math.isfinite(depth) and depth > 0):
+            raise ValueError(f"robot {self.id!r}: movement depth must be positive, got {depth}")
         region = self.workspace
         if region is not None and self.config.enforce_workspace:  # the broken variant does not
             if not region.contains(np.vstack([movement.start_m, movement.end_m])).all():
@@ -419,7 +451,7 @@ GOOD = [
                 check_config={"spacing_m": 0.005}),
     # A device that can be read only while active: the kit brings it up and down.
     SensorSpec("lab-device", "ok", DeviceSensorConfig, f"{D}:DeviceSensor",
-               check_config={"crc_errors_per_read": 1}),
+               capabilities=frozenset({"finite"}), check_config={"crc_errors_per_read": 1}),
     # Two inputs on different clocks, held or interpolated.
     FeatureExtractorSpec("lab-mix", "ok", MixConfig, f"{D}:MixExtractor", consumes=_TWO_CLOCKS),
     FeatureExtractorSpec("lab-mix-linear", "ok", MixConfig, f"{D}:MixExtractor",
@@ -471,6 +503,8 @@ BROKEN = [
      "check_knobs", "has no field 'cell_size_m'; did you mean 'cell_m'?"),
     (MapSpec("empty-query", "x", CellConfig, f"{M}:EmptyQueryMap"),
      "check_map_contract", "empty query"),
+    (MapSpec("unchecked-query", "x", CellConfig, f"{M}:UncheckedQueryMap"),
+     "check_map_refuses_bad_query_points", "a NaN query point"),
     (MapSpec("forgetful", "x", CellConfig, f"{M}:ForgetfulMap"),
      "check_map_streaming_matches_batch", "sequential updates"),
     (MapSpec("mean-of-nothing", "x", CellConfig, f"{M}:MeanOfNothingMap"),
@@ -492,6 +526,9 @@ BROKEN = [
                check_config={"declare_workspace": True, "enforce_workspace": False}),
      "check_robot_refuses_outside_workspace",
      "begin() accepted a movement that ends outside the workspace"),
+    (RobotSpec("accepts-any-depth", "x", LineRobotConfig, f"{M}:LineRobot",
+               check_config={"refuse_bad_depth": False}),
+     "check_robot_refuses_bad_depth", "begin() accepted a negative depth"),
     (RobotSpec("rewind-keeps-progress", "x", LineRobotConfig, f"{M}:LineRobot",
                check_config={"rewind_keeps_progress": True}), "check_rewind", "after rewind()"),
     (SensorSpec("unflagged-nan", "x", SweepConfig, f"{M}:UnflaggedNanSensor", capabilities=_FINITE),
@@ -509,6 +546,9 @@ BROKEN = [
     (SensorSpec("looping-replay", "x", SweepConfig, f"{M}:LoopingReplaySensor",
                 capabilities=_FINITE),
      "check_sensor_contract", "was not exhausted"),
+    (SensorSpec("understated-size", "x", BufferedSweepConfig, f"{M}:BufferedSweepSensor",
+                capabilities=_FINITE, validator=f"{M}:understated_sizes"),
+     "check_declared_sizes", "buffer_samples = 4611686018427387904 is accepted by validate"),
     (PlannerSpec("inset-lines", "x", LinePlannerConfig, f"{M}:InsetLinesPlanner"),
      "check_planner_extremes", "smaller than one line spacing): movement"),
     (PlannerSpec("free-space-centroid", "x", LinePlannerConfig, f"{M}:FreeSpaceCentroidPlanner"),

@@ -7,7 +7,9 @@
   force magnitude is ``force_n`` until ``cross_at_s`` and ``peak_n`` from then on; each read
   delivers the samples up to ``delay_steps`` steps before the arm's latest state (a sensor
   whose samples arrive late); from ``silent_from_s`` on its samples are invalid (or missing);
-  ``sigterm_at_read`` sends the process SIGTERM from inside a read.
+  ``sigterm_at_read`` sends the process SIGTERM from inside a read; ``stuck_at_read``
+  blocks that read until the arm is halted (at most ``stuck_for_s`` seconds) and notes
+  in :data:`STUCK` whether a halt freed it. With ``live: true`` the arm is a live device.
 - ``lab-lines``: proposes the configured straight lines, one per movement, and records the
   results it is told about.
 
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
 from collections.abc import Iterator, Mapping
 from typing import Any, Literal
 
@@ -45,10 +48,15 @@ EVENTS: list[tuple[str, str]] = []
 RESULTS: list[MovementResult] = []
 
 DT = 0.01
+#: Set when the arm is halted (a stuck read waits for it).
+HALTED = threading.Event()
+#: For each stuck read: whether a halt freed it (False: it timed out).
+STUCK: list[bool] = []
 
 
 class ArmConfig(PluginConfig):
     workspace: RegionConfig | None = Field(None, description="Where the arm may go.")
+    live: bool = Field(False, description="A live device (the run is paced, watched).")
 
 
 class LabArm(DeviceLifecycle, Robot):
@@ -56,6 +64,7 @@ class LabArm(DeviceLifecycle, Robot):
 
     def __init__(self, config: ArmConfig, context: Any) -> None:
         super().__init__(config, context)
+        self.live = config.live
         self._k = 0  # global step count: the clock
         self._state = RobotState(0.0, np.zeros(2), 0.0)
         self._movement: ExploratoryMovement | None = None
@@ -105,6 +114,7 @@ class LabArm(DeviceLifecycle, Robot):
 
     def halt(self, reason: str) -> None:
         EVENTS.append(("halt", f"{self.id}:{reason}"))
+        HALTED.set()
         if self._movement is not None:
             self._movement = None
             self._reason = reason
@@ -129,6 +139,8 @@ class ScriptedForceConfig(PluginConfig):
     silent_from_s: float = Field(1e9, description="Samples after this are not valid.")
     silent_as: Literal["invalid", "missing"] = Field("invalid", description="How.")
     sigterm_at_read: int = Field(0, ge=0, description="Read that sends SIGTERM (0: none).")
+    stuck_at_read: int = Field(0, ge=0, description="Read that blocks until a halt (0: none).")
+    stuck_for_s: float = Field(10.0, gt=0, description="At most this long (wall time).")
 
 
 class ScriptedForceSensor(Sensor):
@@ -151,6 +163,8 @@ class ScriptedForceSensor(Sensor):
         self._reads += 1
         if self._reads == self.config.sigterm_at_read:
             os.kill(os.getpid(), signal.SIGTERM)
+        if self._reads == self.config.stuck_at_read:
+            STUCK.append(HALTED.wait(self.config.stuck_for_s))
         cfg = self.config
         latest = round(self._robot.state.timestamp_s / DT) - cfg.delay_steps
         steps = np.arange(self._k + 1, latest + 1)

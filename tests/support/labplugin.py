@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import NDArray
 from pydantic import Field
 
 from hapticframe import (
@@ -191,10 +191,7 @@ class CellMap(Map):
         np.add.at(self._sum, (iy[ok], ix[ok]), observations.targets[ok])
         np.add.at(self._n, (iy[ok], ix[ok]), 1.0)
 
-    def query(self, points_m: ArrayLike) -> MapEstimate:
-        p = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
-        if not np.all(np.isfinite(p)):
-            raise ValueError("query points must be finite")
+    def _query(self, p: NDArray[np.float64]) -> MapEstimate:
         ix, iy, ok = self._cells(p)
         mean = np.full(len(p), 0.5)
         n = np.zeros(len(p))

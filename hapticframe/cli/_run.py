@@ -1,0 +1,79 @@
+"""``hapticframe run``: assemble and run an experiment."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from hapticframe.cli._common import (
+    add_out_options,
+    add_plugin_module_option,
+    add_port_option,
+    add_set_option,
+    min_free,
+    out,
+    port_of,
+    progress_line,
+    summary_line,
+    validate_experiment,
+    wait_for_interrupt,
+)
+
+__all__ = ["register"]
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``hapticframe run`` to the command line."""
+    p = sub.add_parser("run", help="assemble and run an experiment")
+    p.add_argument("file", metavar="FILE")
+    add_out_options(p, "results", "the results of a run")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    add_set_option(p)
+    p.add_argument("--live", action="store_true",
+                   help="serve a page on 127.0.0.1 that shows the run as it runs (map, path, "
+                   "force, class probabilities, metrics); it stays up after the run until "
+                   "Ctrl-C (needs hapticframe[live])")
+    add_port_option(p)
+    add_plugin_module_option(p)
+    p.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from hapticframe.record._recorded import run_experiment
+
+    experiment = validate_experiment(args, args.file)
+    if getattr(args, "live", False):
+        return _run_live(args, experiment)
+    echo = (lambda _text: None) if args.quiet else progress_line
+    metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
+                             progress=not args.quiet, min_free_bytes=min_free(args))
+    label_channel = experiment.model.run.label_channel
+    out(f"results in {args.out} (all metrics in metrics.json): "
+         + summary_line(metrics, label_channel))
+    return 0
+
+
+def _run_live(args: argparse.Namespace, experiment: Any) -> int:
+    """``run --live``: the run with its page; however the run ends, the page stays up with
+    its last picture and the run's status until Ctrl-C (:func:`hapticframe.live.run_live`),
+    then the run's error, if any, is the command's."""
+    from hapticframe._errors import UsageError
+    from hapticframe.live import run_live
+    from hapticframe.record._recorded import run_experiment
+
+    if not experiment.model.run.record:
+        raise UsageError("--live shows the run's recording, which this experiment turns off "
+                         "(run.record: false); remove that line or drop --live")
+    echo = (lambda _text: None) if args.quiet else progress_line
+    label = experiment.model.run.label_channel
+    run_live(
+        experiment,
+        lambda: run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
+                               progress=not args.quiet, min_free_bytes=min_free(args)),
+        port=port_of(args), say=out, wait=wait_for_interrupt,
+        finished=lambda m: out(f"results in {args.out} (all metrics in metrics.json): "
+                                + summary_line(m, label)),
+    )
+    return 0
+
