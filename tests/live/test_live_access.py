@@ -290,3 +290,28 @@ def test_a_stuck_page_misses_frames_and_is_disconnected_while_others_go_on() -> 
         assert versions == sorted(versions)
         # Encoded once per picture, not once per page.
         assert server.frames_encoded <= feed.state.version
+
+
+def test_view_prints_its_token_and_answers_only_with_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch) -> None:
+    import re
+
+    from hapticframe.cli import _view
+    from hapticframe.cli._cli import main
+
+    _timeline(tmp_path)  # writes tmp_path / "run.mcap"
+    seen: dict[str, Any] = {}
+
+    def look() -> None:  # stands in for waiting for Ctrl-C
+        printed = capsys.readouterr().out
+        found = re.search(r"at (http://127\.0\.0\.1:\d+/)\?token=([\w-]+)", printed)
+        assert found is not None, printed
+        base, token = found.groups()
+        seen["bare"] = _request(f"{base}frame")
+        seen["nan"] = _request(f"{base}frame?token={token}&t_s=nan")
+        seen["ok"] = _request(f"{base}frame?token={token}&t_s=2")
+
+    monkeypatch.setattr(_view, "wait_for_interrupt", look)
+    assert main(["view", str(tmp_path / "run.mcap"), "--port", "0"]) == 0
+    assert seen["bare"][0] == 403 and seen["nan"][0] == 400
+    assert seen["ok"][0] == 200 and _strict(seen["ok"][1])["metrics"]["movements"] == 2
