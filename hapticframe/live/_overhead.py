@@ -4,8 +4,9 @@
 experiment (figures off) in this process, interleaving three settings: no live view; the
 live view's listener and server with no page open; the same with ``--stuck`` websocket
 clients that finish the handshake and then never read a byte (as a hung tab or a
-malicious local script would). It prints each run's wall time and the medians. The run's
-own ``wall_time_s`` is measured by the run; the clients connect before it starts.
+malicious local script would). It prints each run's wall time and the process's CPU time
+during it (the loop's and the server thread's together: less sensitive to other jobs on
+the machine than wall time), and their medians. The clients connect before the run starts.
 """
 
 from __future__ import annotations
@@ -58,22 +59,23 @@ def stuck_clients(url: str, count: int, timeout_s: float = 10.0,
     return clients
 
 
-def _one_run(experiment: Any, out: Path, setting: str, stuck: int) -> float:
+def _one_run(experiment: Any, out: Path, setting: str, stuck: int) -> tuple[float, float]:
     from hapticframe.live import run_live
-    from hapticframe.run._run import run_experiment
+    from hapticframe.record._recorded import run_experiment
 
     timed: dict[str, float] = {}
 
     def run() -> Any:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         metrics = run_experiment(experiment, out, overwrite=True, echo=lambda _t: None,
                                  progress=False)
         timed["wall_s"] = time.perf_counter() - start
+        timed["cpu_s"] = time.process_time() - cpu
         return metrics
 
     if setting == "no live view":
         run()
-        return timed["wall_s"]
+        return timed["wall_s"], timed["cpu_s"]
     lines: list[str] = []
     clients: list[socket.socket] = []
 
@@ -90,7 +92,7 @@ def _one_run(experiment: Any, out: Path, setting: str, stuck: int) -> float:
     finally:
         for client in clients:
             client.close()
-    return timed["wall_s"]
+    return timed["wall_s"], timed["cpu_s"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -109,24 +111,28 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as scratch:
         (Path(scratch) / "experiment.yaml").write_text(yaml.safe_dump(model), encoding="utf-8")
         experiment = validate_data(load_file(str(Path(scratch) / "experiment.yaml")))
-        settings: dict[str, Callable[[], float]] = {
+        settings: dict[str, Callable[[], tuple[float, float]]] = {
             "no live view": lambda: _one_run(experiment, Path(scratch) / "a", "no live view", 0),
             "server, no page": lambda: _one_run(experiment, Path(scratch) / "b",
                                                 "server, no page", 0),
             f"{args.stuck} stuck clients": lambda: _one_run(experiment, Path(scratch) / "c",
                                                             "stuck", args.stuck),
         }
-        times: dict[str, list[float]] = {name: [] for name in settings}
+        times: dict[str, list[tuple[float, float]]] = {name: [] for name in settings}
         settings["no live view"]()  # imports and first calls fall on no setting
         for repeat in range(args.repeats):
             for name, measure in settings.items():
                 times[name].append(measure())
-                print(f"repeat {repeat + 1}: {name}: {times[name][-1]:.3f} s", flush=True)
-    base = statistics.median(times["no live view"])
-    for name, values in times.items():
-        median = statistics.median(values)
-        print(f"{name}: median {median:.3f} s ({100 * (median / base - 1):+.1f} %), "
-              f"range {min(values):.3f}-{max(values):.3f} s over {len(values)} runs")
+                wall, cpu = times[name][-1]
+                print(f"repeat {repeat + 1}: {name}: {wall:.3f} s wall, {cpu:.3f} s CPU",
+                      flush=True)
+    for column, label in ((0, "wall"), (1, "CPU")):
+        base = statistics.median(t[column] for t in times["no live view"])
+        for name, pairs in times.items():
+            values = [t[column] for t in pairs]
+            median = statistics.median(values)
+            print(f"{label}: {name}: median {median:.3f} s ({100 * (median / base - 1):+.1f} %)"
+                  f", range {min(values):.3f}-{max(values):.3f} s over {len(values)} runs")
     return 0
 
 

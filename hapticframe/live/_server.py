@@ -25,6 +25,7 @@ import socket
 import threading
 import time
 from collections import OrderedDict
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -43,8 +44,8 @@ _log = logging.getLogger("hapticframe.live")
 STATIC = Path(__file__).parent / "static"
 #: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
 DEFAULT_PORT = LIVE_PORT
-#: The kernel's send buffer of a page's connection (Linux doubles it): a few frames.
-SEND_BUFFER_BYTES = 256 * 1024
+#: The kernel's send buffer of a page's connection (Linux doubles it): about one frame.
+SEND_BUFFER_BYTES = 64 * 1024
 #: Headers on every answer: no other site may frame the page, and its address (with the
 #: token) goes nowhere as a referrer.
 SECURITY_HEADERS = {
@@ -233,7 +234,7 @@ class LiveServer:
         self._started = threading.Event()
         self._error: BaseException | None = None
         self._stopping: asyncio.Event | None = None
-        self._sockets: set[web.WebSocketResponse] = set()
+        self._pages: list[_Page] = []
 
     @property
     def url(self) -> str:
@@ -334,14 +335,79 @@ class LiveServer:
             while not self._stopping.is_set():
                 if pump is not None:
                     pump()
-                try:
-                    await asyncio.wait_for(self._stopping.wait(), 0.2)
+                self._broadcast()
+                try:  # one wake-up a period for all pages, not one per page
+                    await asyncio.wait_for(self._stopping.wait(),
+                                           1.0 / self.rate_hz if self._pages else 0.2)
                 except asyncio.TimeoutError:
                     pass
         finally:
-            for ws in list(self._sockets):  # open pages would hold the shutdown up
-                await ws.close()
+            for page in list(self._pages):  # open pages would hold the shutdown up
+                await self._close(page)
             await runner.cleanup()
+
+    # --- sending -----------------------------------------------------------------------------
+
+    def _broadcast(self) -> None:
+        """Offer every page what is new for it (:meth:`_offer`)."""
+        now = time.monotonic()
+        for page in list(self._pages):
+            self._offer(page, now)
+
+    def _offer(self, page: _Page, now: float) -> None:
+        """Start sending ``page`` what is new for it, unless it has not taken the last frame
+        yet (then it misses this one; after ``stuck_s`` of that it is dropped)."""
+        transport = page.transport
+        if page.ws.closed or transport is None or transport.is_closing():
+            return
+        sending = page.sending is not None and not page.sending.done()
+        if sending or transport.get_write_buffer_size() > 0:
+            page.waiting_since = page.waiting_since or now
+            if now - page.waiting_since > self.stuck_s:
+                self._drop(page)
+                return
+            key, _ = page.cursor.frame(page.wanted)
+            if key != page.sent and key != page.skipped:
+                page.skipped = key
+                self.frames_skipped += 1
+            return
+        page.waiting_since = None
+        if page.replies:
+            text = strict_json({"error": page.replies.pop(0)})
+        else:
+            key, frame = page.cursor.frame(page.wanted)
+            if key == page.sent:
+                return
+            text, page.sent = self._encode(key, frame), key
+            self.frames_sent += 1
+        page.sending = asyncio.ensure_future(self._deliver(page.ws, text))
+
+    @staticmethod
+    async def _deliver(ws: web.WebSocketResponse, text: str) -> None:
+        try:
+            await ws.send_str(text)
+        except (ConnectionError, RuntimeError):
+            pass  # the page went away: its handler ends
+
+    def _drop(self, page: _Page) -> None:
+        """Disconnect a page that takes nothing (it would not answer a closing handshake
+        either)."""
+        self.pages_dropped += 1
+        _log.warning("live view: a page took no frame for %g s; disconnected it", self.stuck_s)
+        if page.sending is not None:
+            page.sending.cancel()
+        if page.transport is not None:
+            page.transport.abort()
+
+    async def _close(self, page: _Page) -> None:
+        if page.sending is not None:
+            page.sending.cancel()
+        if page.transport is None or page.transport.is_closing():
+            return
+        try:
+            await asyncio.wait_for(page.ws.close(), 2.0)
+        except (asyncio.TimeoutError, ConnectionError, RuntimeError):
+            page.transport.abort()
 
     # --- handlers ----------------------------------------------------------------------------
 
@@ -405,97 +471,63 @@ class LiveServer:
         return web.Response(text=self._encode(key, frame), content_type="application/json")
 
     async def _websocket(self, request: web.Request) -> web.StreamResponse:
+        """A page's websocket: frames go out from :meth:`_broadcast`; this reads what the
+        page asks (``{"t_s": ...}``) until it goes."""
         from aiohttp import WSMsgType, web
 
         # No compression: on 127.0.0.1 it would only cost the run's CPU, once per page.
         ws = web.WebSocketResponse(heartbeat=10.0, compress=False)
         await ws.prepare(request)
-        self._sockets.add(ws)
-        cursor = self.feed.cursor()
-        wanted: list[float | None] = [None]
-        replies: list[str] = []
-
-        async def receive() -> None:
-            async for message in ws:
-                if message.type != WSMsgType.TEXT:
-                    continue
-                try:
-                    asked = json.loads(message.data)
-                except ValueError:
-                    replies.append("a message that is not JSON")
-                    continue
-                if not isinstance(asked, dict) or "t_s" not in asked:
-                    replies.append("a message without t_s")
-                    continue
-                value, error = self._parse_time(asked["t_s"])
-                if error is not None:  # this page's time stays where it was
-                    self.refused += 1
-                    replies.append(error)
-                else:
-                    wanted[0] = value
-
-        reader = asyncio.ensure_future(receive())
         transport = request.transport
         connection = None if transport is None else transport.get_extra_info("socket")
         if connection is not None:
-            # A bounded send buffer: a page that stops reading shows within a few frames
+            # A bounded send buffer: a page that stops reading shows within a frame or two
             # (and costs the kernel little) instead of after megabytes.
             with contextlib.suppress(OSError):
                 connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
-        sent = None
-        waiting_since: float | None = None  # when this page last failed to take a frame
-        period = 1.0 / self.rate_hz
+        page = _Page(ws, transport, self.feed.cursor())
+        self._pages.append(page)
+        self._offer(page, time.monotonic())  # the picture now, before anything is asked
         try:
-            while not ws.closed and not reader.done():
-                while replies:
-                    if not await self._send(ws, transport, strict_json(
-                            {"error": replies.pop(0)})):
-                        return ws
-                key, frame = cursor.frame(wanted[0])
-                if key != sent:
-                    if transport is None or transport.is_closing():
-                        break
-                    if transport.get_write_buffer_size() > 0:
-                        # The page has not taken the last frame: it misses this one, and
-                        # goes once it has taken nothing for stuck_s.
-                        now = time.monotonic()
-                        waiting_since = waiting_since or now
-                        self.frames_skipped += 1
-                        if now - waiting_since > self.stuck_s:
-                            self._drop(transport)
-                            break
-                    else:
-                        waiting_since = None
-                        if not await self._send(ws, transport, self._encode(key, frame)):
-                            break
-                        self.frames_sent += 1
-                        sent = key
-                await asyncio.sleep(period)
+            async for message in ws:
+                if message.type == WSMsgType.TEXT:
+                    self._asked(page, message.data)
         except (ConnectionError, RuntimeError):
             pass  # the page went away
         finally:
-            self._sockets.discard(ws)
-            reader.cancel()
-            if transport is not None and transport.is_closing():
-                pass  # dropped or gone: no closing handshake to wait for
-            else:
-                await ws.close()
+            if page in self._pages:
+                self._pages.remove(page)
+            await self._close(page)
         return ws
 
-    async def _send(self, ws: web.WebSocketResponse, transport: asyncio.Transport | None,
-                    text: str) -> bool:
-        """Send ``text``; False when the page took too long (then it is disconnected)."""
+    def _asked(self, page: _Page, data: str) -> None:
+        """A page's message: a time to show (refused ones are answered to that page)."""
         try:
-            await asyncio.wait_for(ws.send_str(text), self.stuck_s)
-        except asyncio.TimeoutError:
-            if transport is not None:
-                self._drop(transport)
-            return False
-        return True
+            asked = json.loads(data)
+        except ValueError:
+            page.replies.append("a message that is not JSON")
+            return
+        if not isinstance(asked, dict) or "t_s" not in asked:
+            page.replies.append('a message without "t_s"')
+            return
+        value, error = self._parse_time(asked["t_s"])
+        if error is not None:  # this page's time stays where it was
+            self.refused += 1
+            page.replies.append(error)
+        else:
+            page.wanted = value
 
-    def _drop(self, transport: asyncio.Transport) -> None:
-        """Disconnect a page that takes nothing (without a closing handshake it would
-        never answer)."""
-        self.pages_dropped += 1
-        _log.warning("live view: a page took no frame for %g s; disconnected it", self.stuck_s)
-        transport.abort()
+
+@dataclass(eq=False)
+class _Page:
+    """One open page: its websocket, its position, what it was sent."""
+
+    ws: web.WebSocketResponse
+    transport: asyncio.Transport | None
+    cursor: Cursor
+    wanted: float | None = None
+    sent: int | None = None
+    skipped: int | None = None
+    sending: asyncio.Future[None] | None = None
+    waiting_since: float | None = None
+    replies: list[str] = field(default_factory=list)
