@@ -84,6 +84,10 @@ class Cursor(Protocol):
         means the same picture."""
         ...
 
+    def key(self, t_s: float | None) -> int:
+        """The key :meth:`frame` would give, without drawing the picture."""
+        ...
+
 
 class Feed(Cursor, Protocol):
     """Where a page's frames come from."""
@@ -136,6 +140,10 @@ class LiveFeed:
         self.pump()
         return self.state.version, self.state.frame()
 
+    def key(self, t_s: float | None) -> int:
+        self.pump()
+        return self.state.version
+
     def cursor(self) -> LiveFeed:
         """Every page sees the run now: one picture for all."""
         return self
@@ -155,8 +163,12 @@ class _TimelineCursor:
         when = self.timeline.end_s if t_s is None else float(t_s)
         frame = self.timeline.frame_at(when)
         frame["name"] = self.feed.name
+        return self.key(when), frame
+
+    def key(self, t_s: float | None) -> int:
+        when = self.timeline.end_s if t_s is None else float(t_s)
         # A new time is a new frame even when nothing happened between the two times.
-        return hash((self.timeline.state_at(when).version, when)) & 0x7FFFFFFF, frame
+        return hash((self.timeline.state_at(when).version, when)) & 0x7FFFFFFF
 
 
 class TimelineFeed:
@@ -176,6 +188,9 @@ class TimelineFeed:
     def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
         """The picture at ``t_s`` (for one-off requests: ``GET /frame``)."""
         return self._default.frame(t_s)
+
+    def key(self, t_s: float | None) -> int:
+        return self._default.key(t_s)
 
     def time_error(self, t_s: float) -> str | None:
         start, end = self.timeline.start_s, self.timeline.end_s
@@ -366,7 +381,7 @@ class LiveServer:
             if now - page.waiting_since > self.stuck_s:
                 self._drop(page)
                 return
-            key, _ = page.cursor.frame(page.wanted)
+            key = page.cursor.key(page.wanted)  # no picture drawn for a page that waits
             if key != page.sent and key != page.skipped:
                 page.skipped = key
                 self.frames_skipped += 1
