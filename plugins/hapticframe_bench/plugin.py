@@ -74,6 +74,28 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint=_LEARN_HINT,
     )
     yield BenchSpec(
+        name="raking-real",
+        summary="Real raking data (Chen et al., IROS 2024): our raking-estimator against the "
+        "authors' trained LSTMs on their 20 test trials, per input set (issue 27).",
+        factory="hapticframe_bench._raking_real:run_raking_real",
+        install_hint="pip install 'hapticframe[learn,tables]'  (torch trains ours; h5py reads "
+        "theirs)",
+    )
+    yield BenchSpec(
+        name="raking-jamming",
+        summary="The force/force-rate jamming rule on real raking data: calibrated on 80 "
+        "trials, first-flag distance and far false alarms on 20, force against distance.",
+        factory="hapticframe_bench._raking_jamming:run_raking_jamming",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
+        name="raking-map",
+        summary="Where the 20 real raking test trials place the object: the distance-estimate "
+        "sensor model against the fixed distance of the failure zone's rule.",
+        factory="hapticframe_bench._raking_map:run_raking_map",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
         name="emd-fidelity",
         summary="EMD sifting stop and cap against fidelity (IMF 1-3 agreement with a "
         "converged reference, orthogonality), time per frame and downstream accuracy; "
