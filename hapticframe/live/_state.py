@@ -50,7 +50,8 @@ MAX_SERIES_POINTS = 600
 MAX_PATH_POINTS = 4000
 #: A path point is kept when the fingertip has moved at least this far (m) since the last.
 PATH_STEP_M = 2e-3
-#: The most std the page's colour scale shows (a Bernoulli's std is at most 0.5).
+#: The std colour scale's top when a map's std is 0 everywhere (a Bernoulli's std is at
+#: most 0.5); otherwise the scale runs to the map's largest std, as the report's figure.
 STD_SCALE = 0.5
 
 Message = tuple[str, float, Mapping[str, Any]]
@@ -128,6 +129,15 @@ def _bytes(values: NDArray[np.float64], scale: float) -> str:
     clean = np.nan_to_num(values / scale, nan=0.0)
     return base64.b64encode(np.clip(np.rint(clean * 255), 0, 255).astype(np.uint8)
                             .tobytes()).decode("ascii")
+
+
+def std_scale(std: NDArray[np.float64]) -> float:
+    """The std image's colour scale top: the largest finite std, as matplotlib scales the
+    report's std figure (``vmin=0``, ``vmax`` the data's), or :data:`STD_SCALE` when the std
+    is 0 (or not finite) everywhere."""
+    finite = std[np.isfinite(std)]
+    top = float(finite.max()) if finite.size else 0.0
+    return top if top > 0.0 else STD_SCALE
 
 
 def _thin(n: int, most: int) -> slice:
@@ -439,12 +449,13 @@ class LiveState:
             if line is not None:
                 outline, source = [_rounded(line, 5)], "grid"
         std = grid["std"]
+        scale = STD_SCALE if std is None else std_scale(std)
         m.estimate = estimate
         m.frame = {
             "version": m.version, "t_s": round(m.t_s, 4), "rows": rows, "columns": columns,
             "origin_m": grid["origin_m"], "cell_m": grid["cell_m"],
             "mean": _bytes(mean, 1.0),
-            "std": None if std is None else _bytes(std, STD_SCALE), "std_scale": STD_SCALE,
+            "std": None if std is None else _bytes(std, scale), "std_scale": scale,
             "max_mean": round(float(np.nanmax(mean)), 4) if mean.size else 0.0,
             "outline": outline, "outline_level": _level(estimate), "outline_source": source,
         }

@@ -261,7 +261,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
 
     frames: list[dict[str, Any]] = []
     async with aiohttp.ClientSession() as session:
-        async with session.ws_connect(url + "ws") as ws:
+        async with session.ws_connect(url.replace("/?", "/ws?")) as ws:
             for message in send or []:
                 await ws.send_str(json.dumps(message))
             while len(frames) < want:
@@ -270,7 +270,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
                     push(len(frames))
         async with session.get(url) as page:
             assert page.status == 200 and "live.js" in await page.text()
-        async with session.get(url + "static/live.js") as script:
+        async with session.get(url.split("?")[0] + "static/live.js") as script:
             assert script.status == 200
             text = await script.text()
             assert "http" not in text.replace("location.host", "")  # nothing from elsewhere
