@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from hapticframe import Circle, Ellipse, Scene
+from hapticframe import Circle, Ellipse, Polygon, Scene
 from hapticframe.kinds import BuildContext, MovementResult
 
 from ._data import load_trials
@@ -34,7 +34,7 @@ def sandbox_approach_forces(approaches: int, seed: int) -> dict[str, np.ndarray]
     )
 
     rng = np.random.default_rng(seed)
-    objects = [Circle(center_m=(0.2, 0.25), radius_m=0.04),
+    objects: list[Circle | Ellipse | Polygon] = [Circle(center_m=(0.2, 0.25), radius_m=0.04),
                Ellipse(center_m=(0.55, 0.25), semi_axes_m=(0.045, 0.025), orientation_deg=35)]
     robot = SandboxRobot(SandboxRobotConfig(), BuildContext(
         id="arm", rng=np.random.default_rng(rng.integers(2**32)), scene=Scene(objects=objects)))

@@ -25,6 +25,7 @@ recording) and is exhausted after them.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -140,7 +141,7 @@ def fit_taxel_model(real_force: NDArray[np.float64], real_distance_mm: NDArray[n
     sd, sa, sc = sd[ok], sa[ok], sc[ok]
     sdir = np.asarray(sandbox_direction)[ok]
     rows, targets, weights, within_real, within_sim = [], [], [], [], []
-    for lo, hi in zip(bin_edges_mm[:-1], bin_edges_mm[1:], strict=True):
+    for lo, hi in itertools.pairwise(bin_edges_mm):
         for k in range(3):
             r = (rd >= lo) & (rd < hi) & (np.asarray(real_direction) == k)
             s = (sd >= lo) & (sd < hi) & (sdir == k)

@@ -76,9 +76,9 @@ def test_fit_recovers_a_known_linear_model() -> None:
     with pytest.raises(ValueError, match="cells"):
         fit_taxel_model(real[:30], distance[:30], direction[:30], along[:30], across[:30],
                         distance[:30], direction[:30])
+    bad = real.copy()
+    bad[0, 0, 0] = np.nan
     with pytest.raises(ValueError, match="finite"):
-        bad = real.copy()
-        bad[0, 0, 0] = np.nan
         fit_taxel_model(bad, distance, direction, along, across, distance, direction)
 
 
@@ -92,7 +92,8 @@ def test_the_shipped_numbers_are_the_calibration() -> None:
 
 def test_live_readings_follow_the_declared_model() -> None:
     robot, sensor = _robot_and_sensor(noise_std=(0.0,) * 12)
-    robot.begin(ExploratoryMovement((0.1, 0.25), (0.24, 0.25), speed_m_per_s=0.05))
+    robot.begin(ExploratoryMovement(np.array([0.1, 0.25]), np.array([0.24, 0.25]),
+                                     speed_m_per_s=0.05))
     batches = []
     while robot.step() is not None:
         batches.append(sensor.read())
@@ -126,13 +127,13 @@ def test_a_movement_end_starts_a_new_window() -> None:
     a, b = load_trials("testing")[:2]
     est = RakingEstimator(RakingEstimatorConfig(pretrained=True),
                           BuildContext("est", np.random.default_rng(0)))
-    est.update(SampleBatch(0.1 * np.arange(len(a)), {"taxel_force": a.force}))
+    est.update(SampleBatch(np.arange(len(a)) / 10.0, {"taxel_force": a.force}))
     est.on_movement_end(None)  # type: ignore[arg-type]
     t0 = 0.1 * len(a)  # no pause: only the movement's end separates them
-    est.update(SampleBatch(t0 + 0.1 * np.arange(len(b)), {"taxel_force": b.force}))
+    est.update(SampleBatch(t0 + np.arange(len(b)) / 10.0, {"taxel_force": b.force}))
     fresh = RakingEstimator(RakingEstimatorConfig(pretrained=True),
                             BuildContext("est", np.random.default_rng(0)))
-    fresh.update(SampleBatch(0.1 * np.arange(len(b)), {"taxel_force": b.force}))
+    fresh.update(SampleBatch(np.arange(len(b)) / 10.0, {"taxel_force": b.force}))
     np.testing.assert_allclose(est.estimates[1].distance_mm[len(a):],
                                fresh.estimates[1].distance_mm, atol=1e-9)
 
