@@ -205,7 +205,9 @@ def _command(options: BenchOptions, trials: int) -> str:
 
 
 def _progress(record: Mapping[str, Any], done: int, total: int, *, kept: bool = False) -> str:
-    who = "Table 3.1 params" if record.get("role") == THESIS_ROLE else record["planner"]
+    role = record.get("role")
+    who = ("Table 3.1 params" if role == THESIS_ROLE
+           else record["planner"] if role in (None, "search", "baseline") else str(role))
     head = (f"[{done:>3}/{total}] {record['shape']:<7} trial {record['index']:<3} "
             f"{who:<19}")
     if kept:
