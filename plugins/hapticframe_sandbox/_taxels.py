@@ -30,6 +30,7 @@ import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -262,6 +263,14 @@ class SandboxTaxelSensor(Sensor):
             self._trials_done += 1
             if len(batch):
                 yield batch
+
+    def checkpoint(self) -> tuple[int, Mapping[str, Any]]:
+        """The read cursor and the noise generator's state (a closed loop's lookahead)."""
+        return self._cursor, self._rng.bit_generator.state
+
+    def rewind(self, checkpoint: tuple[int, Mapping[str, Any]]) -> None:
+        self._cursor, generator = checkpoint
+        self._rng.bit_generator.state = generator
 
     def reset(self) -> None:
         self._cursor = self._robot.steps_taken

@@ -107,6 +107,15 @@ def test_live_readings_follow_the_declared_model() -> None:
     d = batch.channels["distance_mm"]
     assert d[0] == pytest.approx(159.5, abs=0.2)  # after one 0.5 mm step and np.all(np.diff(d) < 0)
     assert set(np.unique(batch.channels["direction_class"])) == {1.0}
+    # A rewound sensor reads the same steps with the same noise again.
+    arm, noisy = _robot_and_sensor()
+    arm.begin(ExploratoryMovement(np.array([0.1, 0.25]), np.array([0.2, 0.25])))
+    mark = noisy.checkpoint()
+    arm.step()
+    first = noisy.read()
+    noisy.rewind(mark)
+    np.testing.assert_array_equal(noisy.read().channels["taxel_force"],
+                                  first.channels["taxel_force"])
     with pytest.raises(ValueError, match="sandbox"):
         SandboxTaxelSensor(SandboxTaxelSensorConfig(), BuildContext(
             "t", np.random.default_rng(0), inputs={}))
