@@ -43,6 +43,14 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
     )
     yield BenchSpec(
+        name="search-distance",
+        summary="Haptic search, Table 3.2's protocol: the failure-zone kernel beside the "
+        "distance estimate (sandbox force as 4 real taxels, raking-estimator trained on "
+        "sandbox approaches, distance-estimate sensor model).",
+        factory="hapticframe_bench._search_distance:run_search_distance",
+        install_hint="pip install torch  (the raking estimator trains with it)",
+    )
+    yield BenchSpec(
         name="search-devices",
         summary="Haptic search through emulated FT 300 + BNO055 and the force observer "
         "beside the pure simulation: accuracy, per-step cost, calibration, health.",

@@ -12,7 +12,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hapticframe.kinds import BuildContext, Classifier, ClassProbabilities, RunOutcome, SampleBatch
+from hapticframe.kinds import (
+    BuildContext,
+    Classifier,
+    ClassProbabilities,
+    MovementResult,
+    RunOutcome,
+    SampleBatch,
+)
 
 from ._config import RakingEstimatorConfig
 from ._data import select_inputs
@@ -174,6 +181,11 @@ class RakingEstimator(Classifier):
             self._labels.append({n: np.asarray(batch.channels[n], float).reshape(len(batch))
                                  for n in names})
         return est
+
+    def on_movement_end(self, result: MovementResult) -> None:
+        # Each exploratory movement is a trial of its own: a closed loop's clock runs on
+        # without a gap, so the next window must not read this movement's forces.
+        self._buffer = None
 
     def _windows(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         w = self.model.settings.window_steps
