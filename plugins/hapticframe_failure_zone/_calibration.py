@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hapticframe_granular import rupture_distance
+
 __all__ = ["FailureZoneFit", "fit_failure_zone"]
 
 FloatArray = NDArray[np.float64]
@@ -72,9 +74,11 @@ class FailureZoneFit:
     rake_angle_deg: float = 90.0
     notes: tuple[str, ...] = field(default_factory=tuple)
 
-    def rupture_distance_m(self, depth_m: float) -> float:
-        """The fitted rupture distance at ``depth_m``."""
-        return self.rupture_ratio * depth_m
+    def range_at(self, depth_m: float) -> float:
+        """The fitted rupture distance at ``depth_m``, metres (the granular library's
+        ``rupture_distance`` with the fitted shear-band and rake angles)."""
+        return rupture_distance(depth_m, math.radians(self.rake_angle_deg),
+                                math.radians(self.shear_band_angle_deg))
 
     def config_overrides(self) -> dict[str, Any]:
         """The :class:`~hapticframe_failure_zone.FailureZoneConfig` fields this fit sets."""
