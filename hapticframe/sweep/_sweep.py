@@ -36,6 +36,7 @@ its own seed.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import json
@@ -58,6 +59,7 @@ from hapticframe._config._overrides import (
     validate_with_overrides,
 )
 from hapticframe._errors import ExperimentError, UsageError, shown
+from hapticframe._lock import lock_directory
 from hapticframe.sweep._format import flow_text, format_value
 from hapticframe.sweep._sweep_trials import (
     COST_KEYS,
@@ -317,6 +319,9 @@ def _point_dir(index: int) -> str:
 def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> dict[str, Any]:
     """Run a sweep of the experiment ``file`` into ``out_dir`` (see the module's notes).
 
+    ``out_dir`` is locked from when it is made to the end (:mod:`hapticframe._lock`): a
+    second writer into it is refused at once, as for ``run``.
+
     Returns
     -------
     dict
@@ -330,7 +335,15 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
     ExperimentError, UsageError
         The file (with the sweep's ``--set``) is invalid, nothing is varied, or a
         ``--vary`` path names nothing: before any trial runs (exit status 2).
+    DirectoryBusy
+        Another command writes into ``out_dir`` now (exit status 2).
     """
+    with contextlib.ExitStack() as held:
+        return _run_sweep(file, out_dir, options, held)
+
+
+def _run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions,
+               held: contextlib.ExitStack) -> dict[str, Any]:
     started = time.perf_counter()
     load_before = _load_average()
     echo = options.echo
@@ -358,6 +371,7 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
     points = plan_points(varies, baseline, grid=options.grid)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    held.enter_context(lock_directory(out, "sweep"))
     seed = int(base.seed)
     fixed = parse_overrides(["run.figures=false", "run.record=false"])
     tasks: list[TrialTask] = []
