@@ -29,6 +29,21 @@ __all__ = ["LiveFeed", "LiveServer", "TimelineFeed"]
 _log = logging.getLogger("hapticframe.live")
 
 STATIC = Path(__file__).parent / "static"
+
+
+class _MalformedRequests(logging.Filter):
+    """Drops aiohttp's record of a malformed request (a bad request line, version or
+    header): the client has its 400 already, and the person at the terminal must not get
+    a traceback for whatever a port scanner sends. A handler's own error still shows."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        from aiohttp.http_exceptions import HttpProcessingError
+
+        error = record.exc_info[1] if record.exc_info else None
+        return not isinstance(error, HttpProcessingError)
+
+
+_MALFORMED = _MalformedRequests()
 #: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
 DEFAULT_PORT = LIVE_PORT
 
@@ -200,6 +215,7 @@ class LiveServer:
         from aiohttp import web
 
         self._stopping = asyncio.Event()
+        logging.getLogger("aiohttp.server").addFilter(_MALFORMED)  # once: a set of filters
         app = web.Application()
         app.router.add_get("/", self._index)
         app.router.add_get("/frame", self._frame)
