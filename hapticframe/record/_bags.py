@@ -402,8 +402,10 @@ def _damage_errors() -> tuple[type[BaseException], ...]:
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
 
+    # rosbags checks a ROS 1 index entry against its message's header with an assert.
     return (AnyReaderError, Ros1ReaderError, Ros2ReaderError, sqlite3.DatabaseError,
-            struct.error, ValueError, IndexError, KeyError, UnicodeDecodeError, OSError)
+            struct.error, ValueError, IndexError, KeyError, UnicodeDecodeError, OSError,
+            AssertionError)
 
 
 def _read(bag: Path, reader: Any, streams: Sequence[_Stream]) -> None:

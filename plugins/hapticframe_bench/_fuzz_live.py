@@ -46,7 +46,7 @@ __all__ = ["KINDS", "LiveTarget", "check_live_case", "generate_live_cases", "sta
            "token_feature_present"]
 
 KINDS = ("junk_http", "frame_query", "websocket", "foreign")
-_TIMEOUT_S = 3.0
+_TIMEOUT_S = 1.5
 _JUNK_REQUESTS: tuple[bytes, ...] = (
     b"\x00\xff\xfe junk\r\n\r\n", b"GET\r\n\r\n", b"BREW /frame HTTP/1.1\r\nHost: {host}\r\n\r\n",
     b"GET /frame HTTP/9.9\r\nHost: {host}\r\n\r\n", b"GET /frame HTTP/1.1\r\nno colon\r\n\r\n",
