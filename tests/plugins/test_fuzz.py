@@ -255,3 +255,22 @@ def test_a_sample_of_hostile_live_clients(runs: Any, tmp_path: Path) -> None:
     assert foreign
     if present:  # only asserted where the server has its token, Host and Origin checks
         assert all(o.status == "refused" for o in foreign)
+
+
+def test_the_bench_reports_each_family_in_json_and_markdown(tmp_path: Path) -> None:
+    import json
+
+    from hapticframe import BenchOptions
+    from hapticframe_bench._fuzz import Outcome, run_fuzz
+
+    lines: list[str] = []
+    summary = run_fuzz(BenchOptions(out_dir=tmp_path, trials=4, seed=2, echo=lines.append),
+                       examples_dir=EXAMPLES, families=("faults",),
+                       check=lambda mutant, where: Outcome(mutant, "null_metrics", False))
+    saved = json.loads((tmp_path / "fuzz.json").read_text(encoding="utf-8"))
+    assert saved["families"]["examples"]["exit0_null"] == 4  # the stub's findings, counted
+    assert saved["families"]["faults"]["cases"] == 4 and saved["cases"] == 8
+    assert saved["exit0_null"] == 4 and summary["internal_errors"] == 0
+    table = (tmp_path / "fuzz.md").read_text(encoding="utf-8")
+    assert "| faults | 4 |" in table and "## Findings" in table
+    assert any(line.startswith("[faults") for line in lines)
