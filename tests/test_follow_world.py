@@ -23,6 +23,7 @@ from hapticframe.kinds import (
 )
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._robots import RobotTeam
+from hapticframe.run._verdict import RunInconclusive
 from hapticframe_sandbox import SandboxRobot, SandboxRobotConfig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -262,7 +263,10 @@ def test_the_whole_emulated_rig_halts_at_the_force_limit_within_one_sample(
     # Above the free drag at 4.4 cm (15 N, or every movement would halt at once: refused),
     # below the jamming surge ahead of the ellipse.
     data["run"].update({"max_movements": 1, "force_limit_n": 20.0})
-    metrics = run_experiment(validate_mapping(data, source="example"), tmp_path / "run")
+    # Its only movement halted: the run is no result (exit 1), its files kept.
+    with pytest.raises(RunInconclusive, match="halted by a safety check") as caught:
+        run_experiment(validate_mapping(data, source="example"), tmp_path / "run")
+    metrics = caught.value.metrics
     assert metrics["halt_latency_samples_max"] is not None
     assert metrics["halt_latency_samples_max"] <= 1
     run = json.loads((tmp_path / "run" / "run.json").read_text(encoding="utf-8"))

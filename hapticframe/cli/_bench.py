@@ -42,6 +42,9 @@ class BenchOptions:
     overrides : tuple of str
         ``--set PATH=VALUE`` texts a suite that runs experiments applies to each of them
         (:func:`hapticframe.apply_overrides`); suites that run none ignore them.
+    data : Path or None
+        ``--data DIR``: recordings a suite that reads real data reads (e.g. the Penn BOLT
+        BioTac files for ``perception-real``); suites that read none ignore it.
     """
 
     out_dir: Path
@@ -52,6 +55,7 @@ class BenchOptions:
     device: str = "cpu"
     echo: Callable[[str], None] = field(default=print)
     overrides: tuple[str, ...] = ()
+    data: Path | None = None
 
 
 def list_benches() -> list[str]:
@@ -94,6 +98,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--device", default="cpu",
                    help="where a suite that trains models trains them: cpu (default) or a "
                    "torch accelerator such as cuda")
+    p.add_argument("--data", default=None, metavar="DIR",
+                   help="recordings a suite reads (perception-real, biotac-calibration: the "
+                   "Penn BOLT .h5 files)")
     add_set_option(p, "every experiment the suite runs (suites that run experiment "
                     "files: search)")
     p.set_defaults(func=cmd_bench)
@@ -108,6 +115,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         out_dir=Path(args.out), trials=args.trials, seed=args.seed, quick=args.quick,
         workers=args.workers, device=args.device, echo=out,
         overrides=tuple(o.text for o in args.set),
+        data=None if args.data is None else Path(args.data),
     )
     run_bench(args.name, options)
     return 0

@@ -22,6 +22,7 @@ from typing import Any
 from hapticframe.cli import (
     _bench,
     _check,
+    _import,
     _import_bag,
     _plugins,
     _recover,
@@ -51,6 +52,7 @@ COMMANDS = (
     _run,
     _recover,
     _import_bag,
+    _import,
     _replay,
     _view,
     _report,

@@ -10,6 +10,7 @@ from hapticframe.cli._common import (
     add_plugin_module_option,
     add_port_option,
     add_set_option,
+    err,
     min_free,
     out,
     port_of,
@@ -45,10 +46,19 @@ def cmd_run(args: argparse.Namespace) -> int:
     experiment = validate_experiment(args, args.file)
     if getattr(args, "live", False):
         return _run_live(args, experiment)
+    from hapticframe.run._verdict import RunInconclusive
+
     echo = (lambda _text: None) if args.quiet else progress_line
-    metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
-                             progress=not args.quiet, min_free_bytes=min_free(args))
     label_channel = experiment.model.run.label_channel
+    try:
+        metrics = run_experiment(experiment, args.out, overwrite=args.overwrite, echo=echo,
+                                 progress=not args.quiet, min_free_bytes=min_free(args))
+    except RunInconclusive as exc:
+        # The run wrote its files: say where, what they show, and why they are no result.
+        out(f"results in {args.out} (all metrics in metrics.json): "
+            + summary_line(exc.metrics, label_channel))
+        err(f"error: {exc} (run.json: status failed)")
+        return exc.exit_code
     out(f"results in {args.out} (all metrics in metrics.json): "
          + summary_line(metrics, label_channel))
     return 0

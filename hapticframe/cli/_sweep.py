@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="seeded trials per point: seed, seed + 1, ... (default 3)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="directory for sweep.json, sweep.md, pareto.png and the runs")
+    p.add_argument("--overwrite", action="store_true",
+                   help="clear an earlier sweep in --out first (only the files its "
+                   "sweep.json lists)")
     p.add_argument("--workers", type=positive_int, default=None,
                    help="worker processes (default: one per CPU)")
     p.add_argument("--timeout-s", type=_seconds, default=None, metavar="T",
@@ -78,6 +81,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         workers=args.workers, timeout_s=args.timeout_s, executor=args.executor,
         scheduler=args.scheduler, overrides=tuple(args.set),
         plugin_modules=tuple(args.plugin_module or ()), echo=progress_line,
+        overwrite=args.overwrite,
     )
     result = run_sweep(args.file, args.out, options)
     failed = [p for p in result["points"] if p["status"] != "ok"]

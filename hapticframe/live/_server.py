@@ -4,27 +4,40 @@ The page (``static/``: plain HTML, CSS and JavaScript, nothing fetched from else
 a websocket on ``/ws`` and gets a frame (see :class:`~hapticframe.live._state.LiveState`)
 whenever the picture has changed, at most :attr:`LiveServer.rate_hz` times a second. A
 live feed drains the run's :class:`~hapticframe.live._state.MessageQueue` in the server's
-thread; a recording's feed answers the slider's ``{"t_s": ...}`` messages.
+thread; a recording's feed answers the slider's ``{"t_s": ...}`` messages, each page at its
+own time.
+
+Only the person who started it may read it (:mod:`hapticframe.live._access`: Host, Origin
+and the session's token on every request), and no page slows the run: a frame is encoded
+once for every page, a page that has not taken the last frame yet misses the next ones, and
+one that takes nothing for :attr:`LiveServer.stuck_s` is disconnected. Frames are strict
+JSON (a non-finite number is ``null``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import math
+import socket
 import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from hapticframe._defaults import LIVE_PORT
 from hapticframe._errors import UsageError
+from hapticframe.live._access import AccessPolicy, new_token
 from hapticframe.live._state import LiveState, MessageQueue, RecordingTimeline
 
 if TYPE_CHECKING:
     from aiohttp import web
 
-__all__ = ["LiveFeed", "LiveServer", "TimelineFeed"]
+__all__ = ["LiveFeed", "LiveServer", "TimelineFeed", "strict_json"]
 
 _log = logging.getLogger("hapticframe.live")
 
@@ -46,15 +59,62 @@ class _MalformedRequests(logging.Filter):
 _MALFORMED = _MalformedRequests()
 #: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
 DEFAULT_PORT = LIVE_PORT
+#: The kernel's send buffer of a page's connection (Linux doubles it): about one frame.
+SEND_BUFFER_BYTES = 64 * 1024
+#: Headers on every answer: no other site may frame the page, and its address (with the
+#: token) goes nowhere as a referrer.
+SECURITY_HEADERS = {
+    "Cache-Control": "no-store",
+    "Content-Security-Policy": "frame-ancestors 'none'",
+    "Referrer-Policy": "no-referrer",
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+}
 
 
-class Feed(Protocol):
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float as None (JSON has no NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
+
+
+def strict_json(value: Any) -> str:
+    """``value`` as compact, strict JSON: NaN and infinities become ``null``."""
+    try:
+        return json.dumps(value, separators=(",", ":"), allow_nan=False)
+    except ValueError:  # rare: walk it only then
+        return json.dumps(_finite(value), separators=(",", ":"), allow_nan=False)
+
+
+class Cursor(Protocol):
+    """One page's view of a feed."""
+
+    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
+        """``(key, frame)``: the picture at ``t_s`` (None: now, or the end); the same key
+        means the same picture."""
+        ...
+
+    def key(self, t_s: float | None) -> int:
+        """The key :meth:`frame` would give, without drawing the picture."""
+        ...
+
+
+class Feed(Cursor, Protocol):
     """Where a page's frames come from."""
 
     mode: str
 
-    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
-        """``(version, frame)``: the picture at ``t_s`` (None: now, or the start)."""
+    def cursor(self) -> Cursor:
+        """A position of its own for one page (its slider moves no one else's)."""
+        ...
+
+    def time_error(self, t_s: float) -> str | None:
+        """Why a page may not ask for time ``t_s`` (finite, a float), or None."""
         ...
 
 
@@ -95,24 +155,64 @@ class LiveFeed:
         self.pump()
         return self.state.version, self.state.frame()
 
+    def key(self, t_s: float | None) -> int:
+        self.pump()
+        return self.state.version
+
+    def cursor(self) -> LiveFeed:
+        """Every page sees the run now: one picture for all."""
+        return self
+
+    def time_error(self, t_s: float) -> str | None:
+        return None  # a live page has no slider: a time is ignored
+
+
+class _TimelineCursor:
+    """One page's position on a recording's timeline."""
+
+    def __init__(self, feed: TimelineFeed) -> None:
+        self.feed = feed
+        self.timeline = RecordingTimeline(feed.timeline.messages)
+
+    def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
+        when = self.timeline.end_s if t_s is None else float(t_s)
+        frame = self.timeline.frame_at(when)
+        frame["name"] = self.feed.name
+        return self.key(when), frame
+
+    def key(self, t_s: float | None) -> int:
+        when = self.timeline.end_s if t_s is None else float(t_s)
+        # A new time is a new frame even when nothing happened between the two times.
+        return hash((self.timeline.state_at(when).version, when)) & 0x7FFFFFFF
+
 
 class TimelineFeed:
-    """A recording's picture at the slider's time."""
+    """A recording's picture at the slider's time; each page has its own time
+    (:meth:`cursor`)."""
 
     mode = "view"
 
     def __init__(self, timeline: RecordingTimeline, name: str = "") -> None:
         self.timeline = timeline
         self.name = name
-        self._versions: dict[float, int] = {}
+        self._default = _TimelineCursor(self)
+
+    def cursor(self) -> _TimelineCursor:
+        return _TimelineCursor(self)
 
     def frame(self, t_s: float | None) -> tuple[int, dict[str, Any]]:
-        when = self.timeline.end_s if t_s is None else float(t_s)
-        state = self.timeline.state_at(when)
-        frame = self.timeline.frame_at(when)
-        frame["name"] = self.name
-        # A new time is a new frame even when nothing happened between the two times.
-        return hash((state.version, when)) & 0x7FFFFFFF, frame
+        """The picture at ``t_s`` (for one-off requests: ``GET /frame``)."""
+        return self._default.frame(t_s)
+
+    def key(self, t_s: float | None) -> int:
+        return self._default.key(t_s)
+
+    def time_error(self, t_s: float) -> str | None:
+        start, end = self.timeline.start_s, self.timeline.end_s
+        slack = 1e-9 * max(1.0, abs(start), abs(end))
+        if not start - slack <= t_s <= end + slack:
+            return f"t_s={t_s!r} is outside the recording ({start:.6g} ... {end:.6g} s)"
+        return None
 
 
 class LiveServer:
@@ -130,26 +230,46 @@ class LiveServer:
         asked gives the page 5-8 while the run's thread holds the GIL most of the time, and
         keeps a page rendering on the same 2 cores within the loop's 10 % (20 cost it 10-11 %;
         measured: docs/benchmarks.md, "The live view").
+    token : str, optional
+        The session's token, which every request but the page's files must carry (default:
+        a fresh random one; :attr:`url` holds it).
+    stuck_s : float
+        A page that has not taken a frame sent this long ago is disconnected (until then
+        it misses the frames that come meanwhile).
     """
 
     def __init__(self, feed: Feed, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 rate_hz: float = 15.0) -> None:
+                 rate_hz: float = 15.0, *, token: str | None = None,
+                 stuck_s: float = 30.0) -> None:
         self.feed = feed
         self.host = host
         self.port = port
         self.rate_hz = rate_hz
+        self.token = token or new_token()
+        self.stuck_s = stuck_s
         self.frames_sent = 0
+        #: Pictures encoded as JSON (once each, however many pages get them).
+        self.frames_encoded = 0
+        #: Frames a page missed because it had not taken the one before yet.
+        self.frames_skipped = 0
+        #: Pages disconnected for taking nothing for ``stuck_s``.
+        self.pages_dropped = 0
+        #: Requests refused (Host, Origin or token), and time values refused.
+        self.refused = 0
+        self._access: AccessPolicy | None = None
+        self._encoded: OrderedDict[int, str] = OrderedDict()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._runner: web.AppRunner | None = None
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
         self._error: BaseException | None = None
         self._stopping: asyncio.Event | None = None
-        self._sockets: set[web.WebSocketResponse] = set()
+        self._pages: list[_Page] = []
 
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/"
+        """The page's address, with the session's token (what the command prints)."""
+        return f"http://{self.host}:{self.port}/?token={self.token}"
 
     # --- life cycle --------------------------------------------------------------------------
 
@@ -216,7 +336,12 @@ class LiveServer:
 
         self._stopping = asyncio.Event()
         logging.getLogger("aiohttp.server").addFilter(_MALFORMED)  # once: a set of filters
-        app = web.Application()
+
+        @web.middleware
+        async def guard(request: web.Request, handler: Any) -> web.StreamResponse:
+            return await self._guard_request(request, handler)
+
+        app = web.Application(middlewares=[guard])
         app.router.add_get("/", self._index)
         app.router.add_get("/frame", self._frame)
         app.router.add_get("/ws", self._websocket)
@@ -234,74 +359,206 @@ class LiveServer:
         sockets = getattr(server, "sockets", None) or []
         if sockets:
             self.port = int(sockets[0].getsockname()[1])
+        self._access = AccessPolicy(self.host, self.port, self.token)
         self._started.set()
         pump = getattr(self.feed, "pump", None)
         try:
             while not self._stopping.is_set():
                 if pump is not None:
                     pump()
-                try:
-                    await asyncio.wait_for(self._stopping.wait(), 0.2)
+                self._broadcast()
+                try:  # one wake-up a period for all pages, not one per page
+                    await asyncio.wait_for(self._stopping.wait(),
+                                           1.0 / self.rate_hz if self._pages else 0.2)
                 except asyncio.TimeoutError:
                     pass
         finally:
-            for ws in list(self._sockets):  # open pages would hold the shutdown up
-                await ws.close()
+            for page in list(self._pages):  # open pages would hold the shutdown up
+                await self._close(page)
             await runner.cleanup()
 
+    # --- sending -----------------------------------------------------------------------------
+
+    def _broadcast(self) -> None:
+        """Offer every page what is new for it (:meth:`_offer`)."""
+        now = time.monotonic()
+        for page in list(self._pages):
+            self._offer(page, now)
+
+    def _offer(self, page: _Page, now: float) -> None:
+        """Start sending ``page`` what is new for it, unless it has not taken the last frame
+        yet (then it misses this one; after ``stuck_s`` of that it is dropped)."""
+        transport = page.transport
+        if page.ws.closed or transport is None or transport.is_closing():
+            return
+        sending = page.sending is not None and not page.sending.done()
+        if sending or transport.get_write_buffer_size() > 0:
+            page.waiting_since = page.waiting_since or now
+            if now - page.waiting_since > self.stuck_s:
+                self._drop(page)
+                return
+            key = page.cursor.key(page.wanted)  # no picture drawn for a page that waits
+            if key != page.sent and key != page.skipped:
+                page.skipped = key
+                self.frames_skipped += 1
+            return
+        page.waiting_since = None
+        if page.replies:
+            text = strict_json({"error": page.replies.pop(0)})
+        else:
+            key, frame = page.cursor.frame(page.wanted)
+            if key == page.sent:
+                return
+            text, page.sent = self._encode(key, frame), key
+            self.frames_sent += 1
+        page.sending = asyncio.ensure_future(self._deliver(page.ws, text))
+
+    @staticmethod
+    async def _deliver(ws: web.WebSocketResponse, text: str) -> None:
+        try:
+            await ws.send_str(text)
+        except (ConnectionError, RuntimeError):
+            pass  # the page went away: its handler ends
+
+    def _drop(self, page: _Page) -> None:
+        """Disconnect a page that takes nothing (it would not answer a closing handshake
+        either)."""
+        self.pages_dropped += 1
+        _log.warning("live view: a page took no frame for %g s; disconnected it", self.stuck_s)
+        if page.sending is not None:
+            page.sending.cancel()
+        if page.transport is not None:
+            page.transport.abort()
+
+    async def _close(self, page: _Page) -> None:
+        if page.sending is not None:
+            page.sending.cancel()
+        if page.transport is None or page.transport.is_closing():
+            return
+        try:
+            await asyncio.wait_for(page.ws.close(), 2.0)
+        except (asyncio.TimeoutError, ConnectionError, RuntimeError):
+            page.transport.abort()
+
     # --- handlers ----------------------------------------------------------------------------
+
+    async def _guard_request(self, request: web.Request, handler: Any) -> web.StreamResponse:
+        from aiohttp import web
+
+        access = self._access
+        refusal = "the server is starting" if access is None else access.refusal(
+            request.path, request.query, request.headers)
+        if refusal is not None:
+            self.refused += 1
+            _log.warning("live view: refused %s %s: %s", request.method, request.path, refusal)
+            return web.Response(status=403, text=refusal + "\n", headers=SECURITY_HEADERS)
+        response: web.StreamResponse = await handler(request)
+        if not response.prepared:  # a websocket has sent its headers already
+            response.headers.update(SECURITY_HEADERS)
+        return response
+
+    def _parse_time(self, raw: Any) -> tuple[float | None, str | None]:
+        """``(t_s, None)`` for a time a page may ask for (None: now), else ``(None, why)``."""
+        if raw is None:
+            return None, None
+        if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+            return None, f"t_s={raw!r} is not a number"
+        try:
+            value = float(raw)
+        except ValueError:
+            return None, f"t_s={raw!r} is not a number"
+        if not math.isfinite(value):
+            return None, f"t_s={raw!r} is not a finite number"
+        error = self.feed.time_error(value)
+        return (None, error) if error else (value, None)
+
+    def _encode(self, key: int, frame: dict[str, Any]) -> str:
+        """The frame as the JSON text every page gets, encoded once per picture."""
+        text = self._encoded.get(key)
+        if text is None:
+            text = strict_json({"mode": self.feed.mode, **frame})
+            self.frames_encoded += 1
+            self._encoded[key] = text
+            while len(self._encoded) > 16:
+                self._encoded.popitem(last=False)
+        else:
+            self._encoded.move_to_end(key)
+        return text
 
     async def _index(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web
 
-        return web.FileResponse(STATIC / "index.html",
-                                headers={"Cache-Control": "no-store"})
+        return web.FileResponse(STATIC / "index.html")
 
     async def _frame(self, request: web.Request) -> web.StreamResponse:
         """One frame as JSON (``?t_s=`` for a recording): for scripts and tests."""
         from aiohttp import web
 
-        raw = request.query.get("t_s")
-        try:
-            t_s = None if raw is None else float(raw)
-        except ValueError:
-            raise web.HTTPBadRequest(text=f"t_s={raw!r} is not a number") from None
-        _, frame = self.feed.frame(t_s)
-        return web.json_response({"mode": self.feed.mode, **frame})
+        t_s, error = self._parse_time(request.query.get("t_s"))
+        if error is not None:
+            self.refused += 1
+            raise web.HTTPBadRequest(text=error + "\n")
+        key, frame = self.feed.frame(t_s)
+        return web.Response(text=self._encode(key, frame), content_type="application/json")
 
     async def _websocket(self, request: web.Request) -> web.StreamResponse:
+        """A page's websocket: frames go out from :meth:`_broadcast`; this reads what the
+        page asks (``{"t_s": ...}``) until it goes."""
         from aiohttp import WSMsgType, web
 
-        ws = web.WebSocketResponse(heartbeat=10.0)
+        # No compression: on 127.0.0.1 it would only cost the run's CPU, once per page.
+        ws = web.WebSocketResponse(heartbeat=10.0, compress=False)
         await ws.prepare(request)
-        self._sockets.add(ws)
-        wanted: list[float | None] = [None]
-
-        async def receive() -> None:
+        transport = request.transport
+        connection = None if transport is None else transport.get_extra_info("socket")
+        if connection is not None:
+            # A bounded send buffer: a page that stops reading shows within a frame or two
+            # (and costs the kernel little) instead of after megabytes.
+            with contextlib.suppress(OSError):
+                connection.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+        page = _Page(ws, transport, self.feed.cursor())
+        self._pages.append(page)
+        self._offer(page, time.monotonic())  # the picture now, before anything is asked
+        try:
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
-                    try:
-                        value = json.loads(message.data).get("t_s")
-                        wanted[0] = None if value is None else float(value)
-                    except (ValueError, TypeError, AttributeError):
-                        continue
-
-        reader = asyncio.ensure_future(receive())
-        sent = None
-        period = 1.0 / self.rate_hz
-        try:
-            while not ws.closed and not reader.done():
-                key, frame = self.feed.frame(wanted[0])
-                if key != sent:
-                    await ws.send_str(json.dumps({"mode": self.feed.mode, **frame},
-                                                 separators=(",", ":")))
-                    self.frames_sent += 1
-                    sent = key
-                await asyncio.sleep(period)
+                    self._asked(page, message.data)
         except (ConnectionError, RuntimeError):
             pass  # the page went away
         finally:
-            self._sockets.discard(ws)
-            reader.cancel()
-            await ws.close()
+            if page in self._pages:
+                self._pages.remove(page)
+            await self._close(page)
         return ws
+
+    def _asked(self, page: _Page, data: str) -> None:
+        """A page's message: a time to show (refused ones are answered to that page)."""
+        try:
+            asked = json.loads(data)
+        except ValueError:
+            page.replies.append("a message that is not JSON")
+            return
+        if not isinstance(asked, dict) or "t_s" not in asked:
+            page.replies.append('a message without "t_s"')
+            return
+        value, error = self._parse_time(asked["t_s"])
+        if error is not None:  # this page's time stays where it was
+            self.refused += 1
+            page.replies.append(error)
+        else:
+            page.wanted = value
+
+
+@dataclass(eq=False)
+class _Page:
+    """One open page: its websocket, its position, what it was sent."""
+
+    ws: web.WebSocketResponse
+    transport: asyncio.Transport | None
+    cursor: Cursor
+    wanted: float | None = None
+    sent: int | None = None
+    skipped: int | None = None
+    sending: asyncio.Future[None] | None = None
+    waiting_since: float | None = None
+    replies: list[str] = field(default_factory=list)

@@ -22,6 +22,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hapticframe._defaults import OUTLINE_LEVEL
+from hapticframe.run._channels import (
+    CLASSIFIER,
+    MAP_GRID,
+    METRICS,
+    MOVEMENT,
+    ROBOT_STATE,
+    SAFETY_HALT,
+    SCENE,
+    SENSOR,
+)
 
 __all__ = [
     "END_TOPIC",
@@ -40,7 +50,8 @@ MAX_SERIES_POINTS = 600
 MAX_PATH_POINTS = 4000
 #: A path point is kept when the fingertip has moved at least this far (m) since the last.
 PATH_STEP_M = 2e-3
-#: The most std the page's colour scale shows (a Bernoulli's std is at most 0.5).
+#: The std colour scale's top when a map's std is 0 everywhere (a Bernoulli's std is at
+#: most 0.5); otherwise the scale runs to the map's largest std, as the report's figure.
 STD_SCALE = 0.5
 
 Message = tuple[str, float, Mapping[str, Any]]
@@ -118,6 +129,15 @@ def _bytes(values: NDArray[np.float64], scale: float) -> str:
     clean = np.nan_to_num(values / scale, nan=0.0)
     return base64.b64encode(np.clip(np.rint(clean * 255), 0, 255).astype(np.uint8)
                             .tobytes()).decode("ascii")
+
+
+def std_scale(std: NDArray[np.float64]) -> float:
+    """The std image's colour scale top: the largest finite std, as matplotlib scales the
+    report's std figure (``vmin=0``, ``vmax`` the data's), or :data:`STD_SCALE` when the std
+    is 0 (or not finite) everywhere."""
+    finite = std[np.isfinite(std)]
+    top = float(finite.max()) if finite.size else 0.0
+    return top if top > 0.0 else STD_SCALE
 
 
 def _thin(n: int, most: int) -> slice:
@@ -233,27 +253,26 @@ class LiveState:
         self.version += 1
         if topic != END_TOPIC:
             self.t_s = max(self.t_s, float(t_s))
-        parts = topic.strip("/").split("/")
         try:
             if topic == END_TOPIC:
                 self.status = str(data.get("status", "ended"))
                 self.reason = str(data.get("reason") or "")
                 self._metrics(data.get("metrics"))
-            elif topic == "/scene":
+            elif topic == SCENE.name:
                 self._scene(data)
-            elif parts[0] == "map" and len(parts) == 3 and parts[2] == "grid":
-                self._grid(parts[1], t_s, data)
-            elif parts[0] == "robot" and len(parts) == 3 and parts[2] == "state":
-                self._robot(parts[1], data)
-            elif parts[0] == "sensor" and len(parts) == 2:
-                self._sensor(parts[1], data)
-            elif parts[0] == "classifier" and len(parts) == 2:
-                self._classifier(parts[1], data)
-            elif topic == "/movement":
+            elif (map_id := MAP_GRID.id_of(topic)) is not None:
+                self._grid(map_id, t_s, data)
+            elif (robot_id := ROBOT_STATE.id_of(topic)) is not None:
+                self._robot(robot_id, data)
+            elif (sensor_id := SENSOR.id_of(topic)) is not None:
+                self._sensor(sensor_id, data)
+            elif (classifier_id := CLASSIFIER.id_of(topic)) is not None:
+                self._classifier(classifier_id, data)
+            elif topic == MOVEMENT.name:
                 self.movements.append(dict(data))
-            elif topic == "/safety_halt":
+            elif topic == SAFETY_HALT.name:
                 self.halts.append(str(data.get("reason", "")))
-            elif topic == "/metrics":
+            elif topic == METRICS.name:
                 self._metrics(data.get("metrics"))
         except (KeyError, TypeError, ValueError, IndexError) as exc:
             self.errors[topic] = f"{type(exc).__name__}: {exc}"
@@ -430,12 +449,13 @@ class LiveState:
             if line is not None:
                 outline, source = [_rounded(line, 5)], "grid"
         std = grid["std"]
+        scale = STD_SCALE if std is None else std_scale(std)
         m.estimate = estimate
         m.frame = {
             "version": m.version, "t_s": round(m.t_s, 4), "rows": rows, "columns": columns,
             "origin_m": grid["origin_m"], "cell_m": grid["cell_m"],
             "mean": _bytes(mean, 1.0),
-            "std": None if std is None else _bytes(std, STD_SCALE), "std_scale": STD_SCALE,
+            "std": None if std is None else _bytes(std, scale), "std_scale": scale,
             "max_mean": round(float(np.nanmax(mean)), 4) if mean.size else 0.0,
             "outline": outline, "outline_level": _level(estimate), "outline_source": source,
         }
@@ -497,7 +517,7 @@ class RecordingTimeline:
     def evaluated_map(self) -> str | None:
         """The map the run scored (its final ``/metrics``), the one the page shows first."""
         for topic, _, data in reversed(self.messages):
-            if topic == "/metrics":
+            if topic == METRICS.name:
                 metrics = data.get("metrics")
                 found = metrics.get("evaluated_map") if isinstance(metrics, Mapping) else None
                 return found if isinstance(found, str) else None

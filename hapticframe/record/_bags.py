@@ -3,9 +3,10 @@
 A bag (a ROS 1 ``.bag`` file, or a ROS 2 bag directory with sqlite3 or mcap storage) is
 read with ``rosbags`` (pure Python, the ``bags`` extra). Each ``--map TOPIC=SENSOR_ID``
 turns one topic into the ``/sensor/SENSOR_ID`` channel of ``DIR/run.mcap``:
-``hapticframe.SampleBatch`` messages, about :data:`~hapticframe.record._recording.BLOCK_S` of
-samples each, written by :meth:`RunRecording.samples
-<hapticframe.record._recording.RunRecording.samples>` exactly as a run writes its sensors.
+``hapticframe.SampleBatch`` messages of one or two blocks of
+:data:`~hapticframe.record._recording.BLOCK_S` of stamps (0.1-0.2 s, docs/recording.md),
+written by :meth:`RunRecording.samples <hapticframe.record._recording.RunRecording.samples>`
+exactly as a run writes its sensors.
 
 Message types and the channels they become (names and units those of the bundled sensors
 that measure the same, so that a pipeline built for them reads an imported bag):
@@ -27,6 +28,12 @@ defines) is recorded as invalid for that sample. A BioTac hand message holds eve
 of the hand; ``TOPIC:FINGER=SENSOR_ID`` picks one by its ``bt_position`` or ``bt_serial``
 (needed when the hand has more than one).
 
+Rates: each channel's nominal rate is recorded (``rates_hz``), as a run records its
+sensors' declared rates, so that the ``recording`` sensor declares it on replay: a BioTac
+hand's is the BioTac's frame rate (100 Hz); a wrench's or an IMU's is the stream's mean
+rate, samples less one over the span of their stamps (the median period would overstate a
+jittery stream's rate). ``import.json`` gives each sensor's ``rate_hz`` and ``rate_from``.
+
 Time: a message's header stamp (a stamp of 0, never set by its publisher, is replaced by
 the bag's receive time) minus the earliest stamp of every imported message gives
 ``timestamps_s``; that earliest stamp is in the recording's ``hapticframe`` metadata
@@ -47,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from hapticframe._errors import UsageError
+from hapticframe.run._channels import SENSOR
 from hapticframe.run._results import OutputDir, environment
 
 __all__ = [
@@ -341,6 +349,21 @@ def _arrays(stream: _Stream, start_ns: int) -> tuple[np.ndarray, dict[str, np.nd
     return t, channels, {name: v for name, v in valid.items() if not v.all()}
 
 
+#: The BioTac's frame rate: its driver publishes one hand message per frame.
+_BIOTAC_RATE_HZ = 100.0
+
+
+def nominal_rate(msgtype: str, t: np.ndarray) -> tuple[float | None, str]:
+    """A stream's nominal rate (Hz) and where it comes from: the BioTac's frame rate, else
+    the mean rate of the stamps (None for a single sample)."""
+    if msgtype == _BIOTAC:
+        return _BIOTAC_RATE_HZ, "the BioTac frame rate"
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    if span <= 0:
+        return None, "a single sample: none"
+    return (t.size - 1) / span, "mean rate of the stamps"
+
+
 def import_bag(bag: str | Path, maps: Sequence[TopicMap], out_dir: str | Path, *,
                overwrite: bool = False, min_free_bytes: int | None = None) -> BagImport:
     """Read ``bag`` and write ``out_dir/run.mcap`` (and ``import.json``, the import's record).
@@ -446,8 +469,11 @@ def _write(bag: Path, streams: Sequence[_Stream], directory: OutputDir) -> BagIm
     units = {s.map.sensor_id: {n: unit for n, (_, unit) in SUPPORTED_TYPES[s.msgtype].items()}
              for s in streams}
     start_utc = _utc(start_ns)
+    rates = {s.map.sensor_id: nominal_rate(s.msgtype, data[s.map.sensor_id][0])
+             for s in streams}
     sensors = {s.map.sensor_id: {
         "topic": s.map.topic, "type": s.msgtype,
+        "rate_hz": rates[s.map.sensor_id][0], "rate_from": rates[s.map.sensor_id][1],
         **({"finger": s.map.finger} if s.map.finger else {}),
         "messages": s.messages, "samples": int(data[s.map.sensor_id][0].size),
         "skipped_without_finger": s.skipped, "dropped_repeated_stamp": s.repeated,
@@ -470,9 +496,11 @@ def _write(bag: Path, streams: Sequence[_Stream], directory: OutputDir) -> BagIm
                 a, b = np.searchsorted(t, [lo, hi])
                 if a == b:
                     continue
+                rate = rates[sid][0]
                 recording.samples("sensor", sid, SampleBatch(
                     t[a:b], {n: v[a:b] for n, v in channels.items()},
-                    {n: v[a:b] for n, v in valid.items()}), units[sid])
+                    {n: v[a:b] for n, v in valid.items()}), units[sid],
+                    None if rate is None else dict.fromkeys(channels, rate))
     finally:
         recording.close()
     files = directory.commit(record)
@@ -492,7 +520,7 @@ def describe(result: BagImport) -> list[str]:
                          "receive time used")
         if s["skipped_without_finger"]:
             notes.append(f"{s['skipped_without_finger']} without finger {s.get('finger')}")
-        lines.append(f"  {s['topic']} ({s['type']}) -> /sensor/{sid}: {s['samples']} samples"
+        lines.append(f"  {s['topic']} ({s['type']}) -> {SENSOR.topic(sid)}: {s['samples']} samples"
                      + (f" ({'; '.join(notes)})" if notes else ""))
     lines.append(f"wrote {result.out / 'run.mcap'}: {result.messages} messages, "
                  f"{result.duration_s:.3f} s from {_utc(result.start_time_ns)}")

@@ -1,7 +1,7 @@
 """``hapticframe.run_experiment``: a run recorded into ``run.mcap``.
 
 The run layer (:func:`hapticframe.run._run.run_experiment`) writes its recording through
-whatever :class:`~hapticframe.run._scope.RecordingOpener` it is handed and never imports
+whatever :class:`~hapticframe.run._channels.RecordingOpener` it is handed and never imports
 the writer; this facade hands it ``run.mcap``'s (:func:`~hapticframe.record._recording.
 open_run_recording`), as the CLI and the sweep's trials do.
 """
@@ -14,8 +14,8 @@ from pathlib import Path
 from hapticframe._config import Experiment
 from hapticframe.record._recording import open_run_recording
 from hapticframe.run import _run
+from hapticframe.run._channels import RecordingOpener
 from hapticframe.run._results import RunSummary
-from hapticframe.run._scope import RecordingOpener
 
 __all__ = ["run_experiment"]
 

@@ -8,23 +8,9 @@ complete up to its last sync; ``hapticframe recover DIR`` writes what it holds a
 complete, indexed ``DIR/run.mcap`` (:mod:`hapticframe.record._recover`).
 
 Channels (JSON messages, ``jsonschema`` schemas named ``hapticframe.*``) hold arrays per
-block of samples, never one message per sample:
-
-=================================  ==================================  ===========================
-topic                              schema (``hapticframe.``)           content
-=================================  ==================================  ===========================
-``/sensor/ID``                     ``SampleBatch``                     timestamps, channels, units
-``/feature_extractor/ID``          ``SampleBatch``                     the extractor's output
-``/classifier/ID``                 ``ClassProbabilities``              classes, probabilities
-``/sensor_model/ID/located``       ``LocatedMeasurement``              where each sample was
-``/sensor_model/ID/observations``  ``Observations``                    the maps' input
-``/robot/ID/state``                ``RobotStates``                     poses, movement index
-``/movement``                      ``MovementResult``                  one per movement (halts)
-``/safety_halt``                   ``SafetyHalt``                      a safety check's halt
-``/device/ID/health``              ``DeviceHealth``                    the device's counters
-``/loop``                          ``LoopEvent``                       stream starts, map flushes
-``/metrics``                       ``RunMetrics``                      a finished run's metrics
-=================================  ==================================  ===========================
+block of samples, never one message per sample. Every topic and its schema is one entry of
+the channel table, :data:`hapticframe.run._channels.CHANNELS`; a topic outside it, or written
+with another schema, raises :class:`~hapticframe.run._channels.ChannelError`.
 
 The ``/loop`` events carry the cumulative counts of committed sensor samples and robot
 states at each stream start, locate and map flush: ``hapticframe replay`` re-cuts the
@@ -67,17 +53,30 @@ from typing import TYPE_CHECKING, Any, BinaryIO
 import numpy as np
 
 from hapticframe._atomic import output_error
-from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe._version import __version__
 from hapticframe.record import _foxglove
+from hapticframe.run._channels import (
+    CLASSIFIER,
+    DEVICE_HEALTH,
+    FEATURES,
+    LOCATED,
+    MAP_GRID,
+    MOVEMENT,
+    OBSERVATIONS,
+    ROBOT_POSE,
+    ROBOT_STATE,
+    SCENE,
+    SENSOR,
+    MapSnapshot,
+    check_topic,
+)
 
 if TYPE_CHECKING:
     from hapticframe._scene import Scene
     from hapticframe.kinds import (
         ClassProbabilities,
         LocatedMeasurement,
-        Map,
         MovementResult,
         Observations,
         RobotState,
@@ -277,7 +276,7 @@ class RunRecording:
         self._clock = clock
         self._last_sync = clock()
         self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
+        self._channels: dict[str, tuple[int, str]] = {}  # topic: (channel id, schema)
         self._blocks: dict[str, _Block] = {}
         # Events written with the next blocks, not now: a map flush must not cut every
         # channel's block short (see later()).
@@ -290,10 +289,8 @@ class RunRecording:
         #: How many of the session's safety halts are recorded (the loop keeps it).
         self.halts_recorded = 0
         self.closed = False
-        # Snapshots (contract B): set by configure_snapshots, the run's settings.
+        # Snapshots (contract B): their rate set by configure_snapshots, the run's setting.
         self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
-        self.snapshot_spacing_m = SNAPSHOT_SPACING_M
-        self.outline_level = OUTLINE_LEVEL
         self._next_snapshot_s = -math.inf
         self._next_pose_s: dict[str, float] = {}
         self._scene_written = False
@@ -333,7 +330,8 @@ class RunRecording:
         replayed sensor declares the same rates: a filter designed on them must match)."""
         if not len(batch):
             return
-        block = self._block(f"/{kind}/{cid}", "hapticframe.SampleBatch")
+        channel = SENSOR if kind == "sensor" else FEATURES
+        block = self._block(channel.topic(cid), channel.schema)
         if units and "units" not in block.constant:
             block.constant["units"] = dict(units)
         if rates_hz and "rates_hz" not in block.constant:
@@ -345,34 +343,34 @@ class RunRecording:
     def probabilities(self, cid: str, probs: ClassProbabilities) -> None:
         if not len(probs):
             return
-        topic = f"/classifier/{cid}"
-        block = self._block(topic, "hapticframe.ClassProbabilities")
+        topic = CLASSIFIER.topic(cid)
+        block = self._block(topic, CLASSIFIER.schema)
         classes = list(probs.classes)
         if block.constant.get("classes", classes) != classes:
             self._emit(topic)
-            block = self._block(topic, "hapticframe.ClassProbabilities")
+            block = self._block(topic, CLASSIFIER.schema)
         block.constant["classes"] = classes
         self._add(block, probs.timestamps_s, {("timestamps_s",): probs.timestamps_s,
                                               ("probabilities",): probs.probabilities})
 
     def located(self, sm_id: str, located: LocatedMeasurement) -> None:
-        block = self._block(f"/sensor_model/{sm_id}/located", "hapticframe.LocatedMeasurement")
+        block = self._block(LOCATED.topic(sm_id), LOCATED.schema)
         self._add(block, located.timestamps_s, {
             ("timestamps_s",): located.timestamps_s, ("positions_m",): located.positions_m,
             ("headings_rad",): located.headings_rad, ("depths_m",): located.depth_m})
 
     def observations(self, sm_id: str, obs: Observations, t_s: float) -> None:
-        block = self._block(f"/sensor_model/{sm_id}/observations", "hapticframe.Observations")
+        block = self._block(OBSERVATIONS.topic(sm_id), OBSERVATIONS.schema)
         self._add(block, np.array([t_s]), {("points_m",): obs.points_m,
                                            ("targets",): obs.targets,
                                            ("weights",): obs.weights})
 
     def robot_state(self, robot_id: str, state: RobotState, movement_index: int) -> None:
         """One robot step: kept as a row (the closed loop takes some 20,000 of them)."""
-        topic = f"/robot/{robot_id}/state"
+        topic = ROBOT_STATE.topic(robot_id)
         block = self._blocks.get(topic)
         if block is None:
-            block = self._block(topic, "hapticframe.RobotStates")
+            block = self._block(topic, ROBOT_STATE.schema)
             block.row_fields = ("timestamps_s", "positions_m", "headings_rad", "depths_m",
                                 "movement_index")
         t = float(state.timestamp_s)
@@ -382,7 +380,7 @@ class RunRecording:
         self._seen(block, t, t)
         if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf) - _EPS_S:
             self._next_pose_s[robot_id] = t + 1.0 / self.snapshot_rate_hz
-            self.event(f"/robot/{robot_id}/pose", _foxglove.POSE_IN_FRAME,
+            self.event(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
                        _foxglove.pose_message(t, position, float(state.heading_rad),
                                               float(state.depth_m)), t)
 
@@ -390,7 +388,7 @@ class RunRecording:
         """An exploratory movement's result (written at once, with every open block)."""
         m = result.movement
         final = result.final_state
-        self.event("/movement", "hapticframe.MovementResult", {
+        self.event(MOVEMENT.name, MOVEMENT.schema, {
             "index": result.index, "start_m": m.start_m, "end_m": m.end_m,
             "speed_m_per_s": m.speed_m_per_s, "depth_m": m.depth_m, "phase": m.phase,
             "label": m.label, "halted": result.halted, "halt_reason": result.halt_reason,
@@ -417,7 +415,7 @@ class RunRecording:
 
     def health(self, counters: Mapping[str, Mapping[str, int]]) -> None:
         for cid, values in counters.items():
-            self.event(f"/device/{cid}/health", "hapticframe.DeviceHealth",
+            self.event(DEVICE_HEALTH.topic(cid), DEVICE_HEALTH.schema,
                        {"counters": {k: int(v) for k, v in values.items()}})
 
     # --- Foxglove: map snapshots, the scene ----------------------------------------------
@@ -427,13 +425,9 @@ class RunRecording:
         """The latest model time the recording has seen (seconds)."""
         return self._now_s
 
-    def configure_snapshots(self, rate_hz: float, spacing_m: float,
-                            outline_level: float = OUTLINE_LEVEL) -> None:
-        """Snapshots and poses per second of model time (0: none), the snapshots' grid
-        spacing (metres) and the level of the estimated outline drawn with them."""
+    def configure_snapshots(self, rate_hz: float) -> None:
+        """Snapshots and poses per second of model time (0: none)."""
         self.snapshot_rate_hz = float(rate_hz)
-        self.snapshot_spacing_m = float(spacing_m)
-        self.outline_level = float(outline_level)
 
     def snapshot_due(self, t_s: float | None = None) -> bool:
         """True when a map snapshot is due at ``t_s`` (default: now), and the next one is
@@ -461,39 +455,30 @@ class RunRecording:
             entities.append(_foxglove.line_entity(
                 f"object/{index}", 0.0, obj.outline(128), _TRUTH_COLOUR,
                 metadata={"kind": "true object", "shape": str(obj.shape)}))
-        self.event("/scene", _foxglove.SCENE_UPDATE, _foxglove.scene_update(entities), 0.0)
+        self.event(SCENE.name, SCENE.schema, _foxglove.scene_update(entities), 0.0)
 
-    def map_snapshot(self, map_id: str, the_map: Map, t_s: float) -> None:
-        """``/map/MAP_ID/grid``: the map's mean and std on a grid of
-        :attr:`snapshot_spacing_m` over its region, and on ``/scene`` its estimated outline
-        (the :attr:`outline_level` curve around the most occupied blob; removed while there
-        is none)."""
-        from hapticframe.geometry import main_outline, sample_grid
-
-        region = the_map.region
-        bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
-        xs, ys, points = sample_grid(bounds, self.snapshot_spacing_m)
-        estimate = the_map.query(points)
-        shape = (len(ys), len(xs))
-        mean, std = estimate.mean.reshape(shape), estimate.std.reshape(shape)
-        cell = ((bounds[1] - bounds[0]) / len(xs), (bounds[3] - bounds[2]) / len(ys))
-        self.event(f"/map/{map_id}/grid", _foxglove.GRID, _foxglove.grid_message(
-            t_s, (bounds[0], bounds[2]), cell, mean, std), t_s)
-        outline = main_outline(xs, ys, mean, self.outline_level)
+    def map_snapshot(self, snapshot: MapSnapshot) -> None:
+        """``/map/MAP_ID/grid``: the snapshot's mean and std, and on ``/scene`` its estimated
+        outline (removed while there is none). The run makes the snapshot."""
+        t_s, map_id = snapshot.t_s, snapshot.map_id
+        self.event(MAP_GRID.topic(map_id), MAP_GRID.schema, _foxglove.grid_message(
+            t_s, snapshot.origin_m, snapshot.cell_m, snapshot.mean, snapshot.std), t_s)
         entity_id = f"estimate/{map_id}"
-        if outline is None:
+        if snapshot.outline is None:
             update = _foxglove.scene_update([], [entity_id], t_s)
         else:
             update = _foxglove.scene_update([_foxglove.line_entity(
-                entity_id, t_s, outline, _ESTIMATE_COLOUR, metadata={
+                entity_id, t_s, snapshot.outline, _ESTIMATE_COLOUR, metadata={
                     "kind": "estimated outline", "map": map_id,
-                    "level": f"{self.outline_level:g}"})])
-        self.event("/scene", _foxglove.SCENE_UPDATE, update, t_s)
+                    "level": f"{snapshot.outline_level:g}"})])
+        self.event(SCENE.name, SCENE.schema, update, t_s)
 
     # --- blocks, syncs -------------------------------------------------------------------
 
     def _block(self, topic: str, schema: str) -> _Block:
         block = self._blocks.get(topic)
+        if block is None or block.schema != schema:
+            check_topic(topic, schema)  # raises on a schema other than the channel's
         if block is None:
             block = self._blocks[topic] = _Block(schema)
         return block
@@ -547,15 +532,17 @@ class RunRecording:
         self._write(topic, block.schema, block.end_s, data)
 
     def _write(self, topic: str, schema: str, t_s: float, data: Mapping[str, Any]) -> None:
-        channel = self._channels.get(topic)
-        if channel is None:
+        known = self._channels.get(topic)
+        if known is None or known[1] != schema:
+            table = check_topic(topic, schema)  # raises on a schema other than the channel's
             schema_id = self._schemas.get(schema)
             if schema_id is None:
                 schema_id = self._schemas[schema] = self._writer.register_schema(
                     name=schema, encoding="jsonschema",
                     data=json.dumps(SCHEMAS[schema]).encode())
-            channel = self._channels[topic] = self._writer.register_channel(
-                topic=topic, message_encoding="json", schema_id=schema_id)
+            known = self._channels[topic] = (self._writer.register_channel(
+                topic=topic, message_encoding=table.encoding, schema_id=schema_id), schema)
+        channel = known[0]
         stamp = round(max(t_s, 0.0) * 1e9)
         payload = json.dumps(data, separators=(",", ":"), allow_nan=False).encode()
         self._sequence += 1
@@ -597,7 +584,7 @@ class RunRecording:
 
 
 def open_run_recording(folder: Path, metadata: Mapping[str, str]) -> RunRecording:
-    """``folder/run.mcap``: the :class:`~hapticframe.run._scope.RecordingOpener` that the CLI,
+    """``folder/run.mcap``: the :class:`~hapticframe.run._channels.RecordingOpener` that the CLI,
     sweep trials, replay and :func:`hapticframe.run_experiment` hand the run scope."""
     return RunRecording(Path(folder) / RECORDING, metadata)
 

@@ -21,6 +21,7 @@ rebuilt (robots, the planner, the replaced sensors: the run's ``/metrics``), lis
 from __future__ import annotations
 
 import json
+import logging
 import math
 from collections.abc import Callable, Mapping
 from contextlib import ExitStack
@@ -42,6 +43,7 @@ from hapticframe.record._recording import (
     open_run_recording,
 )
 from hapticframe.run._assembly import LEAVE_OUT, Substitute, build_components
+from hapticframe.run._channels import LOOP, METRICS, MOVEMENT, ROBOT_STATE, SENSOR
 from hapticframe.run._components import Components
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._evaluate import score_run
@@ -52,7 +54,9 @@ from hapticframe.run._scope import CloseErrorHandler, run_scope
 from hapticframe.run._session import Session
 from hapticframe.run._train import fit_before_run
 
-__all__ = ["Recorded", "read_timeline", "replay_run"]
+__all__ = ["Recorded", "read_timeline", "replay_run", "replay_warnings"]
+
+_log = logging.getLogger("hapticframe.replay")
 
 #: The kinds a replay rebuilds from the ``--with`` experiment (sensors become recordings).
 REBUILT = (Kind.FEATURE_EXTRACTOR, Kind.CLASSIFIER, Kind.SENSOR_MODEL, Kind.MAP)
@@ -94,13 +98,12 @@ def read_timeline(path: Path) -> Recorded:
             out.metadata = dict(record.metadata)
         elif isinstance(record, Message) and record.channel_id in channels:
             topic = channels[record.channel_id]
-            if topic in ("/loop", "/movement"):
+            if topic in (LOOP.name, MOVEMENT.name):
                 out.timeline.append((topic, json.loads(record.data)))
-            elif topic == "/metrics":
+            elif topic == METRICS.name:
                 out.metrics = json.loads(record.data)
-            elif topic.startswith("/robot/") and topic.endswith("/state"):
-                rows.setdefault(topic[len("/robot/"):-len("/state")], []).append(
-                    json.loads(record.data))
+            elif (robot_id := ROBOT_STATE.id_of(topic)) is not None:
+                rows.setdefault(robot_id, []).append(json.loads(record.data))
     out.cut = stop[0] if stop else ""
     for robot_id, messages in rows.items():
         def column(name: str, messages: list[dict[str, Any]] = messages) -> np.ndarray:
@@ -114,7 +117,7 @@ def read_timeline(path: Path) -> Recorded:
 
 
 def _recorded_sensor_error(path: Path, missing: list[str], topics: set[str]) -> UsageError:
-    held = sorted(t[len("/sensor/"):] for t in topics if t.startswith("/sensor/"))
+    held = sorted(i for t in topics if (i := SENSOR.id_of(t)) is not None)
     return UsageError(
         f"{path} has no recorded samples of sensor{'s' if len(missing) > 1 else ''} "
         f"{', '.join(repr(m) for m in missing)}; it holds "
@@ -138,7 +141,7 @@ def build_replay_components(
                 raise RunError("the 'recording' sensor (hapticframe_recording) is not "
                                "installed; reinstall hapticframe")
             config: Any = spec.spec.config.model_validate(
-                {"file": str(recording), "topic": f"/sensor/{entry.id}"})
+                {"file": str(recording), "topic": SENSOR.topic(entry.id)})
             return Substitute(spec.spec.load_factory(), config, "recording")
         if entry.kind in REBUILT or entry.kind is Kind.SENSOR:
             return None  # as configured
@@ -184,7 +187,7 @@ class _Replayer:
     def run(self) -> None:
         flow, session = self.flow, self.session
         for topic, data in self.recorded.timeline:
-            if topic == "/movement":
+            if topic == MOVEMENT.name:
                 self.movement(data)
                 continue
             self.push(data.get("counts") or {})
@@ -246,6 +249,37 @@ def _note_force(session: Session, force_n: float) -> None:
         session.max_measured_force_n = force_n if math.isnan(previous) else max(previous, force_n)
 
 
+def replay_warnings(recorded: Recorded, experiment: Experiment,
+                    training: frozenset[str]) -> list[str]:
+    """What makes the replay's figures differ from a rerun of the recorded run: a cut
+    recording, a streamed sensor the ``--with`` experiment names another type than the
+    recorded run did, another scene (the figures are scored against the ``--with`` one)."""
+    warnings = []
+    if recorded.cut:
+        warnings.append(f"{recorded.path} is cut ({recorded.cut}): the replay covers only "
+                        "the movements it holds, and its figures are those of a shorter run")
+    try:
+        config = json.loads(recorded.metadata.get("config", ""))
+    except ValueError:
+        config = None
+    if not isinstance(config, dict):
+        return warnings
+    resolved = experiment.resolved_config()
+    recorded_types = {s.get("id"): s.get("type") for s in config.get("sensors") or []
+                      if isinstance(s, dict)}
+    for entry in experiment.of_kind(Kind.SENSOR):
+        was = recorded_types.get(entry.id)
+        if entry.id not in training and was is not None and was != entry.type:
+            warnings.append(
+                f"sensor {entry.id!r} was a {was!r} in the recorded run, the --with "
+                f"experiment names a {entry.type!r}: its recorded samples stand in for it, "
+                "and the chain built for the other type reads them")
+    if "scene" in config and config.get("scene") != resolved.get("scene"):
+        warnings.append("the --with experiment's scene is not the recorded run's: the "
+                        "replay is scored against the --with scene")
+    return warnings
+
+
 def _carried(recorded: Recorded, rebuilt: set[str], metrics: dict[str, Any]
              ) -> dict[str, Any]:
     """The run's metrics of components not rebuilt, and of robots and devices."""
@@ -291,15 +325,18 @@ def replay_run(
     say = echo if echo is not None else (lambda _text: None)
     path = find_recording(Path(source))
     recorded = read_timeline(path)
-    if not any(topic == "/loop" for topic, _ in recorded.timeline):
+    if not any(topic == LOOP.name for topic, _ in recorded.timeline):
         raise UsageError(
             f"{path} holds no /loop events: it was recorded before replay was possible, or "
             "cut before its first movement; record the run again with this version")
     training = frozenset(experiment.model.run.train_from.values())
     missing = [e.id for e in experiment.of_kind(Kind.SENSOR)
-               if e.id not in training and f"/sensor/{e.id}" not in recorded.topics]
+               if e.id not in training and SENSOR.topic(e.id) not in recorded.topics]
     if missing:
         raise _recorded_sensor_error(path, missing, recorded.topics)
+    warnings = replay_warnings(recorded, experiment, training)
+    for warning in warnings:  # the CLI prints them as `warning: ...` lines
+        _log.warning("%s", warning)
     started_utc = datetime.now(timezone.utc).isoformat(timespec="seconds")
     head = {"status": "running", "command": "replay", "replayed_from": str(path),
             "experiment_file": str(experiment.file), "started_utc": started_utc}
@@ -313,6 +350,8 @@ def replay_run(
         session.details["replayed_from"] = str(path)
         if recorded.cut:
             session.details["replayed_cut"] = recorded.cut
+        if warnings:
+            session.details["replay_warnings"] = warnings
         fit_before_run(session)
         flow = Dataflow(experiment, components, session.recorder, training)
         flow.recording = session.recording
@@ -336,6 +375,5 @@ def replay_run(
                 if cid not in rebuilt:
                     session.component_metrics[cid] = dict(own)
         scope.save(metrics)
-    summary = RunSummary(metrics)
-    summary.out_dir = scope.out
+    summary = RunSummary(metrics, scope.out)
     return summary

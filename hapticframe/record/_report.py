@@ -33,6 +33,15 @@ from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe.record import _foxglove
 from hapticframe.record._recording import _check_magic, _records, find_recording
+from hapticframe.run._channels import (
+    CLASSIFIER,
+    MAP_GRID,
+    MOVEMENT,
+    OBSERVATIONS,
+    ROBOT_STATE,
+    SCENE,
+    SENSOR,
+)
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -137,25 +146,25 @@ def trace_arrays(recording: Recording) -> dict[str, np.ndarray]:
     for topic, messages in recording.messages.items():
         schema = recording.schemas.get(topic, "")
         name = topic.strip("/")
-        if schema == "hapticframe.SampleBatch":
+        if schema == SENSOR.schema:
             for _, data in messages:
                 add(f"{name}/timestamps_s", data["timestamps_s"])
                 for channel, values in data.get("channels", {}).items():
                     add(f"{name}/{channel}", values)
-                if name.startswith("sensor/"):
+                if SENSOR.id_of(topic) is not None:
                     for channel, unit in data.get("units", {}).items():
                         fixed[f"{name}/{channel}/unit"] = np.array(unit)
-        elif schema == "hapticframe.ClassProbabilities":
+        elif schema == CLASSIFIER.schema:
             for _, data in messages:
                 add(f"{name}/timestamps_s", data["timestamps_s"])
                 add(f"{name}/probabilities", data["probabilities"])
                 fixed[f"{name}/classes"] = np.array(data["classes"])
-        elif schema == "hapticframe.Observations" and name.endswith("/observations"):
+        elif schema == OBSERVATIONS.schema and OBSERVATIONS.id_of(topic) is not None:
             base = name.removesuffix("/observations")
             for _, data in messages:
                 for key in ("points_m", "targets", "weights"):
                     add(f"{base}/{key}", data[key])
-        elif schema == "hapticframe.RobotStates" and name.endswith("/state"):
+        elif schema == ROBOT_STATE.schema and ROBOT_STATE.id_of(topic) is not None:
             base = name.removesuffix("/state")
             for _, data in messages:
                 add(f"{base}/timestamps_s", data["timestamps_s"])
@@ -203,7 +212,7 @@ def truth_of(recording: Recording) -> Truth:
                     (r.x_min_m, r.x_max_m, r.y_min_m, r.y_max_m))
     outlines: dict[str, NDArray[np.float64]] = {}
     region = None
-    for _, update in recording.messages.get("/scene", []):
+    for _, update in recording.messages.get(SCENE.name, []):
         for entity in update.get("entities", []):
             kind = {p.get("key"): p.get("value") for p in entity.get("metadata", [])}.get("kind")
             points = [np.array([[p["x"], p["y"]] for p in line["points"]], dtype=np.float64)
@@ -224,7 +233,7 @@ def truth_of(recording: Recording) -> Truth:
 
 def _estimate_level(recording: Recording, map_id: str) -> float:
     """The level of the map's recorded estimated outline (``OUTLINE_LEVEL`` by default)."""
-    for _, update in reversed(recording.messages.get("/scene", [])):
+    for _, update in reversed(recording.messages.get(SCENE.name, [])):
         for entity in update.get("entities", []):
             if entity.get("id") == f"estimate/{map_id}":
                 meta = {p.get("key"): p.get("value") for p in entity.get("metadata", [])}
@@ -272,7 +281,7 @@ def _bounds(region: tuple[float, float, float, float] | None,
 def map_figures(recording: Recording, map_id: str, truth: Truth) -> dict[str, Figure]:
     """The map's last snapshot: its mean and its std, each with the estimated outline and
     the true objects. Empty when the map has no snapshot."""
-    messages = recording.messages.get(f"/map/{map_id}/grid", [])
+    messages = recording.messages.get(MAP_GRID.topic(map_id), [])
     if not messages:
         return {}
     log_time, message = messages[-1]
@@ -308,11 +317,11 @@ def map_figures(recording: Recording, map_id: str, truth: Truth) -> dict[str, Fi
 
 def paths_figure(recording: Recording, truth: Truth) -> Figure | None:
     """The fingertip paths and the movements, halts marked by reason; None without any."""
-    paths = {topic.split("/")[2]: np.vstack([np.asarray(d["positions_m"], dtype=np.float64)
-                                             .reshape(-1, 2) for _, d in messages])
+    paths = {str(ROBOT_STATE.id_of(topic)): np.vstack([
+        np.asarray(d["positions_m"], dtype=np.float64).reshape(-1, 2) for _, d in messages])
              for topic, messages in recording.messages.items()
-             if recording.schemas.get(topic) == "hapticframe.RobotStates" and messages}
-    movements = [d for _, d in recording.messages.get("/movement", [])]
+             if ROBOT_STATE.id_of(topic) is not None and messages}
+    movements = [d for _, d in recording.messages.get(MOVEMENT.name, [])]
     if not paths and not movements:
         return None
     figure, axes, _ = plotting.map_figure(colorbar=False)
@@ -351,8 +360,9 @@ def paths_figure(recording: Recording, truth: Truth) -> Figure | None:
 def _force_series(recording: Recording) -> list[tuple[str, NDArray[np.float64],
                                                       NDArray[np.float64]]]:
     out = []
-    for topic in recording.topics("hapticframe.SampleBatch"):
-        if not topic.startswith("/sensor/"):
+    for topic in recording.topics(SENSOR.schema):
+        sensor_id = SENSOR.id_of(topic)
+        if sensor_id is None:
             continue
         messages = recording.messages[topic]
         units: dict[str, str] = {}
@@ -371,7 +381,7 @@ def _force_series(recording: Recording) -> list[tuple[str, NDArray[np.float64],
                 times.append(t)
                 norms.append(np.linalg.norm(v, axis=1))
             if times:
-                out.append((f"{topic.split('/')[2]} {channel}", np.concatenate(times),
+                out.append((f"{sensor_id} {channel}", np.concatenate(times),
                             np.concatenate(norms)))
     return out
 
@@ -380,7 +390,7 @@ def signals_figure(recording: Recording) -> Figure | None:
     """Force magnitude (channels in N) and class probabilities over time, the movements'
     ends marked (halts in red); None when the recording holds neither."""
     forces = _force_series(recording)
-    classifiers = [t for t in recording.topics("hapticframe.ClassProbabilities")
+    classifiers = [t for t in recording.topics(CLASSIFIER.schema)
                    if recording.messages[t]]
     if not forces and not classifiers:
         return None
@@ -408,9 +418,9 @@ def signals_figure(recording: Recording) -> Figure | None:
         for k, name in enumerate(classes[:p.shape[1]]):
             axes.plot(t, p[:, k], lw=0.9, label=f"P({name})")
         axes.set(ylabel="probability", ylim=(-0.05, 1.05),
-                 title=f"Class probabilities of {topic.split('/')[2]!r}")
+                 title=f"Class probabilities of {CLASSIFIER.id_of(topic)!r}")
     ends = [(log_time / 1e9, bool(d.get("halted"))) for log_time, d in
-            recording.messages.get("/movement", [])]
+            recording.messages.get(MOVEMENT.name, [])]
     for axes in axes_list:
         for index, (t_end, halted) in enumerate(ends):
             first = index == next(i for i, e in enumerate(ends) if e[1] == halted)
@@ -503,8 +513,8 @@ def write_report(target: Path, out: Path | None = None, *, figures: bool = True,
         drawn: dict[str, Figure | None] = {}
         if figures:
             truth = truth_of(recording)
-            for topic in sorted(recording.topics(_foxglove.GRID)):
-                drawn.update(map_figures(recording, topic.split("/")[2], truth))
+            for topic in sorted(recording.topics(MAP_GRID.schema)):
+                drawn.update(map_figures(recording, str(MAP_GRID.id_of(topic)), truth))
             drawn["report_paths.png"] = paths_figure(recording, truth)
             drawn["report_signals.png"] = signals_figure(recording)
         for name, figure in drawn.items():

@@ -25,6 +25,7 @@ from hapticframe.kinds import (
     SampleBatch,
     Sensor,
 )
+from hapticframe.run._channels import LOOP, MapSnapshot, RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._streams import InputAligner, PoseHistory, TraceRecorder, _merge_exact
 
@@ -39,7 +40,7 @@ class Dataflow:
     force_violation: tuple[float, float] | None = None
     valid_force_samples: int = 0
     #: The run's recording (see :attr:`recording`); maps changed since the last snapshot.
-    _recording: Any = None
+    _recording: RecordingWriter | None = None
     _maps_changed = False
 
     def __init__(
@@ -53,7 +54,9 @@ class Dataflow:
         self.recorder = recorder
         # Map snapshots in the recording (run.snapshot_*), with the scene they lie in.
         run = experiment.model.run
-        self._snapshots = (run.snapshot_rate_hz, run.snapshot_spacing_m, run.outline_level)
+        self._snapshot_rate_hz = run.snapshot_rate_hz
+        self._snapshot_spacing_m = run.snapshot_spacing_m
+        self._outline_level = run.outline_level
         self.scene = experiment.model.scene
         self.recording = None
         self.entries: dict[str, ComponentEntry] = {e.id: e for e in experiment.components}
@@ -102,19 +105,61 @@ class Dataflow:
             i for i in self.sensors
             if any(info.unit == "N" for info in components.sensors[i].channels.values())
         ]
+        #: The force streams the stall check watches, ``(component id, channel)``: what the
+        #: classifiers consume (the nearest force channels upstream of each: a force
+        #: observer's output, not the sensors it reads), else the force sensors' own; and
+        #: the valid, finite samples committed on each (the check watches them grow).
+        self.stall_streams = self._classified_force_streams() or [
+            (i, name) for i in self.force_sensors
+            for name, info in components.sensors[i].channels.items() if info.unit == "N"
+        ]
+        self.stall_counts = [0] * len(self.stall_streams)
+
+    def _channels_of(self, cid: str) -> Mapping[str, Any] | None:
+        if cid in self.sensors:
+            return self.components.sensors[cid].channels
+        if cid in self.extractors:
+            return self.components.feature_extractors[cid].output_channels
+        return None
+
+    def _classified_force_streams(self) -> list[tuple[str, str]]:
+        """For each classifier, the force channels (unit ``N``) nearest upstream of it: an
+        input's own, or, for an extractor without one, those its inputs feed it."""
+        streams: list[tuple[str, str]] = []
+
+        def visit(cid: str, seen: set[str]) -> None:
+            channels = self._channels_of(cid)
+            if channels is None or cid in seen:
+                return
+            seen.add(cid)
+            forces = [(cid, name) for name, info in channels.items() if info.unit == "N"]
+            if not forces and cid in self.extractors:
+                for upstream in self.entries[cid].inputs:
+                    visit(upstream, seen)
+            streams.extend(f for f in forces if f not in streams)
+
+        for clf_id in self.classifiers:
+            for cid in self.entries[clf_id].inputs:
+                visit(cid, set())
+        return streams
+
+    def stall_arrivals(self, outputs: Mapping[str, SampleBatch]) -> list[NDArray[np.float64]]:
+        """The timestamps of the valid, finite samples of each of :attr:`stall_streams` in
+        ``outputs`` (what :meth:`read_and_classify` made)."""
+        return [_usable_times(outputs[cid], name) for cid, name in self.stall_streams]
 
     @property
-    def recording(self) -> Any:
+    def recording(self) -> RecordingWriter | None:
         """The run's ``run.mcap`` (:class:`~hapticframe.record._recording.RunRecording`), fed the
         same data as ``recorder`` as it happens; None when the run records none. Setting
-        one configures its map snapshots and writes the scene into it."""
+        one configures its map snapshots' rate and writes the scene into it."""
         return self._recording
 
     @recording.setter
-    def recording(self, recording: Any) -> None:
+    def recording(self, recording: RecordingWriter | None) -> None:
         self._recording = recording
         if recording is not None:
-            recording.configure_snapshots(*self._snapshots)
+            recording.configure_snapshots(self._snapshot_rate_hz)
             recording.scene(self.scene)
 
     def _plan_sensor_models(self) -> None:
@@ -229,6 +274,8 @@ class Dataflow:
                     self.poses[sensor_id].add_batch(batch)
         for fe_id in self.extractors:
             self._record_batch("feature_extractor", fe_id, outputs[fe_id])
+        for k, times in enumerate(self.stall_arrivals(outputs)):
+            self.stall_counts[k] += len(times)
         for clf_id in self.classifiers:
             probs = classified[clf_id]
             if len(probs):
@@ -306,7 +353,7 @@ class Dataflow:
         if self.recording is None:
             return
         when = self._now_s if t_s is None else float(t_s)
-        self.recording.later("/loop", "hapticframe.LoopEvent", {
+        self.recording.later(LOOP.name, LOOP.schema, {
             "event": event, "t_s": when, "counts": dict(self.counts),
             "keep_force": keep_force}, when)
 
@@ -335,7 +382,9 @@ class Dataflow:
             return
         self._maps_changed = False
         for map_id in self.maps:
-            recording.map_snapshot(map_id, self.components.maps[map_id], recording.now_s)
+            recording.map_snapshot(MapSnapshot.of(
+                map_id, self.components.maps[map_id], recording.now_s,
+                self._snapshot_spacing_m, self._outline_level))
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):
@@ -472,3 +521,22 @@ def _last_label(probs: ClassProbabilities) -> int:
     of the last row (rows are finite, checked by the record)."""
     row: list[float] = probs.probabilities[-1].tolist()
     return row.index(max(row))
+
+
+_NO_TIMES: NDArray[np.float64] = np.empty(0)
+
+
+def _usable_times(batch: SampleBatch, channel: str) -> NDArray[np.float64]:
+    """The timestamps of ``batch``'s valid samples of ``channel`` whose values are finite."""
+    n = len(batch)
+    if not n:
+        return _NO_TIMES
+    values = batch.channels[channel]
+    valid = batch.valid.get(channel)
+    if n == 1 and values.size <= 3:  # a closed loop's one sample: plain floats are faster
+        ok = all(math.isfinite(v) for v in values.ravel().tolist())
+        return batch.timestamps_s if ok and (valid is None or bool(valid[0])) else _NO_TIMES
+    usable = np.all(np.isfinite(values.reshape(n, -1)), axis=1)
+    if valid is not None:
+        usable &= valid
+    return np.asarray(batch.timestamps_s[usable], dtype=np.float64)

@@ -22,6 +22,7 @@ from hapticframe.kinds import (
     Robot,
     RobotState,
 )
+from hapticframe.run._channels import SAFETY_HALT
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
 from hapticframe.run._safety import FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE, SafetyMonitor
@@ -354,7 +355,7 @@ def _record_movement(session: Session, result: MovementResult,
         return
     recording.movement(result)
     for halt in session.safety_halts[recording.halts_recorded:]:
-        recording.event("/safety_halt", "hapticframe.SafetyHalt", halt)
+        recording.event(SAFETY_HALT.name, SAFETY_HALT.schema, halt)
     recording.halts_recorded = len(session.safety_halts)
     if devices:
         recording.health({cid: d.health.as_dict() for cid, d in devices.items()})

@@ -95,9 +95,11 @@ SCIENTIFIC_DISTRIBUTIONS = (
 
 
 class RunSummary(dict[str, Any]):
-    """The metrics of a finished run (a dict), plus where they were written."""
+    """The metrics of a finished run (a dict), plus where they were written (``out_dir``)."""
 
-    out_dir: Path
+    def __init__(self, metrics: Mapping[str, Any], out_dir: Path) -> None:
+        super().__init__(metrics)
+        self.out_dir = out_dir
 
 
 def _json_default(value: Any) -> Any:

@@ -14,7 +14,7 @@ writing there); ``run.json`` then says ``status: running`` until the run ends, a
 file is written atomically into a staging folder that moves into ``--out`` at the end, so a
 run killed at any point leaves a directory that says it is unfinished. An experiment that
 fails to build writes nothing. The recording (``run.mcap``) is written through the
-:class:`~hapticframe.run._scope.RecordingOpener` the caller hands in (the CLI and
+:class:`~hapticframe.run._channels.RecordingOpener` the caller hands in (the CLI and
 :func:`hapticframe.run_experiment` hand in ``run.mcap``'s writer); without one, the run
 records nothing.
 
@@ -39,13 +39,15 @@ from typing import Any
 
 from hapticframe._config import Experiment
 from hapticframe.run import _assembly
+from hapticframe.run._channels import RecordingOpener
 from hapticframe.run._evaluate import score_run
 from hapticframe.run._loop import run_loop
 from hapticframe.run._results import RunSummary, environment
 from hapticframe.run._safety import FORCE_LIMIT
-from hapticframe.run._scope import RecordingOpener, device_health, run_scope
+from hapticframe.run._scope import device_health, run_scope
 from hapticframe.run._session import Session
 from hapticframe.run._train import fit_before_run
+from hapticframe.run._verdict import RunInconclusive, inconclusive_reasons
 
 __all__ = ["RunSummary", "run_experiment"]
 
@@ -109,6 +111,10 @@ def run_experiment(
     RunError
         When the run fails, or a component's ``close()`` raises; ``run.json`` then records
         the failure (exit status 1).
+    RunInconclusive
+        (a :class:`RunError`) The run ended but its figures are no result: its sensors
+        delivered (almost) nothing, or a safety check halted every movement. Its files are
+        written; ``run.json`` says ``failed`` and why (exit status 1).
     RunInterrupted
         On Ctrl-C (SIGINT) or SIGTERM while running; ``run.json`` records
         ``status: interrupted`` and the signal (exit status 130 or 143).
@@ -132,6 +138,10 @@ def run_experiment(
         if health:
             metrics["devices"] = health
         scope.save(metrics)
-    summary = RunSummary(metrics)
-    summary.out_dir = scope.out
+        reasons = inconclusive_reasons(session)
+        if reasons:
+            # Every file is kept for inspection; run.json says failed, and why.
+            session.details["no_result"] = reasons
+            raise RunInconclusive(reasons, metrics)
+    summary = RunSummary(metrics, scope.out)
     return summary

@@ -43,9 +43,11 @@ class SafetyMonitor:
       robot steps (control periods) from the sample's timestamp to the robot's state when
       the halt is commanded; each halt is appended to ``halts`` (``run.json`` details), the
       largest latency becomes ``halt_latency_samples_max`` in ``metrics.json``.
-    - Stalled stream (``run.force_stall_s``, runs that stream a force sensor): no valid
-      force sample for that long, by the robot's state timestamps since the movement began
-      or since the last valid sample arrived, halts the robot. With ``live`` (a run with a
+    - Stalled stream (``run.force_stall_s``, runs that stream a force): no valid sample on
+      one of the force streams the classifiers consume (``Dataflow.stall_streams``: a force
+      observer's output, not only the sensors it reads) for that long, by the robot's state
+      timestamps since the movement began or since that stream's last valid sample
+      arrived, halts the robot. With ``live`` (a run with a
       live device) a :class:`~hapticframe.run._watchdog.StallWatchdog` also watches it on
       the host's clock from a thread, so that a tick stuck in a device call cannot stop the
       check: :meth:`close` stops it.
@@ -60,7 +62,7 @@ class SafetyMonitor:
         # The dataflow notes the first sample above the limit as it commits samples; the
         # limit itself lives here (one home), handed to the dataflow that reports to us.
         flow.force_limit_n = self.limit_n
-        self.stall_s = settings.force_stall_s if flow.force_sensors else None
+        self.stall_s = settings.force_stall_s if flow.stall_streams else None
         self.halts = halts
         self.watchdog = (
             StallWatchdog(self.stall_s, self._watchdog_halted).start()
@@ -69,9 +71,11 @@ class SafetyMonitor:
         self._robot: Robot | None = None
         self._index = 0
         self._rate_hz = 1.0
-        self._ref_t = -math.inf  # robot time of the latest valid force sample's arrival
-        self._seen = 0
-        self._batch_ref_t = -math.inf
+        # Per watched stream: robot time of its latest valid sample's arrival, its count.
+        streams = len(flow.stall_streams)
+        self._ref_t = [-math.inf] * streams
+        self._seen = [0] * streams
+        self._batch_ref_t = [-math.inf] * streams
 
     @property
     def enabled(self) -> bool:
@@ -81,8 +85,8 @@ class SafetyMonitor:
         """A movement has begun: the stall clock starts from the robot's state now."""
         self._robot, self._index = robot, index
         self._rate_hz = float(robot.control_rate_hz)
-        self._ref_t = float(robot.state.timestamp_s)
-        self._seen = self.flow.valid_force_samples
+        self._ref_t = [float(robot.state.timestamp_s)] * len(self._seen)
+        self._seen = list(self.flow.stall_counts)
         self.flow.force_violation = None
         if self.watchdog is not None:
             self.watchdog.arm(robot)
@@ -121,15 +125,22 @@ class SafetyMonitor:
         stall_s = self.stall_s
         if stall_s is not None:
             now = float(robot.state.timestamp_s)
-            seen = flow.valid_force_samples
-            if seen != self._seen:
-                self._seen, self._ref_t = seen, now
-                if self.watchdog is not None:
-                    self.watchdog.fed()
-            elif now - self._ref_t >= stall_s - _EPS_S:
+            ref_t = self._ref_t
+            oldest = min(ref_t)
+            fed = False
+            for k, seen in enumerate(flow.stall_counts):
+                if seen != self._seen[k]:
+                    fed = fed or ref_t[k] <= oldest  # the most silent stream spoke
+                    self._seen[k] = seen
+                    ref_t[k] = now
+            if fed and self.watchdog is not None:
+                self.watchdog.fed()
+            oldest = min(ref_t)
+            if now - oldest >= stall_s - _EPS_S:
                 robot.halt(FORCE_STREAM_STALLED)
-                self._record(FORCE_STREAM_STALLED, now, silent_s=now - self._ref_t,
-                             stall_s=stall_s)
+                cid, channel = flow.stall_streams[ref_t.index(oldest)]
+                self._record(FORCE_STREAM_STALLED, now, silent_s=now - oldest,
+                             stall_s=stall_s, stream=f"{cid}/{channel}")
                 return FORCE_STREAM_STALLED
         return ""
 
@@ -149,18 +160,22 @@ class SafetyMonitor:
         if stall_s is None:
             return False
         step_t = np.fromiter((s.timestamp_s for s in states), dtype=np.float64, count=len(states))
-        arrivals = np.zeros(len(step_t), dtype=bool)
-        if times.size:
-            arrivals[np.minimum(np.searchsorted(step_t, times - _EPS_S), len(step_t) - 1)] = True
-        refs = np.maximum.accumulate(np.where(arrivals, step_t, self._ref_t))
-        refs = np.maximum(refs, self._ref_t)
-        self._batch_ref_t = float(refs[-1])
-        return bool(np.any(step_t - refs >= stall_s - _EPS_S))
+        stalls = False
+        for k, times in enumerate(self.flow.stall_arrivals(outputs)):
+            arrivals = np.zeros(len(step_t), dtype=bool)
+            if times.size:
+                last = len(step_t) - 1
+                arrivals[np.minimum(np.searchsorted(step_t, times - _EPS_S), last)] = True
+            ref_t = self._ref_t[k]
+            refs = np.maximum(np.maximum.accumulate(np.where(arrivals, step_t, ref_t)), ref_t)
+            self._batch_ref_t[k] = float(refs[-1])
+            stalls = stalls or bool(np.any(step_t - refs >= stall_s - _EPS_S))
+        return stalls
 
     def batch_committed(self) -> None:
         """A look-ahead batch that :meth:`batch_needs_replay` passed was committed."""
-        self._ref_t = max(self._ref_t, self._batch_ref_t)
-        self._seen = self.flow.valid_force_samples
+        self._ref_t = [max(a, b) for a, b in zip(self._ref_t, self._batch_ref_t, strict=True)]
+        self._seen = list(self.flow.stall_counts)
 
     def _record(self, reason: str, robot_time_s: float, **extra: Any) -> None:
         robot = self._robot

@@ -33,12 +33,12 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from hapticframe._atomic import OutputError
-from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import HapticframeError, RunError, RunInterrupted
 from hapticframe.devices import DeviceError
+from hapticframe.run._channels import METRICS, RecordingOpener, RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._loop import devices_of
 from hapticframe.run._results import OutputDir, run_record, save_outputs
@@ -47,17 +47,7 @@ from hapticframe.run._session import Session
 
 if TYPE_CHECKING:
     from hapticframe._config import Experiment
-    from hapticframe._scene import Scene
-    from hapticframe.kinds import (
-        ClassProbabilities,
-        Component,
-        LocatedMeasurement,
-        Map,
-        MovementResult,
-        Observations,
-        RobotState,
-        SampleBatch,
-    )
+    from hapticframe.kinds import Component
 
 __all__ = ["RecordingOpener", "RecordingWriter", "RunScope", "run_scope"]
 
@@ -65,68 +55,6 @@ _log = logging.getLogger("hapticframe.run")
 
 #: Receives ``(component id, exception)`` for each ``close()`` that raised.
 CloseErrorHandler = Callable[[str, BaseException], None]
-
-
-class RecordingWriter(Protocol):
-    """What a run writes its recording through, as it happens (``run.mcap``'s writer,
-    :class:`~hapticframe.record._recording.RunRecording`, is one).
-
-    The run layer calls these and nothing else; the writer decides the format.
-    """
-
-    #: True once :meth:`close` has run.
-    closed: bool
-    #: How many of the session's safety halts are written (the loop keeps it).
-    halts_recorded: int
-    #: Map snapshots per second of model time (0: none).
-    snapshot_rate_hz: float
-
-    @property
-    def now_s(self) -> float:
-        """The latest model time the writer has seen (seconds)."""
-        ...
-
-    def samples(self, kind: str, cid: str, batch: SampleBatch,
-                units: Mapping[str, str] | None = None,
-                rates_hz: Mapping[str, float] | None = None) -> None: ...
-
-    def probabilities(self, cid: str, probs: ClassProbabilities) -> None: ...
-
-    def located(self, sm_id: str, located: LocatedMeasurement) -> None: ...
-
-    def observations(self, sm_id: str, obs: Observations, t_s: float) -> None: ...
-
-    def robot_state(self, robot_id: str, state: RobotState, movement_index: int) -> None: ...
-
-    def movement(self, result: MovementResult) -> None: ...
-
-    def event(self, topic: str, schema: str, data: Mapping[str, Any],
-              t_s: float | None = None) -> None: ...
-
-    def later(self, topic: str, schema: str, data: Mapping[str, Any], t_s: float) -> None: ...
-
-    def health(self, counters: Mapping[str, Mapping[str, int]]) -> None: ...
-
-    def configure_snapshots(self, rate_hz: float, spacing_m: float,
-                            outline_level: float = OUTLINE_LEVEL) -> None: ...
-
-    def snapshot_due(self, t_s: float | None = None) -> bool: ...
-
-    def scene(self, scene: Scene | None) -> None: ...
-
-    def map_snapshot(self, map_id: str, the_map: Map, t_s: float) -> None: ...
-
-    def close(self) -> None:
-        """Write what is left and the file's summary; idempotent. Raises
-        :class:`~hapticframe.OutputError` when the file cannot be written."""
-        ...
-
-
-class RecordingOpener(Protocol):
-    """Opens the run's recording in ``folder`` (the run's staging folder, whose files move
-    into ``--out`` when the run ends) with the experiment's ``metadata``."""
-
-    def __call__(self, folder: Path, metadata: Mapping[str, str]) -> RecordingWriter: ...
 
 
 @contextmanager
@@ -263,7 +191,7 @@ class RunScope:
         says and each component's own part of it), ``trace.npz`` and ``metrics.json``."""
         session = self._session()
         if session.recording is not None:
-            session.recording.event("/metrics", "hapticframe.RunMetrics", {
+            session.recording.event(METRICS.name, METRICS.schema, {
                 "metrics": dict(metrics), "components": session.component_metrics})
         save_outputs(session, metrics)
         self.succeed()

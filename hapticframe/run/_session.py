@@ -18,6 +18,7 @@ from typing import Any
 from hapticframe._config import Experiment, RunSettings
 from hapticframe._session_view import SessionView
 from hapticframe.kinds import Component, MovementResult
+from hapticframe.run._channels import RecordingWriter
 from hapticframe.run._components import Components
 from hapticframe.run._streams import TraceRecorder
 
@@ -37,9 +38,9 @@ class Session:
     results_dir: Path | None = None
     movements: list[MovementResult] = field(default_factory=list)
     recorder: TraceRecorder = field(default_factory=TraceRecorder)
-    #: The run's ``run.mcap`` writer (:class:`~hapticframe.record._recording.RunRecording`), or
-    #: None when ``run.record`` is off.
-    recording: Any = None
+    #: The run's recording writer (``run.mcap``'s, handed in by the caller), or None when
+    #: ``run.record`` is off or no writer was given.
+    recording: RecordingWriter | None = None
     #: Entries for ``run.json``'s ``details`` (training, sensor reads, ...).
     details: dict[str, Any] = field(default_factory=dict)
     started: float = field(default_factory=time.perf_counter)

@@ -36,19 +36,19 @@ its own seed.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import itertools
-import json
 import math
 import os
 import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from hapticframe._atomic import OutputError, atomic_write
 from hapticframe._config._load import load_file
 from hapticframe._config._overrides import (
     Override,
@@ -59,7 +59,7 @@ from hapticframe._config._overrides import (
     validate_with_overrides,
 )
 from hapticframe._errors import ExperimentError, UsageError, shown
-from hapticframe._lock import lock_directory
+from hapticframe.run._results import OutputDir
 from hapticframe.sweep._format import flow_text, format_value
 from hapticframe.sweep._sweep_trials import (
     COST_KEYS,
@@ -310,6 +310,9 @@ class SweepOptions:
     overrides: tuple[Override, ...] = ()
     plugin_modules: tuple[str, ...] = ()
     echo: Callable[[str], None] = field(default=print)
+    #: Clear an earlier sweep in ``--out`` first (only what its ``sweep.json`` lists).
+    overwrite: bool = False
+    min_free_bytes: int | None = None
 
 
 def _point_dir(index: int) -> str:
@@ -318,9 +321,6 @@ def _point_dir(index: int) -> str:
 
 def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> dict[str, Any]:
     """Run a sweep of the experiment ``file`` into ``out_dir`` (see the module's notes).
-
-    ``out_dir`` is locked from when it is made to the end (:mod:`hapticframe._lock`): a
-    second writer into it is refused at once, as for ``run``.
 
     Returns
     -------
@@ -335,15 +335,7 @@ def run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions) -> d
     ExperimentError, UsageError
         The file (with the sweep's ``--set``) is invalid, nothing is varied, or a
         ``--vary`` path names nothing: before any trial runs (exit status 2).
-    DirectoryBusy
-        Another command writes into ``out_dir`` now (exit status 2).
     """
-    with contextlib.ExitStack() as held:
-        return _run_sweep(file, out_dir, options, held)
-
-
-def _run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions,
-               held: contextlib.ExitStack) -> dict[str, Any]:
     started = time.perf_counter()
     load_before = _load_average()
     echo = options.echo
@@ -369,9 +361,44 @@ def _run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions,
     for vary in varies:
         baseline[vary.path] = _baseline_value(base, changed.data, vary.path)
     points = plan_points(varies, baseline, grid=options.grid)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    held.enter_context(lock_directory(out, "sweep"))
+    # Guarded as a run's --out: checked, locked for the sweep's life, cleared only with
+    # --overwrite and only of what an earlier sweep listed; the trials and tables go to a
+    # staging folder that moves in when the sweep ends.
+    directory = OutputDir.prepare(out_dir, record="sweep.json", command="sweep",
+                                  overwrite=options.overwrite,
+                                  min_free=options.min_free_bytes, inputs=(file,))
+    try:
+        directory.begin({"experiment_file": str(file), "pid": os.getpid(),
+                         "started_utc": datetime.now(timezone.utc).isoformat(
+                             timespec="seconds")})
+        try:
+            result = _sweep(file, loaded, base, points, varies, baseline, directory.staging,
+                            directory.path, options, started, load_before)
+        except BaseException as exc:
+            failed = {"experiment_file": str(file), "status": "interrupted" if isinstance(
+                exc, KeyboardInterrupt) else "failed", "error": str(exc) or type(exc).__name__}
+            try:
+                directory.finish(failed, directory.commit(failed))
+            except OutputError as write_error:  # never hides the error that ended the sweep
+                echo(f"{write_error}; sweep.json still says the sweep is unfinished")
+            raise
+        files = directory.commit(result)
+        directory.finish(result, files)
+    finally:
+        directory.release()
+    out = directory.path
+    echo(f"sweep done in {result['wall_time_s']:.1f} s: {out / 'sweep.md'}")
+    return result
+
+
+def _sweep(file: str | Path, loaded: Any, base: Any, points: list[Point], varies: list[Vary],
+           baseline: dict[str, Any], out: Path, final: Path, options: SweepOptions,
+           started: float, load_before: float | None) -> dict[str, Any]:
+    """Run the trials into ``out`` (the staging folder) and write the tables beside them;
+    what ``sweep.json`` will say (its paths are where the files are once moved into
+    ``final``)."""
+    echo = options.echo
+    plugin_dir = str(Path.cwd()) if options.plugin_modules else None
     seed = int(base.seed)
     fixed = parse_overrides(["run.figures=false", "run.record=false"])
     tasks: list[TrialTask] = []
@@ -423,6 +450,9 @@ def _run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions,
             rows = _gather(executor, tasks, workers, options.timeout_s, on_row,
                            warmed=warm is not None)
         _mark_nan_against_baseline(rows)
+    for row in rows:  # where each trial's directory is once the staging folder moves in
+        if isinstance(row.get("run_dir"), str) and Path(row["run_dir"]).is_relative_to(out):
+            row["run_dir"] = str(final / Path(row["run_dir"]).relative_to(out))
     summaries = []
     for index, point in enumerate(points):
         summary = _summarise_point(point, [r for r in rows if r["point"] == index])
@@ -458,15 +488,12 @@ def _run_sweep(file: str | Path, out_dir: str | Path, options: SweepOptions,
                     "load_average_1min": {"start": load_before, "end": _load_average()}},
     }
     result = _json_ready(result)
-    from hapticframe._atomic import atomic_write
-
-    atomic_write(out / "sweep.json", json.dumps(result, indent=2, allow_nan=False) + "\n")
     from hapticframe.sweep._sweep_report import render_markdown, save_pareto_figure
 
     atomic_write(out / "sweep.md", render_markdown(result))
     if not save_pareto_figure(out / "pareto.png", result):
         echo("pareto.png skipped: matplotlib is not installed")
-    echo(f"sweep done in {result['wall_time_s']:.1f} s: {out / 'sweep.md'}")
+    result["status"] = "ok"
     return result
 
 

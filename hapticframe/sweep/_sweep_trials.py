@@ -52,25 +52,20 @@ COST_KEYS = ("wall_time_s", "cpu_time_s", "wall_time_per_step_s", "cpu_time_per_
 def _init_worker(owner_pid: int, task: TrialTask | None) -> None:
     """A process pool worker's initializer.
 
-    The worker ends itself once the sweep's process ``owner_pid`` is gone (its parent is
-    the fork server, which outlives a killed sweep: without this, a killed sweep's workers
-    went on training for minutes). Then one untimed run of ``task`` into a folder of this
-    process's own, removed after, so that the worker's first trial (the baseline's,
-    always) pays no import or first-call costs. Never raises (a failing run is a row).
+    The worker ends itself once the sweep's process ``owner_pid`` has ended, however it
+    ended (see :mod:`hapticframe.sweep._lifeline`: its parent is the fork server, which
+    outlives a killed sweep as long as a worker does; a killed sweep that is not reaped yet
+    is a zombie whose id still exists), and Linux kills it with its parent. Then one
+    untimed run of ``task`` into a folder of this process's own, removed after, so that the
+    worker's first trial (the baseline's, always) pays no import or first-call costs. Never
+    raises (a failing run is a row).
     """
     import shutil
 
-    def watch() -> None:
-        while True:
-            time.sleep(1.0)
-            try:
-                os.kill(owner_pid, 0)
-            except ProcessLookupError:
-                os._exit(1)
-            except OSError:  # exists, owned by another user: not ours to judge
-                pass
+    from hapticframe.sweep._lifeline import die_with_parent, watch_process
 
-    threading.Thread(target=watch, name="sweep-owner-watch", daemon=True).start()
+    die_with_parent()
+    watch_process(owner_pid)
     if task is None:
         return
     out = f"{task.out_dir}-{os.getpid()}"

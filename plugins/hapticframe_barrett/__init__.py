@@ -13,12 +13,13 @@ from this package only when first used.
 - :class:`PuckHost` / :class:`BarrettHandHost`: wake, identify, GET/SET with bounded waits
   counted in a ``DeviceHealth``, group position polls that report missing pucks, hand
   commands.
+- :class:`CanPort` / :class:`PacedCanPort` / :class:`EmulatedCanPort`: the channel and clock
+  a host is handed; the port decides how a wait lets time pass (real or emulated pucks).
 """
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._protocol import (
     CAN_ERR_BUSOFF,
@@ -58,13 +59,16 @@ __all__ = [
     "WAM_NODES",
     "BarrettError",
     "BarrettHandHost",
+    "CanPort",
     "Cmd",
+    "EmulatedCanPort",
     "EmulatedPuck",
     "Group",
     "MalformedReply",
     "Mode",
     "MoveResult",
     "Node",
+    "PacedCanPort",
     "PositionPoll",
     "PropertyReply",
     "PropertyTable",
@@ -90,19 +94,11 @@ __all__ = [
 ]
 
 _HOMES = {
+    **dict.fromkeys(("CanPort", "EmulatedCanPort", "PacedCanPort"), "._bus"),
     **dict.fromkeys(("FAULT_KINDS", "EmulatedPuck", "PuckBus", "hand_pucks", "wam_pucks"),
                     "._emulator"),
     **dict.fromkeys(("BarrettError", "BarrettHandHost", "MalformedReply", "MoveResult",
                      "PositionPoll", "PuckHost", "ReplyTimeout", "WakeResult"), "._host"),
 }
 
-
-def __getattr__(name: str) -> Any:
-    home = _HOMES.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(home, __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _HOMES)

@@ -25,7 +25,8 @@ the carrier's tool point is), and the posture does not change while raking, so t
 a constant of the posture. Heading, speed and plane position are the carrier's.
 
 ``channel: emulated`` runs a :class:`~._emulator.PuckBus` on a ``virtual`` channel of its
-own, on a :class:`~hapticframe.devices.FakeClock` that follows the carrier's timestamps:
+own (an :class:`~._bus.EmulatedCanPort`), on simulation time that follows the carrier's
+timestamps:
 homing and the posture move take simulation time, and a run is deterministic. Fault times
 (``at_s``) are on that clock: it starts at configure and then moves on as the carrier's
 timestamps do.
@@ -33,7 +34,6 @@ timestamps do.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -44,9 +44,7 @@ from hapticframe.devices import (
     Clock,
     DeviceError,
     DeviceLifecycle,
-    FakeClock,
     FaultSchedule,
-    MonotonicClock,
 )
 from hapticframe.kinds import (
     BuildContext,
@@ -59,7 +57,8 @@ from hapticframe.kinds import (
     RunOutcome,
 )
 
-from ._emulator import PuckBus, hand_pucks
+from ._bus import CanPort, EmulatedCanPort
+from ._emulator import EmulatedPuck, PuckBus, hand_pucks
 from ._hand_config import BarrettHandRobotConfig, FingerGeometryConfig
 from ._host import BarrettError, BarrettHandHost, PuckHost
 from ._protocol import HAND_NODES, Cmd, Group, Mode, Stat
@@ -76,8 +75,6 @@ STANDARD_FAULTS: tuple[dict[str, Any], ...] = (
 )
 _NAMES = {11: "F1", 12: "F2", 13: "F3", 14: "spread"}
 _SPREAD = 14
-#: Virtual channels of emulated hands: one per robot built in this process.
-_CHANNELS = itertools.count()
 
 
 def fingertip_below_palm_m(geometry: FingerGeometryConfig, inner_rad: float) -> float:
@@ -108,9 +105,11 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
     ----------
     carrier : Robot
         The robot that moves the hand.
+    port : CanPort
+        The CAN channel (an :class:`~._bus.EmulatedCanPort` for ``channel: emulated``).
     clock : Clock
-        A :class:`FakeClock` (simulation time, following the carrier's timestamps) when
-        emulated, else the monotonic clock.
+        The port's: simulation time that follows the carrier's timestamps when emulated,
+        else the monotonic clock.
     emulator : PuckBus or None
         The emulated pucks (``channel: emulated``, after configure).
     host : PuckHost or None
@@ -138,7 +137,11 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         self.carrier: Robot = robots[0]
         self.max_recoveries = config.max_recoveries
         self.live = not config.emulated
-        self.clock: Clock = FakeClock(0.0) if config.emulated else MonotonicClock()
+        self.port: CanPort = (
+            EmulatedCanPort(self._emulated_pucks, name=f"hapticframe-barrett-hand-{self.id}")
+            if config.emulated
+            else CanPort(config.interface, config.channel, bitrate=config.bitrate))
+        self.clock: Clock = self.port.clock
         self._rng = context.rng
         raking = 10 + config.raking_finger
         self._raking = raking
@@ -148,7 +151,6 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         self._angles[_SPREAD] = config.spread_rad
         self.offset_m = config.palm_below_tool_point_m + fingertip_below_palm_m(
             config.finger, config.raking_angle_rad)
-        self.emulator: PuckBus | None = None
         self.host: PuckHost | None = None
         self._hand: BarrettHandHost | None = None
         self._counts_per_rad: dict[int, float] = {}
@@ -273,6 +275,18 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         self.deactivate()
         self.cleanup()
 
+    @property
+    def emulator(self) -> PuckBus | None:
+        """The emulated pucks (``channel: emulated``, once configured), else None."""
+        return self.port.emulator if isinstance(self.port, EmulatedCanPort) else None
+
+    def _emulated_pucks(self) -> tuple[list[EmulatedPuck], FaultSchedule | None]:
+        config = self.config
+        nodes = HAND_NODES if config.emulated_nodes is None else config.emulated_nodes
+        pucks = [p for p in hand_pucks(config.emulated_vers, speed=config.emulated_speed)
+                 if p.node in nodes]
+        return pucks, _schedule(config.faults, self._rng)
+
     # --- the fingertip -----------------------------------------------------------------------
 
     def _fingertip(self, carried: RobotState) -> RobotState:
@@ -284,8 +298,8 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         and recoveries, put it ahead of the carrier's, by design)."""
         dt = t - self._carrier_t
         self._carrier_t = max(self._carrier_t, t)
-        if isinstance(self.clock, FakeClock) and dt > 0:
-            self.clock.advance(dt)
+        if dt > 0:
+            self.port.wait_until(self.clock.now() + dt)  # a port that owns time moves it
 
     # --- motion ----------------------------------------------------------------------------
 
@@ -364,27 +378,15 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
 
     def on_configure(self) -> None:
         config = self.config
-        if config.emulated:
-            assert isinstance(self.clock, FakeClock)
-            channel = f"hapticframe-barrett-hand-{self.id}-{next(_CHANNELS)}"
-            nodes = HAND_NODES if config.emulated_nodes is None else config.emulated_nodes
-            pucks = [p for p in hand_pucks(config.emulated_vers, speed=config.emulated_speed)
-                     if p.node in nodes]
-            self.emulator = PuckBus(channel, pucks, clock=self.clock,
-                                    faults=_schedule(config.faults, self._rng)).start()
-            bus_args: dict[str, Any] = {"interface": "virtual", "channel": channel}
-        else:
-            bus_args = {"interface": config.interface, "channel": config.channel,
-                        "bitrate": config.bitrate}
         try:
-            bus = can.Bus(**bus_args)
+            bus = self.port.open()
         except (can.CanError, OSError, ValueError) as exc:
             raise self._error(
                 f"cannot open CAN channel {config.channel!r} ({config.interface}): {exc}"
             ) from exc
-        self.host = PuckHost(bus, clock=self.clock, health=self.health,
-                             reply_timeout_s=config.reply_timeout_s, attempts=config.attempts,
-                             device_id=self.id)
+        self.host = PuckHost(bus, port=self.port, health=self.health,
+                             reply_timeout_s=config.reply_timeout_s,
+                             attempts=config.attempts, device_id=self.id)
         woke = self.host.wake(HAND_NODES)
         if not woke.ok:
             names = ", ".join(f"{n} ({_NAMES[n]})" for n in woke.failed)
@@ -465,9 +467,7 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
             self.host.bus.shutdown()
             self.host = None
             self._hand = None
-        if self.emulator is not None:
-            self.emulator.stop()
-            self.emulator = None
+        self.port.stop()
 
     def on_recover(self, error: Exception) -> None:
         """Wait a backoff on the hand's clock, then every puck must answer ``STAT`` READY
@@ -476,10 +476,7 @@ class BarrettHandRobot(Robot, DeviceLifecycle):
         if host is None:
             raise error
         backoff = self.config.recovery_backoff_s * 2 ** self.recovery_streak
-        if isinstance(self.clock, FakeClock):
-            self.clock.advance(backoff)
-        else:
-            self.clock.sleep(backoff)
+        self.port.elapse(backoff)
         silent = [n for n in HAND_NODES if host.try_get(n, "STAT") != int(Stat.READY)]
         if silent:
             raise self._error(f"hand puck(s) {silent} do not answer after {error}")

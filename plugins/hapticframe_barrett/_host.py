@@ -25,12 +25,9 @@ never taken as the answer to a later request that has already been answered), an
 that answers a position poll twice is reported missing rather than trusted: the protocol
 has no sequence numbers, so one of the two values could be old.
 
-Pacing: on a :class:`~hapticframe.devices.FakeClock` (an emulator), a wait takes what has
-arrived, then calls ``clock.sleep(0)`` (the emulator's clock listener returns once its reader
-thread has handled every frame sent, so the prompt replies are then in the queue), then
-advances the fake clock to the deadline (the emulator sends what is due by then) and takes
-what came. No real time is spent waiting. On any other clock a wait is a real ``bus.recv``
-up to the deadline.
+Pacing: the host is handed a :class:`~._bus.CanPort`, which decides how a wait lets time
+pass (a real ``bus.recv`` up to the deadline on a live channel; staged fake-clock steps on an
+emulated one, so that no real time is spent). The host's code path is the same for both.
 """
 
 from __future__ import annotations
@@ -40,8 +37,9 @@ from dataclasses import dataclass, field
 
 import can
 
-from hapticframe.devices import Clock, DeviceError, DeviceHealth, FakeClock
+from hapticframe.devices import DeviceError, DeviceHealth
 
+from ._bus import CanPort
 from ._protocol import (
     CAN_ERR_BUSOFF,
     CAN_ERR_RESTARTED,
@@ -172,8 +170,9 @@ class PuckHost:
     bus : can.BusABC
         The host's bus (``can.Bus(interface="socketcan", channel="can0")`` on a real WAM;
         ``interface="virtual"`` with a :class:`PuckBus` on the same channel in tests).
-    clock : Clock
-        The host's time base (the emulator's FakeClock in tests).
+    port : CanPort
+        The channel's port: its clock is the host's time base, and it decides how a wait
+        lets time pass (:class:`~._bus.PacedCanPort` for emulated pucks).
     health : DeviceHealth or None
         Where the counters go (a new one by default).
     reply_timeout_s : float
@@ -182,9 +181,6 @@ class PuckHost:
         Requests per property read before giving up.
     wake_time_s : float
         Time given to pucks after ``STAT=READY`` (libbarrett's WAKE_UP_TIME, 1 s).
-    settle_s : float
-        Real time a wait on a FakeClock first gives the peer to answer (0: the emulator
-        answers synchronously when the clock is advanced, see below).
     max_frames_per_wait : int
         Frames one wait may consume before it gives up (a flooded bus).
     device_id : str
@@ -205,12 +201,11 @@ class PuckHost:
         self,
         bus: can.BusABC,
         *,
-        clock: Clock,
+        port: CanPort,
         health: DeviceHealth | None = None,
         reply_timeout_s: float = 0.1,
         attempts: int = 2,
         wake_time_s: float = 1.0,
-        settle_s: float = 0.0,
         max_frames_per_wait: int = 256,
         device_id: str = "barrett",
     ) -> None:
@@ -219,12 +214,12 @@ class PuckHost:
         if not reply_timeout_s > 0:
             raise ValueError("reply_timeout_s must be positive")
         self.bus = bus
-        self.clock = clock
+        self.port = port
+        self.clock = port.clock
         self.health = health if health is not None else DeviceHealth()
         self.reply_timeout_s = reply_timeout_s
         self.attempts = attempts
         self.wake_time_s = wake_time_s
-        self.settle_s = settle_s
         self.max_frames_per_wait = max_frames_per_wait
         self.device_id = device_id
         self.tables: dict[int, PropertyTable] = {}
@@ -232,7 +227,6 @@ class PuckHost:
             ("timeouts", "malformed", "stale", "missing_positions", "error_frames", "bus_off",
              "restarted", "overflows"), 0)
         self.bus_off = False
-        self._fake = isinstance(clock, FakeClock)
 
     # ----------------------------------------------------------------------------- raw frames
 
@@ -291,34 +285,19 @@ class PuckHost:
         self, accept: Callable[[can.Message], bool], done: Callable[[], bool], timeout_s: float
     ) -> bool:
         """Feed frames to ``accept`` until ``done()`` or the deadline; True when done."""
-        deadline = self.clock.now() + timeout_s
+        if done():
+            return True
         frames = 0
-        stage = 0  # on a FakeClock: 0 nothing yet, 1 synced (sleep 0), 2 slept to the deadline
-        while not done():
-            remaining = deadline - self.clock.now()
-            wait = (self.settle_s if stage == 0 else 0.0) if self._fake else remaining
-            msg = self._recv(wait)
-            if msg is not None:
-                frames += 1
-                if frames > self.max_frames_per_wait:
-                    self.stats["overflows"] += 1
-                    self.health.overflows += 1
-                    return done()
-                self._dispatch(msg, accept)
-                continue
-            if not self._fake:
-                if remaining <= 0:
-                    return done()
-                continue
-            if stage == 0:
-                self.clock.sleep(0.0)  # an emulator on this clock answers what it has had
-                stage = 1
-            elif stage == 1 and remaining > 0:
-                self.clock.sleep(remaining)
-                stage = 2
-            else:
+        for msg in self.port.frames(self._recv, self.clock.now() + timeout_s):
+            frames += 1
+            if frames > self.max_frames_per_wait:
+                self.stats["overflows"] += 1
+                self.health.overflows += 1
                 return done()
-        return True
+            self._dispatch(msg, accept)
+            if done():
+                return True
+        return done()
 
     # ----------------------------------------------------------------------------- properties
 
@@ -419,7 +398,7 @@ class PuckHost:
         for _ in range(attempts):
             for node in pending:
                 self.set(node, "STAT", int(Stat.READY))
-            self.clock.sleep(self.wake_time_s)
+            self.port.elapse(self.wake_time_s)
             still: list[int] = []
             for node in pending:
                 stat = self.try_get(node, "STAT", attempts=1)
@@ -583,7 +562,7 @@ class BarrettHandHost:
             if remaining <= 0:
                 raise host._error(f"hand pucks {list(nodes)} still moving after {timeout_s:g} s "
                                   f"(MODE {modes})")
-            host.clock.sleep(min(self.poll_s, remaining))
+            host.port.elapse(min(self.poll_s, remaining))
 
     def move_to(self, targets: Mapping[int, int], *, timeout_s: float = 10.0) -> MoveResult:
         """Set ``M`` on each puck, wait until done, and read where they ended."""

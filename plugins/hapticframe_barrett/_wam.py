@@ -17,12 +17,12 @@ cause, with no command after it. ``halt()`` and ``deactivate()`` hold the presen
 (``M`` = present counts); the arm is released only by the operator's Shift-Idle.
 
 ``channel: emulated`` runs a :class:`PuckBus` of WAM pucks on a ``virtual`` channel of this
-robot's own, on a :class:`FakeClock` that each step advances by one control period, so runs
-are deterministic. The emulated arm powers on zeroed (counts = ``j2mp @ q``) in
-``emulated_start_rad``, and the operator presses Shift-Activate when the robot activates
-(:meth:`PuckBus.activate_wam`). The emulation does not model load: the pucks are position
-sources, so :meth:`couple_environment` only records the joint torques ``τ = Jᵀ f`` that the
-environment's force would cause (:attr:`BarrettWamRobot.load_torque_nm`).
+robot's own (an :class:`~._bus.EmulatedCanPort`), on simulation time that each step moves by
+one control period, so runs are deterministic. The emulated arm powers on zeroed
+(counts = ``j2mp @ q``) in ``emulated_start_rad``, and the operator presses Shift-Activate
+when the robot activates (:meth:`PuckBus.activate_wam`). The emulation does not model load:
+the pucks are position sources, so :meth:`couple_environment` only records the joint torques
+``τ = Jᵀ f`` that the environment's force would cause (:attr:`BarrettWamRobot.load_torque_nm`).
 
 Unverified against hardware: that a WAM puck in PID follows ``M`` streamed at the control
 rate (the emulator's model), and every property number (see ``_protocol``). Zeroing the arm is
@@ -47,9 +47,7 @@ from hapticframe.devices import (
     Clock,
     DeviceError,
     DeviceLifecycle,
-    FakeClock,
     FaultSchedule,
-    MonotonicClock,
 )
 from hapticframe.kinds import (
     BuildContext,
@@ -60,6 +58,7 @@ from hapticframe.kinds import (
     RunOutcome,
 )
 
+from ._bus import CanPort, EmulatedCanPort
 from ._emulator import EmulatedPuck, PuckBus
 from ._host import BarrettError, PuckHost
 from ._protocol import WAM_NODES, Group, Mode
@@ -76,7 +75,6 @@ STANDARD_FAULTS: tuple[dict[str, Any], ...] = (
     {"kind": "malformed_reply", "rate_hz": 0.05},
 )
 
-_CHANNELS = itertools.count()
 T = TypeVar("T")
 FloatArray = NDArray[np.float64]
 
@@ -112,8 +110,10 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         The kinematic model, in the map frame.
     transmission : Transmission or None
         Joints ↔ motor counts (after configure, once each puck's ``CTS`` is read).
+    port : CanPort
+        The CAN channel (an :class:`~._bus.EmulatedCanPort` for ``channel: emulated``).
     clock : Clock
-        A :class:`FakeClock` when emulated, else the monotonic clock.
+        The port's: simulation time when emulated, else the monotonic clock.
     emulator : PuckBus or None
         The emulated pucks (``channel: emulated``, after configure).
     host : PuckHost or None
@@ -148,9 +148,11 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         self._workspace = config.workspace.to_region()
         self._dt = 1.0 / config.control_rate_hz
         self.live = not config.emulated
-        self.clock: Clock = FakeClock(0.0) if config.emulated else MonotonicClock()
+        self.port: CanPort = (
+            EmulatedCanPort(self._emulated_pucks, name=f"hapticframe-wam-{self.id}")
+            if config.emulated else CanPort(config.interface, config.channel))
+        self.clock: Clock = self.port.clock
         self._rng = context.rng
-        self.emulator: PuckBus | None = None
         self.host: PuckHost | None = None
         self.transmission: Transmission | None = None
         self._environment: PhysicalTruthSource | None = None
@@ -383,10 +385,11 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         self._load()
 
     def _tick(self, paced: bool) -> None:
-        if isinstance(self.clock, FakeClock):
-            self.clock.advance(self._dt)
-        elif paced:
-            self.clock.sleep(self._dt)
+        until = self.clock.now() + self._dt
+        self.port.wait_until(until)  # a port that owns time (the emulator's) moves it
+        remaining = until - self.clock.now()
+        if paced and remaining > 0:
+            self.clock.sleep(remaining)
 
     def _publish(self, speed: float, heading: float) -> RobotState:
         tip = self._tip
@@ -493,18 +496,14 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
 
     def on_configure(self) -> None:
         config = self.config
-        channel = config.channel
         try:
-            if config.emulated:
-                channel = self._start_emulator()
-                bus = can.Bus(interface="virtual", channel=channel)
-            else:
-                bus = can.Bus(interface=config.interface, channel=channel)
+            bus = self.port.open()
         except (can.CanError, OSError, ValueError) as exc:
             raise DeviceError(
-                f"robot {self.id!r}: cannot open CAN channel {channel!r} ({config.interface}): "
-                f"{exc}", device_id=self.id) from exc
-        host = PuckHost(bus, clock=self.clock, health=self.health,
+                f"robot {self.id!r}: cannot open CAN channel {self.port.channel!r} "
+                f"({config.interface}): {exc}", device_id=self.id) from exc
+        channel = self.port.channel
+        host = PuckHost(bus, port=self.port, health=self.health,
                         reply_timeout_s=config.reply_timeout_s, attempts=config.attempts,
                         wake_time_s=config.wake_time_s, device_id=self.id)
         self.host = host
@@ -554,9 +553,7 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
             with contextlib.suppress(Exception):
                 self.host.bus.shutdown()
             self.host = None
-        if self.emulator is not None:
-            self.emulator.stop()
-            self.emulator = None
+        self.port.stop()
 
     def on_recover(self, error: Exception) -> None:
         """Wait a backoff on the robot's clock, reopen the bus after a link failure, and
@@ -567,18 +564,20 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         if isinstance(error.__cause__, can.CanError):  # the link failed (send or receive)
             with contextlib.suppress(Exception):
                 host.bus.shutdown()
-            interface = "virtual" if self.config.emulated else self.config.interface
-            channel = self.emulator.channel if self.emulator is not None else self.config.channel
-            host.bus = can.Bus(interface=interface, channel=channel)
+            host.bus = self.port.open()
             self.health.reconnects += 1
         host._drain()  # error frames: a restarted bus clears bus_off
         if host.bus_off:
             raise BarrettError(f"robot {self.id!r}: the CAN bus is off", device_id=self.id)
         self._poll()
 
-    def _start_emulator(self) -> str:
+    @property
+    def emulator(self) -> PuckBus | None:
+        """The emulated pucks (``channel: emulated``, once configured), else None."""
+        return self.port.emulator if isinstance(self.port, EmulatedCanPort) else None
+
+    def _emulated_pucks(self) -> tuple[list[EmulatedPuck], FaultSchedule | None]:
         config = self.config
-        assert isinstance(self.clock, FakeClock)
         schedule = None
         if config.faults != "none":
             entries = STANDARD_FAULTS if config.faults == "standard" else config.faults
@@ -592,9 +591,7 @@ class BarrettWamRobot(Robot, DeviceLifecycle):
         pucks = [EmulatedPuck(node, vers=config.emulated_vers, position=int(c),
                               speed=config.emulated_speed_counts_per_s, hand=False)
                  for node, c in zip(self.nodes, counts.tolist(), strict=True)]
-        channel = f"hapticframe-wam-{self.id}-{next(_CHANNELS)}"
-        self.emulator = PuckBus(channel, pucks, clock=self.clock, faults=schedule).start()
-        return channel
+        return pucks, schedule
 
 
 def _samples(a: FloatArray, b: FloatArray, spacing: float) -> FloatArray:

@@ -372,7 +372,7 @@ def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
 def _markdown(summary: dict[str, Any]) -> str:
     machine = summary["machine"]
     load = machine["load_average_1min"]
-    lines = ["# Fuzzing (issues 16 and 26)", "",
+    lines = ["# Fuzzing", "",
              f"{summary['cases']} cases, seed {summary['seed']}, "
              f"{summary['wall_time_s']:.0f} s on {machine['cpu_count']} CPUs (load average "
              f"{load['start']:.2f} at the start, {load['end']:.2f} at the end).", "",

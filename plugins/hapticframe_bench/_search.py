@@ -205,7 +205,9 @@ def _command(options: BenchOptions, trials: int) -> str:
 
 
 def _progress(record: Mapping[str, Any], done: int, total: int, *, kept: bool = False) -> str:
-    who = "Table 3.1 params" if record.get("role") == THESIS_ROLE else record["planner"]
+    role = record.get("role")
+    who = ("Table 3.1 params" if role == THESIS_ROLE
+           else record["planner"] if role in (None, "search", "baseline") else str(role))
     head = (f"[{done:>3}/{total}] {record['shape']:<7} trial {record['index']:<3} "
             f"{who:<19}")
     if kept:
@@ -369,8 +371,8 @@ def _run_trial(
 
 
 def _run_name(shape: str, index: int, role: str, planner: str) -> str:
-    """A trial run's directory name: the planner's, or ``thesis-params`` for the thesis's role."""
-    return f"{shape}-{index}-{THESIS_ROLE if role == THESIS_ROLE else planner}"
+    """A trial run's directory name: the planner's (roles search, baseline), else the role."""
+    return f"{shape}-{index}-{planner if role in ('search', 'baseline') else role}"
 
 
 def _run_job(job: tuple[Any, ...]) -> TrialResult:
@@ -464,6 +466,8 @@ def _summarise(
     out["baseline"] = {shape: group(shape, "baseline") for shape in shapes}
     if any(r["role"] == THESIS_ROLE for r in records):
         out["thesis_params"] = {shape: group(shape, THESIS_ROLE) for shape in shapes}
+    for role in sorted({str(r["role"]) for r in records} - {"search", "baseline", THESIS_ROLE}):
+        out[role] = {shape: group(shape, role) for shape in shapes}
     return out
 
 
@@ -535,6 +539,7 @@ def run_suite(
     shapes: Sequence[str] = SHAPES,
     planners: Mapping[str, str] | None = None,
     report_name: str = "search",
+    role_experiments: Mapping[str, Callable[[dict[str, Any]], dict[str, Any]]] | None = None,
 ) -> dict[str, Any]:
     """Run the search benchmark and write its report (see the module docstring).
 
@@ -560,6 +565,10 @@ def run_suite(
         then empty; the summary has no ``"thesis_params"`` without it).
     report_name : str
         Stem of the report files (``search`` writes search.json, search.md, search.png).
+    role_experiments : mapping of str to callable, optional
+        Role to a function that changes the role's trial experiment (after the factory;
+        e.g. another sensor chain). A role other than ``"search"``, ``"baseline"`` and
+        ``"thesis-params"`` runs in ``<shape>-<i>-<role>/`` and is summarised under its name.
 
     Returns
     -------
@@ -606,6 +615,8 @@ def run_suite(
                                           _run_name(shape, index, role, planner))
                 if role == THESIS_ROLE:
                     data = thesis_experiment(data)
+                if role_experiments and role in role_experiments:
+                    data = role_experiments[role](data)
                 if len(objects) > 1 and planner == SEARCH_PLANNER:
                     # Every object: phase 1 resumes after each outline (issue 19).
                     for entry in data.get("planners", []):

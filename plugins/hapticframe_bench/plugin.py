@@ -17,8 +17,9 @@ _LEARN_HINT = "pip install 'hapticframe[learn]'"
 
 @hookimpl
 def hapticframe_benchmarks() -> Iterator[BenchSpec]:
-    """Yield the suites: ``search``, ``search-scenes``, ``search-devices``,
-    ``search-dynamixel``, ``fuzz``, ``perception``, ``bhm``, ``latency`` and
+    """Yield the suites: ``search``, ``search-scenes``, ``search-physics``, ``search-devices``,
+    ``search-dynamixel``, ``fuzz``, ``perception``, ``perception-real``,
+    ``biotac-calibration``, ``bhm``, ``latency`` and
     ``emd-fidelity``."""
     yield BenchSpec(
         name="search",
@@ -33,6 +34,21 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "two and three objects at once, every object scored.",
         factory="hapticframe_bench._search:run_search_scenes",
         install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="search-physics",
+        summary="Table 3.2 in the mpm-sand world (Newton MPM response library): today's "
+        "defaults, models calibrated there, Table 3.1's parameters, beside the sandbox.",
+        factory="hapticframe_bench._search_physics:run_search_physics",
+        install_hint="pip install hapticframe[plots]  (search.png needs matplotlib)",
+    )
+    yield BenchSpec(
+        name="search-distance",
+        summary="Haptic search, Table 3.2's protocol: the failure-zone kernel beside the "
+        "distance estimate (sandbox force as 4 real taxels, raking-estimator trained on "
+        "sandbox approaches, distance-estimate sensor model).",
+        factory="hapticframe_bench._search_distance:run_search_distance",
+        install_hint="pip install torch  (the raking estimator trains with it)",
     )
     yield BenchSpec(
         name="search-devices",
@@ -64,6 +80,22 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint=_LEARN_HINT,
     )
     yield BenchSpec(
+        name="perception-real",
+        summary="Contact detection on real BioTac trials (Penn BOLT, --data DIR) against a "
+        "reference derived from pdc, with and without pdc: models trained on synthetic, "
+        "calibrated synthetic and other objects' real trials, and the linear SVM baselines.",
+        factory="hapticframe_bench._perception_real:run_perception_real",
+        install_hint="pip install 'hapticframe[learn,hdf5]'",
+    )
+    yield BenchSpec(
+        name="biotac-calibration",
+        summary="Calibrate the synthetic BioTac on real recordings (--data DIR of Penn BOLT "
+        "files): writes the generator's parameters and a figure of real, uncalibrated and "
+        "calibrated statistics.",
+        factory="hapticframe_bench._biotac_calibration:run_biotac_calibration",
+        install_hint="pip install 'hapticframe[hdf5,plots]'",
+    )
+    yield BenchSpec(
         name="bhm",
         summary="Bayesian Hilbert Map: fit 3,000 points, add 200, mean and std on 15,000.",
         factory="hapticframe_bench._bhm:run_bhm_bench",
@@ -74,6 +106,28 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "sf-rnn step, one thread; our EMD against PyEMD.",
         factory="hapticframe_bench._latency:run_latency_bench",
         install_hint=_LEARN_HINT,
+    )
+    yield BenchSpec(
+        name="raking-real",
+        summary="Real raking data (Chen et al., IROS 2024): our raking-estimator against the "
+        "authors' trained LSTMs on their 20 test trials, per input set.",
+        factory="hapticframe_bench._raking_real:run_raking_real",
+        install_hint="pip install 'hapticframe[learn,tables]'  (torch trains ours; h5py reads "
+        "theirs)",
+    )
+    yield BenchSpec(
+        name="raking-jamming",
+        summary="The force/force-rate jamming rule on real raking data: calibrated on 80 "
+        "trials, first-flag distance and far false alarms on 20, force against distance.",
+        factory="hapticframe_bench._raking_jamming:run_raking_jamming",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
+        name="raking-map",
+        summary="Where the 20 real raking test trials place the object: the distance-estimate "
+        "sensor model against the fixed distance of the failure zone's rule.",
+        factory="hapticframe_bench._raking_map:run_raking_map",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
     )
     yield BenchSpec(
         name="emd-fidelity",

@@ -8,6 +8,11 @@ synthetic granular-media generator of dissertation §2.6 (:class:`TrialSpec`,
 :func:`open_air_frames`, :func:`frame_features`, :func:`generate_open_air_trial`,
 :func:`contact_interval_x_m`, :func:`granular_noise_ratios`), which the perception benchmark
 (``hapticframe_bench``) and the tests build their datasets from.
+Real recordings: the Penn BOLT HDF5 layout (:func:`load_bolt`, :func:`load_bolt_dir`,
+:func:`rebuild_frame_clock`, :func:`save_bolt`), the contact reference derived from pdc
+(:func:`derived_from_pdc`, :class:`PdcReference`), and the calibration of a synthetic press
+generator on them (:func:`calibrate_biotac`, :class:`BioTacCalibration`,
+:func:`generate_press_trial`); see ``docs/real-biotac.md``.
 A real SPI adapter is a separate package that registers a backend factory by name in the
 ``hapticframe.biotac_spi`` entry-point group (see ``_backends``). Importing this package is
 cheap; the implementation modules load on first attribute access.
@@ -15,14 +20,17 @@ cheap; the implementation modules load on first attribute access.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from hapticframe import lazy_exports
 
 from ._config import BioTacSensorConfig
 
 __all__ = [
+    "DERIVED_FROM_PDC",
+    "PAC_BANDS_HZ",
+    "BioTacCalibration",
     "BioTacFrames",
     "BioTacSensor",
+    "BoltTrial",
     "BioTacSensorConfig",
     "EmulatedBioTac",
     "FaultPlan",
@@ -33,18 +41,26 @@ __all__ = [
     "Trial",
     "TrialSpec",
     "WordStreamDecoder",
+    "PdcReference",
+    "calibrate_biotac",
     "contact_interval_x_m",
+    "derived_from_pdc",
     "encode_frames",
     "frame_features",
     "generate_open_air_trial",
+    "generate_press_trial",
     "generate_trial",
     "granular_noise_ratios",
     "layout_for",
+    "load_bolt",
+    "load_bolt_dir",
     "load_csv",
     "load_npz",
     "load_recording",
     "open_air_frames",
+    "rebuild_frame_clock",
     "robustness_specs",
+    "save_bolt",
     "save_npz",
     "schedule_for",
     "tare_frames",
@@ -71,6 +87,18 @@ _LAZY = {
     "load_npz": "._replay",
     "load_recording": "._replay",
     "save_npz": "._replay",
+    "BoltTrial": "._bolt",
+    "load_bolt": "._bolt",
+    "load_bolt_dir": "._bolt",
+    "rebuild_frame_clock": "._bolt",
+    "save_bolt": "._bolt",
+    "DERIVED_FROM_PDC": "._reference",
+    "PdcReference": "._reference",
+    "derived_from_pdc": "._reference",
+    "BioTacCalibration": "._calibration",
+    "PAC_BANDS_HZ": "._calibration",
+    "calibrate_biotac": "._calibration",
+    "generate_press_trial": "._synthetic_press",
     # the synthetic granular-media generator (its own module, numpy-heavy)
     "Trial": "._synthetic",
     "TrialSpec": "._synthetic",
@@ -84,12 +112,4 @@ _LAZY = {
     "granular_noise_ratios": "._synthetic",
 }
 
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name], __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)

@@ -36,7 +36,16 @@ class BioTacSensorConfig(PluginConfig):
 
     # -- replay ------------------------------------------------------------------------------
     path: str | None = Field(
-        None, description="Replay: the recording, a hapticframe .npz or a BioTac .csv file."
+        None, description="Replay: the recording, a hapticframe .npz, a BioTac .csv file or a "
+        "Penn BOLT .h5 file (with bolt_trial and bolt_finger)."
+    )
+    bolt_trial: str | None = Field(
+        None, min_length=1,
+        description="Replay of a BOLT .h5 file: the trial (HDF5 group) to replay, e.g. "
+        "'cork_pdc100_1cm_01'.",
+    )
+    bolt_finger: Literal[0, 1] = Field(
+        0, description="Replay of a BOLT .h5 file: finger_0 or finger_1 of the PR2 gripper."
     )
 
     # -- synthetic ---------------------------------------------------------------------------
@@ -147,8 +156,10 @@ class BioTacSensorConfig(PluginConfig):
         if self.source == "replay":
             if not self.path:
                 raise ValueError("source 'replay' needs a path to a .npz or .csv recording")
-            if not self.path.lower().endswith((".npz", ".csv")):
-                raise ValueError(f"replay path {self.path!r} must end in .npz or .csv")
+            if not self.path.lower().endswith((".npz", ".csv", ".h5")):
+                raise ValueError(f"replay path {self.path!r} must end in .npz, .csv or .h5")
+            if self.path.lower().endswith(".h5") and not self.bolt_trial:
+                raise ValueError("a BOLT .h5 replay needs bolt_trial (the trial to replay)")
         if self.source == "spi" and self.tare_frames:
             raise ValueError("tare_frames applies to the synthetic and replay sources only")
         if self.tare_source == "air" and self.source != "synthetic":

@@ -84,13 +84,19 @@ class FrameLayout:
             return ()
         raise KeyError(f"unknown BioTac channel {channel!r}")
 
-    def channel_infos(self, ground_truth: bool = False) -> dict[str, ChannelInfo]:
-        """ChannelInfo per channel; rates are frame rates (one row per frame)."""
+    def channel_infos(
+        self, ground_truth: bool = False, contact: bool | None = None
+    ) -> dict[str, ChannelInfo]:
+        """ChannelInfo per channel; rates are frame rates (one row per frame).
+
+        ``ground_truth`` adds ``position_m`` and, unless ``contact`` is False, ``contact``.
+        """
         rate = self.frame_rate_hz
         infos = {name: ChannelInfo(self.shape_of(name), "count", rate) for name in SIGNAL_CHANNELS}
         if ground_truth:
             infos["position_m"] = ChannelInfo((2,), "m", rate)
-            infos["contact"] = ChannelInfo((), "1", rate)
+            if contact is None or contact:
+                infos["contact"] = ChannelInfo((), "1", rate)
         return infos
 
 
@@ -154,7 +160,8 @@ class BioTacFrames:
         The decoder's frame counter; a gap means frames were dropped and skipped. Default
         ``0..n-1``.
     position_m : (n, 2), optional ; contact : (n,), optional
-        Ground truth of synthetic or labelled recordings.
+        Ground truth of synthetic or labelled recordings. Positions may come without
+        contact labels (a real recording with the robot's positions); labels need positions.
     """
 
     layout: FrameLayout
@@ -207,8 +214,8 @@ class BioTacFrames:
             object.__setattr__(self, "position_m", position)
         if self.contact is not None:
             object.__setattr__(self, "contact", _float_rows(self.contact, "contact", (), n))
-        if (self.position_m is None) != (self.contact is None):
-            raise ValueError("ground truth needs both position_m and contact, or neither")
+        if self.contact is not None and self.position_m is None:
+            raise ValueError("contact labels need position_m (positions may come alone)")
 
     def __len__(self) -> int:
         return int(self.timestamps_s.size)
@@ -232,8 +239,9 @@ class BioTacFrames:
         channels: dict[str, NDArray[np.float64]] = {
             name: getattr(self, name) for name in SIGNAL_CHANNELS
         }
-        if self.position_m is not None and self.contact is not None:
+        if self.position_m is not None:
             channels["position_m"] = self.position_m
+        if self.contact is not None:
             channels["contact"] = self.contact
         valid = {name: self.channel_valid(name) for name in SIGNAL_CHANNELS}
         return SampleBatch(self.timestamps_s, channels, valid)
@@ -281,15 +289,20 @@ class BioTacFrames:
             for name in SIGNAL_CHANNELS
             if name in batch.valid
         }
-        truth = "position_m" in batch.channels and "contact" in batch.channels
+        position = "position_m" in batch.channels
+        truth = position and "contact" in batch.channels
         return cls.from_channels(
             layout,
             np.array(batch.timestamps_s),
             {name: np.array(batch.channels[name]) for name in SIGNAL_CHANNELS},
             word_valid=word_valid,
-            position_m=np.array(batch.channels["position_m"]) if truth else None,
+            position_m=np.array(batch.channels["position_m"]) if position else None,
             contact=np.array(batch.channels["contact"]) if truth else None,
         )
+
+    @property
+    def has_contact_labels(self) -> bool:
+        return self.contact is not None
 
     def select(self, rows: slice | NDArray[np.intp] | NDArray[np.bool_]) -> BioTacFrames:
         """The frames at ``rows``."""
@@ -305,7 +318,12 @@ class BioTacFrames:
         )
 
     @classmethod
-    def empty(cls, layout: FrameLayout, ground_truth: bool = False) -> BioTacFrames:
+    def empty(
+        cls, layout: FrameLayout, ground_truth: bool = False, contact: bool | None = None
+    ) -> BioTacFrames:
+        """No frames; ``ground_truth`` gives positions, and contact labels unless ``contact``
+        says otherwise."""
+        labels = ground_truth if contact is None else contact
         return cls(
             layout,
             np.empty(0),
@@ -315,7 +333,7 @@ class BioTacFrames:
             np.empty(0),
             np.empty((0, layout.n_electrodes)),
             position_m=np.empty((0, 2)) if ground_truth else None,
-            contact=np.empty(0) if ground_truth else None,
+            contact=np.empty(0) if labels else None,
         )
 
     @staticmethod
@@ -326,7 +344,7 @@ class BioTacFrames:
         layout = parts[0].layout
         if any(p.layout != layout for p in parts):
             raise ValueError("cannot join frames of different BioTac variants")
-        truth = {p.has_ground_truth for p in parts}
+        truth = {(p.has_ground_truth, p.has_contact_labels) for p in parts}
         if len(truth) > 1:
             raise ValueError("cannot join frames with and without ground truth")
         names = {k for p in parts for k in p.word_valid}
@@ -342,7 +360,7 @@ class BioTacFrames:
         frame_indices = [p.frame_index for p in parts if p.frame_index is not None]
         positions = [p.position_m for p in parts if p.position_m is not None]
         contacts = [p.contact for p in parts if p.contact is not None]
-        has_truth = truth.pop()
+        has_truth, has_labels = truth.pop()
         return BioTacFrames.from_channels(
             layout,
             np.concatenate([p.timestamps_s for p in parts]),
@@ -350,5 +368,5 @@ class BioTacFrames:
             word_valid=word_valid,
             frame_index=np.concatenate(frame_indices),
             position_m=np.concatenate(positions) if has_truth else None,
-            contact=np.concatenate(contacts) if has_truth else None,
+            contact=np.concatenate(contacts) if has_labels else None,
         )

@@ -5,7 +5,9 @@ Own format (``format = "hapticframe-biotac-recording"``, version 1): an ``.npz``
 - ``timestamps_s`` (n,), ``frame_index`` (n,) int64,
 - ``pac`` (n, P), ``pdc``, ``tac``, ``tdc`` (n,), ``electrodes`` (n, E), counts as float64,
 - ``valid_<channel>`` per-word validity shaped like the channel, for channels that have any,
-- optionally ``position_m`` (n, 2) and ``contact`` (n,) ground truth,
+- optionally ``position_m`` (n, 2) and ``contact`` (n,) ground truth (positions may come
+  without contact labels, as from a real recording with the robot's positions; labels
+  need positions),
 - ``metadata``: a JSON object stored as a 0-d unicode array (variant, format, version, and
   whatever the writer adds).
 
@@ -14,10 +16,11 @@ It is read with ``allow_pickle=False``: no code runs when a recording is opened.
 CSV: a header row naming ``pdc, tac, tdc, pac1..pacP, ele1..eleE`` (P = 22, E = 19 on the
 BioTac; 27 and 24 on the SP), in any order and any letter case; optional ``timestamp``
 (seconds; frames are spaced one frame period apart from 0 without it); optional ground truth
-``contact``, ``x_m``, ``y_m`` (all three or none). Other columns are ignored, and an empty
-last header cell (rows ending in a comma, as in public BioTac logs) is allowed. Values may be
-offset-removed counts, so they need only be finite numbers; ``contact`` is 0 or 1. Every
-fault is reported as a :class:`ReplayFormatError` naming the file, line and column.
+``x_m``, ``y_m`` (both or neither) and ``contact`` (only with them). Other columns are
+ignored, and an empty last header cell (rows ending in a comma, as in public BioTac logs)
+is allowed. Values may be offset-removed counts, so they need only be finite numbers;
+``contact`` is 0 or 1. Every fault is reported as a :class:`ReplayFormatError` naming the
+file, line and column.
 
 Bounds: only regular files are read (a FIFO or a device is refused without blocking); a CSV
 is streamed in blocks of lines, so memory beyond the returned frames stays within a block;
@@ -112,8 +115,9 @@ def save_npz(
         arrays[name] = getattr(frames, name)
         if name in frames.word_valid:
             arrays[f"valid_{name}"] = frames.word_valid[name]
-    if frames.position_m is not None and frames.contact is not None:
+    if frames.position_m is not None:
         arrays["position_m"] = frames.position_m
+    if frames.contact is not None:
         arrays["contact"] = frames.contact
     path.parent.mkdir(parents=True, exist_ok=True)
     save_npz_atomically(path, **arrays)
@@ -442,10 +446,11 @@ def _read_csv(
         raise ReplayFormatError(
             path, f"header lacks column(s) {shown} needed for a {variant} recording", header_line
         )
-    truth_names = [name for name in ("contact", "x_m", "y_m") if name in columns]
-    if truth_names and len(truth_names) != 3:
+    truth_names = [name for name in ("x_m", "y_m", "contact") if name in columns]
+    if truth_names and truth_names[:2] != ["x_m", "y_m"]:
         raise ReplayFormatError(
-            path, "ground truth needs the columns contact, x_m and y_m together", header_line
+            path, "ground truth needs the columns x_m and y_m together (contact only with "
+            "them)", header_line
         )
     time_name = next((name for name in _TIME_COLUMNS if name in columns), None)
     layout = _CsvLayout(path, columns, required + truth_names + ([time_name] if time_name else []))
@@ -504,7 +509,7 @@ def _assemble(
     n_pac, n_ele = frame_layout.n_pac, frame_layout.n_electrodes
     pdc, tac, tdc = np.empty(n), np.empty(n), np.empty(n)
     pac, electrodes = np.empty((n, n_pac)), np.empty((n, n_ele))
-    contact = np.empty(n) if truth_names else None
+    contact = np.empty(n) if "contact" in truth_names else None
     position = np.empty((n, 2)) if truth_names else None
     times = (np.empty(n) if time_name
              else np.arange(n, dtype=np.float64) * frame_layout.frame_period_s)
@@ -512,13 +517,15 @@ def _assemble(
     for i, table in enumerate(chunks):
         assert table is not None
         rows = slice(start, start + len(table))
-        # Column order of a table: pdc, tac, tdc, pac1.., ele1.., [contact, x_m, y_m], [time].
+        # Column order of a table: pdc, tac, tdc, pac1.., ele1.., [x_m, y_m, [contact]],
+        # [time].
         pdc[rows], tac[rows], tdc[rows] = table[:, 0], table[:, 1], table[:, 2]
         pac[rows] = table[:, 3 : 3 + n_pac]
         electrodes[rows] = table[:, 3 + n_pac : 3 + n_pac + n_ele]
-        if contact is not None and position is not None:
-            contact[rows] = table[:, 3 + n_pac + n_ele]
-            position[rows] = table[:, 4 + n_pac + n_ele : 6 + n_pac + n_ele]
+        if position is not None:
+            position[rows] = table[:, 3 + n_pac + n_ele : 5 + n_pac + n_ele]
+        if contact is not None:
+            contact[rows] = table[:, 5 + n_pac + n_ele]
         if time_name:
             times[rows] = table[:, -1]
         start += len(table)

@@ -73,6 +73,7 @@ class _FrameSource:
     """Frames handed out in order; subclasses say where they come from."""
 
     ground_truth = False
+    contact_labels = False
 
     def next(self, count: int) -> BioTacFrames:
         raise NotImplementedError
@@ -91,6 +92,7 @@ class _RecordedSource(_FrameSource):
     def __init__(self, frames: BioTacFrames) -> None:
         self.frames = frames
         self.ground_truth = frames.has_ground_truth
+        self.contact_labels = frames.has_contact_labels
         self._position = 0
 
     def next(self, count: int) -> BioTacFrames:
@@ -107,6 +109,7 @@ class _SyntheticSource(_FrameSource):
     """Trials of the granular-media generator, one after another, on one increasing clock."""
 
     ground_truth = True
+    contact_labels = True
 
     def __init__(
         self, config: BioTacSensorConfig, layout: FrameLayout, rng: np.random.Generator
@@ -243,12 +246,19 @@ class BioTacSensor(Sensor):
         if config.source == "synthetic":
             self._source = _SyntheticSource(config, self.layout, context.rng)
         elif config.source == "replay":
-            recording = load_recording(config.path or "", config.variant)
+            if (config.path or "").lower().endswith(".h5"):
+                from ._bolt import load_bolt
+
+                trials = load_bolt(config.path or "", [config.bolt_trial or ""])
+                recording = trials[config.bolt_finger].recording
+            else:
+                recording = load_recording(config.path or "", config.variant)
             self.metadata = recording.metadata
             self._source = _RecordedSource(tare_frames(recording.frames, config.tare_frames))
         else:
             self._source = _SpiSource(config, self.layout, context.rng)
-        self._channels = self.layout.channel_infos(ground_truth=self._source.ground_truth)
+        self._channels = self.layout.channel_infos(
+            ground_truth=self._source.ground_truth, contact=self._source.contact_labels)
         self._last_time = -np.inf
 
     @property
@@ -267,7 +277,8 @@ class BioTacSensor(Sensor):
     def read_frames(self) -> BioTacFrames:
         """The next ``frames_per_read`` frames with per-word validity (none once exhausted)."""
         if self._source.exhausted:
-            return BioTacFrames.empty(self.layout, ground_truth=self._source.ground_truth)
+            return BioTacFrames.empty(self.layout, ground_truth=self._source.ground_truth,
+                                      contact=self._source.contact_labels)
         frames = self._source.next(self.config.frames_per_read)
         if len(frames) and frames.timestamps_s[0] <= self._last_time:
             raise RuntimeError(

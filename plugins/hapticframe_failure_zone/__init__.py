@@ -12,12 +12,20 @@ from hapticframe import lazy_exports
 
 from ._config import FailureZoneConfig
 
-__all__ = ["FailureZoneAngleWarning", "FailureZoneConfig", "FailureZoneKernel"]
+__all__ = [
+    "FailureZoneAngleWarning",
+    "FailureZoneConfig",
+    "FailureZoneFit",
+    "FailureZoneKernel",
+    "fit_failure_zone",
+]
 
 #: Public names that load on first use, and their modules.
 _LAZY = {
     "FailureZoneKernel": "._kernel",
     "FailureZoneAngleWarning": "._functional",
+    "FailureZoneFit": "._calibration",
+    "fit_failure_zone": "._calibration",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

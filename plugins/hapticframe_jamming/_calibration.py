@@ -57,7 +57,10 @@ def calibrate_thresholds(
     movement's first alarm (``objective="events"``: free stretches without alarm vs approaches
     first flagged during jamming) or of single samples (``"samples"``); the contact thresholds
     (when contact samples exist) maximise per-sample three-class balanced accuracy. The
-    search runs over per-class quantiles of force and rate and is deterministic. See
+    search runs over per-class quantiles of force and rate and is deterministic. With
+    ``base_config.calibration_force_floor == "free-drag"`` the jamming force threshold
+    cannot fall below the recordings' largest free-sand drag
+    (:func:`hapticframe_jamming._functional.free_drag_floor`). See
     :func:`hapticframe_jamming._functional.best_and_thresholds`.
 
     Parameters
@@ -90,8 +93,11 @@ def calibrate_thresholds(
     recordings: list[F.Recording] = [
         (*classifier.force_and_rate(batch), y) for batch, y in zip(batches, ys, strict=True)
     ]
+    floor = (F.free_drag_floor(recordings)
+             if base.calibration_force_floor == "free-drag" else None)
     thresholds, _ = F.best_and_thresholds(
-        recordings, n_candidates=n_candidates, base=classifier.thresholds, objective=objective
+        recordings, n_candidates=n_candidates, base=classifier.thresholds, objective=objective,
+        force_floor=floor,
     )
     fj, rj, fc, rc = thresholds
     # model_validate, not model_copy(update=...): the new values get validated too.

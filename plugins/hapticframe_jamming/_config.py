@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
@@ -69,6 +71,15 @@ class ForceRateJammingConfig(PluginConfig):
         gt=0,
         allow_inf_nan=False,
         le=1e6, description="Softness of the rate thresholds: margin per unit of logit.",
+    )
+
+    calibration_force_floor: Literal["none", "free-drag"] = Field(
+        "none",
+        description="What `fit` (hapticframe train) may not place the jamming force threshold "
+        "below: 'none', or 'free-drag', the largest steady free-sand drag of the recordings "
+        "(per movement, the median filtered force over its free-labelled samples). Use "
+        "'free-drag' where the free drag changes with depth: a threshold below it alarms in "
+        "free sand and stops every deep movement early.",
     )
 
     model_dir: str | None = Field(

@@ -18,6 +18,7 @@ __all__ = [
     "and_rule_margin",
     "balanced_accuracy",
     "best_and_thresholds",
+    "free_drag_floor",
     "candidate_thresholds",
     "first_flag_indices",
     "force_magnitude",
@@ -229,6 +230,7 @@ def best_and_thresholds(
     n_candidates: int = 96,
     base: Thresholds | None = None,
     objective: str = "events",
+    force_floor: float | None = None,
 ) -> tuple[Thresholds, float]:
     """Thresholds of the two AND rules that maximise balanced accuracy on labelled movements.
 
@@ -258,6 +260,9 @@ def best_and_thresholds(
         Contact thresholds to keep (raised to at least the jamming ones) when no contact
         samples are given; None makes them infinite (contact is never predicted).
     objective : {"events", "samples"}
+    force_floor : float or None
+        The jamming force threshold is chosen among candidates at or above this force (the
+        floor itself is one); None places no floor. See :func:`free_drag_floor`.
 
     Returns
     -------
@@ -286,6 +291,10 @@ def best_and_thresholds(
         raise ValueError("calibration needs both free (0) and interaction (1 or 2) samples")
     f_cand = candidate_thresholds(f, y, n_candidates)
     r_cand = candidate_thresholds(r, y, n_candidates)
+    if force_floor is not None:
+        if not np.isfinite(force_floor):
+            raise ValueError(f"force_floor must be finite, got {force_floor!r}")
+        f_cand = np.unique(np.append(f_cand[f_cand > force_floor], force_floor))
     # Stage 1: the jamming quadrant.
     if objective == "events":
         score = _event_scores(clean, f_cand, r_cand)
@@ -311,3 +320,27 @@ def best_and_thresholds(
         recalls.append((np.sum(jamming & jam) - moved_jamming) / jamming.sum())
     k, m = plateau_argmax(sum(recalls) / len(recalls))
     return (fj, rj, float(fc_cand[k]), float(rc_cand[m])), best
+
+
+def free_drag_floor(recordings: list[Recording]) -> float:
+    """The largest steady free-sand drag among labelled movements.
+
+    Per movement, the median filtered force over its free-labelled (0) samples (the median
+    ignores the start-up ramp and the sensor's fluctuation); the largest over movements, so
+    that a threshold at or above it never alarms in the free sand of the deepest movement.
+
+    Raises
+    ------
+    ValueError
+        When no movement has a finite free-labelled sample.
+    """
+    medians = []
+    for force, _rate, labels in recordings:
+        f = np.asarray(force, dtype=np.float64)
+        y = np.asarray(labels)
+        free = f[(y == 0) & np.isfinite(f)]
+        if free.size:
+            medians.append(float(np.median(free)))
+    if not medians:
+        raise ValueError("the free-drag floor needs free-labelled (0) samples")
+    return max(medians)

@@ -14,10 +14,11 @@ import numpy as np
 from hapticframe import UsageError
 from hapticframe.kinds import BuildContext, ChannelInfo, SampleBatch, Sensor
 from hapticframe.recording import find_recording, read_recording
+from hapticframe.tare import tare_reference
 
 from ._mcap_config import McapRecordingConfig
 
-__all__ = ["RecordingSensor", "demo_messages", "recorded_samples"]
+__all__ = ["RecordingSensor", "demo_messages", "recorded_samples", "tared_samples"]
 
 #: The wall clock a paced sensor waits on (tests replace both).
 _monotonic: Callable[[], float] = time.monotonic
@@ -78,6 +79,26 @@ def recorded_samples(
     return SampleBatch(timestamps, joined, flags), info, ends
 
 
+def tared_samples(samples: SampleBatch, n_frames: int,
+                  channels: tuple[str, ...] | None = None, source: str = "") -> SampleBatch:
+    """``samples`` with each of ``channels`` (None: all) minus its causal tare reference
+    over the first ``n_frames`` samples (:mod:`hapticframe.tare`); invalid samples stay
+    out of the reference. An unknown channel is a ValueError naming the recorded ones."""
+    if n_frames <= 0:
+        return samples
+    names = tuple(samples.channels) if channels is None else channels
+    unknown = [n for n in names if n not in samples.channels]
+    if unknown:
+        raise ValueError(f"{source}: tare_channels names {unknown[0]!r}; the recorded channels "
+                         f"are {', '.join(sorted(samples.channels))}")
+    out = dict(samples.channels)
+    for name in names:
+        values = np.asarray(samples.channels[name], dtype=np.float64)
+        valid = samples.valid.get(name)
+        out[name] = values - tare_reference(values, n_frames, valid)
+    return SampleBatch(samples.timestamps_s, out, dict(samples.valid))
+
+
 def demo_messages() -> list[tuple[int, dict[str, Any]]]:
     """Three recorded messages of ten samples of a 2-D force (N) at 100 Hz, one sample
     invalid, as a run records them."""
@@ -105,11 +126,14 @@ def _sample_shape(messages: list[tuple[int, dict[str, Any]]], name: str) -> tupl
 class RecordingSensor(Sensor):
     """Replays one recorded sensor channel of a ``run.mcap`` with its recorded timestamps.
 
-    A streaming read delivers the samples of the next recorded message (about 0.1 s of
-    them), paced in real time with ``pace: true``; :meth:`deliver_until` instead lets the
-    reads deliver exactly up to a sample count (``hapticframe replay`` cuts the streams
-    where the recorded run committed them). A missing file, channel or sample is a
-    ``ValueError`` (exit status 2) naming the file and listing the recorded sensor channels.
+    A streaming read delivers the samples of the next recorded message (0.1 to 0.2 s of
+    them, see docs/recording.md), paced in real time with ``pace: true``;
+    :meth:`deliver_until` instead lets the reads deliver exactly up to a sample count
+    (``hapticframe replay`` cuts the streams where the recorded run committed them). A
+    missing file, channel or sample is a ``ValueError`` (exit status 2) naming the file and
+    listing the recorded sensor channels.
+    With ``tare_frames`` the channels are zeroed on the recording's first samples exactly as
+    the biotac sensor's replay zeroes its frames (:func:`tared_samples`).
 
     Parameters
     ----------
@@ -135,6 +159,8 @@ class RecordingSensor(Sensor):
             raise ValueError(f"{path} has no recorded channel {topic!r}; it holds "
                              f"{', '.join(held) or 'no sensor channels'} (set 'topic')")
         self._samples, info, self._ends = recorded_samples(found, f"{path} {topic}")
+        self._samples = tared_samples(self._samples, config.tare_frames, config.tare_channels,
+                                      f"{path} {topic}")
         self._channels = MappingProxyType(info)
         self._path, self._topic = path, topic
         self._cursor = 0

@@ -139,8 +139,8 @@ class Ft300Sensor(Sensor, DeviceLifecycle):
         :class:`~hapticframe.devices.EmulatedTransport` in fast tests); with ``clock``,
         made into a port by :func:`~hapticframe.devices.port_for`.
     clock : Clock, optional
-        The driver's clock for ``transport`` (a :class:`~hapticframe.devices.FakeClock`
-        is moved by each read, one frame period at a time).
+        The driver's clock for ``transport``; :func:`~hapticframe.devices.port_for` decides
+        whether each read moves it (a fake clock, one frame period at a time).
 
     Attributes
     ----------

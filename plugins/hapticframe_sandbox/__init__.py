@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from hapticframe import lazy_exports
 
-from ._config import SandboxForceSensorConfig, SandboxRobotConfig
+from ._config import SandboxForceSensorConfig, SandboxRobotConfig, SandboxTaxelSensorConfig
 
 __all__ = [
     "GroundTruthLog",
@@ -17,7 +17,13 @@ __all__ = [
     "SandboxForceSensorConfig",
     "SandboxRobot",
     "SandboxRobotConfig",
+    "SandboxTaxelSensor",
+    "SandboxTaxelSensorConfig",
+    "TaxelModel",
     "approach_movement",
+    "fit_taxel_model",
+    "force_components",
+    "raking_labels",
     "record_movements",
 ]
 
@@ -27,6 +33,11 @@ _LAZY = {
     "SandboxRobot": "._robot",
     "SandboxForceSensor": "._sensor",
     "approach_movement": "._scenarios",
+    "SandboxTaxelSensor": "._taxels",
+    "TaxelModel": "._taxels",
+    "fit_taxel_model": "._taxels",
+    "force_components": "._taxels",
+    "raking_labels": "._taxels",
     "record_movements": "._scenarios",
 }
 

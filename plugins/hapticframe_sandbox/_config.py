@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
 
-__all__ = ["SandboxForceSensorConfig", "SandboxRobotConfig"]
+__all__ = ["SandboxForceSensorConfig", "SandboxRobotConfig", "SandboxTaxelSensorConfig"]
 
 
 class SandboxRobotConfig(PluginConfig):
@@ -157,3 +157,56 @@ class SandboxForceSensorConfig(PluginConfig):
     noise_std_n: float = Field(
         0.3, ge=0, le=1000, description="Standard deviation of the noise added to each force axis."
     )
+
+
+Twelve = tuple[float, float, float, float, float, float, float, float, float, float, float, float]
+
+# Fitted by hapticframe_raking.calibrate_sandbox_taxels() (80 real training trials against
+# sandbox approaches; seed 7): docs/benchmarks.md, "Search with the distance estimate".
+_FIT_OFFSET: Twelve = (0.0432, 0.8043, 0.3962, 0.0952, 0.1712, 0.3446, 0.2681, 0.3013, 0.3683,
+                      0.251, 0.8314, 0.3515)
+_FIT_ALONG: Twelve = (0.0136, -0.0039, -0.0023, 0.0121, 0.0094, 0.0029, 0.0147, 0.0108, 0.0053,
+                     0.0093, -0.0056, 0.0074)
+_FIT_ACROSS: Twelve = (-0.0172, 0.0007, 0.0053, -0.0076, -0.0181, -0.0053, -0.0202, -0.021,
+                      -0.0063, -0.0123, 0.0029, -0.0098)
+_FIT_NOISE: Twelve = (0.0172, 0.0117, 0.0652, 0.0251, 0.0124, 0.0546, 0.0195, 0.0175, 0.0358,
+                     0.0174, 0.0254, 0.0318)
+
+class SandboxTaxelSensorConfig(PluginConfig):
+    """The sandbox force as 4 taxels x 3 axes (normalized), by a declared linear model.
+
+    Each of the twelve numbers of a field is one channel, taxel-major (taxel 1 x, y, z,
+    taxel 2 x, y, z, ...), as the real data set orders them.
+    """
+
+    offset: Twelve = Field(_FIT_OFFSET, description="Reading at zero force, per channel.")
+    gain_along_per_n: Twelve = Field(
+        _FIT_ALONG, description="Reading per newton of force against the motion.")
+    gain_across_per_n: Twelve = Field(
+        _FIT_ACROSS, description="Reading per newton of force to the left of the motion.")
+    noise_std: Twelve = Field(_FIT_NOISE, description="Standard deviation of each "
+                              "channel's white noise (what the force does not explain).")
+    direction_split_deg: float = Field(
+        10.0, gt=0, lt=180, allow_inf_nan=False, description="Label: the nearest object "
+        "point more than this clockwise of the heading is class 0, counter-clockwise 2.")
+    deep_m: float = Field(0.03, gt=0, le=1, allow_inf_nan=False,
+                          description="Label: raking at least this deep is depth class 0.")
+    approach_trials: int = Field(
+        0, ge=0, le=100_000, description="Above 0: a training source that drives its robot "
+        "through this many approaches at the scene's objects, one recording each.")
+    approach_standoff_m: float = Field(0.15, gt=0, le=10, allow_inf_nan=False,
+                                       description="Free travel before each approach.")
+
+    @field_validator("offset", "gain_along_per_n", "gain_across_per_n", "noise_std")
+    @classmethod
+    def _finite(cls, value: Twelve) -> Twelve:
+        if not all(abs(v) < 1e6 for v in value):
+            raise ValueError("every number must be finite and below 1e6 in size")
+        return value
+
+    @field_validator("noise_std")
+    @classmethod
+    def _non_negative(cls, value: Twelve) -> Twelve:
+        if any(v < 0 for v in value):
+            raise ValueError("noise standard deviations must not be negative")
+        return value

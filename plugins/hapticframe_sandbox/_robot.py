@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe import save_npz
+from hapticframe import Scene, save_npz
 from hapticframe.kinds import (
     BuildContext,
     EnvironmentCoupled,
@@ -511,6 +511,11 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
             movement_index=np.asarray(self._log_index, dtype=np.int64),
             depth_m=np.asarray(self._log_depth, dtype=np.float64),
         )
+
+    @property
+    def scene(self) -> Scene:
+        """The scene this sandbox holds (its buried objects)."""
+        return self._scene
 
     @property
     def steps_taken(self) -> int:

@@ -6,7 +6,7 @@ from collections.abc import Iterator
 
 from hapticframe import Kind, Knob, RobotSpec, SensorSpec, hookimpl
 
-from ._config import SandboxForceSensorConfig, SandboxRobotConfig
+from ._config import SandboxForceSensorConfig, SandboxRobotConfig, SandboxTaxelSensorConfig
 
 
 @hookimpl
@@ -38,6 +38,17 @@ def hapticframe_sensors() -> Iterator[SensorSpec]:
         summary="2-D fingertip force of the simulated sandbox robot, with sensor noise.",
         config=SandboxForceSensorConfig,
         factory="hapticframe_sandbox._sensor:SandboxForceSensor",
+        capabilities=frozenset({"simulated", "needs-robot"}),
+        inputs=(Kind.ROBOT,),
+        check_inputs=("robot/sandbox",),
+    )
+    yield SensorSpec(
+        name="sandbox-taxels",
+        summary="The sandbox plate's force as a real rake's 4-taxel 3-axis normalized "
+        "channels (a measurement model fitted to Chen et al. 2024), with distance, "
+        "direction and depth labels; approach_trials makes it a training source.",
+        config=SandboxTaxelSensorConfig,
+        factory="hapticframe_sandbox._taxels:SandboxTaxelSensor",
         capabilities=frozenset({"simulated", "needs-robot"}),
         inputs=(Kind.ROBOT,),
         check_inputs=("robot/sandbox",),

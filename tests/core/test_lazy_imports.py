@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-HEAVY = ["torch", "sklearn", "serial", "can", "dynamixel_sdk", "matplotlib", "mcap"]
+HEAVY = [
+    "torch", "sklearn", "serial", "can", "dynamixel_sdk", "matplotlib", "mcap", "newton", "warp",
+]
 ROOT = Path(__file__).resolve().parents[2]
 
 PROBE = """

@@ -18,6 +18,17 @@ from hapticframe.cli._cli import main
 from hapticframe.kinds import MapEstimate, Region, RobotState
 from hapticframe.record import _foxglove
 from hapticframe.record._recording import RECORDING, SCHEMAS, RunRecording, read_recording
+from hapticframe.run._channels import (
+    LOOP,
+    MAP_GRID,
+    METRICS,
+    MOVEMENT,
+    ROBOT_STATE,
+    SCENE,
+    SENSOR,
+    MapSnapshot,
+    check_topic,
+)
 from hapticframe.run._dataflow import Dataflow
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -106,8 +117,8 @@ class _Ramp:
 
 def test_a_snapshot_is_the_map_on_its_grid(tmp_path):
     recording = RunRecording(tmp_path / "a.mcap")
-    recording.configure_snapshots(5.0, 0.05, outline_level=0.6)
-    recording.map_snapshot("ramp", _Ramp(), 1.5)
+    recording.configure_snapshots(5.0)
+    recording.map_snapshot(MapSnapshot.of("ramp", _Ramp(), 1.5, 0.05, 0.6))  # type: ignore[arg-type]
     recording.close()
     recorded = read_recording(tmp_path / "a.mcap")
     [(t, message)] = recorded["/map/ramp/grid"]
@@ -134,7 +145,7 @@ def test_a_map_without_an_estimate_removes_its_outline(tmp_path):
             return MapEstimate(np.full(n, 0.5), np.full(n, 0.3))
 
     recording = RunRecording(tmp_path / "a.mcap")
-    recording.map_snapshot("empty", Empty(), 0.0)
+    recording.map_snapshot(MapSnapshot.of("empty", Empty(), 0.0, 0.01, 0.6))  # type: ignore[arg-type]
     recording.close()
     [(_, update)] = read_recording(tmp_path / "a.mcap")["/scene"]
     assert update["entities"] == [] and update["deletions"][0]["id"] == "estimate/empty"
@@ -142,13 +153,13 @@ def test_a_map_without_an_estimate_removes_its_outline(tmp_path):
 
 def test_snapshots_and_poses_follow_the_rate(tmp_path):
     recording = RunRecording(tmp_path / "a.mcap")
-    recording.configure_snapshots(5.0, 0.01)
+    recording.configure_snapshots(5.0)
     assert [recording.snapshot_due(t) for t in (0.0, 0.1, 0.19, 0.2, 0.3, 0.45)] == [
         True, False, False, True, False, True]
     for k in range(100):  # one second of robot steps at 100 Hz
         recording.robot_state("arm", RobotState(0.01 * (k + 1), np.array([0.01 * k, 0.0]),
                                                 0.0, 0.02), 0)
-    recording.configure_snapshots(0.0, 0.01)
+    recording.configure_snapshots(0.0)
     assert not recording.snapshot_due(10.0)
     recording.robot_state("arm", RobotState(5.0, np.zeros(2), 0.0, 0.02), 0)
     recording.close()
@@ -190,7 +201,8 @@ def test_the_dataflow_snapshots_at_the_rate_and_at_the_end(tmp_path):
     flow = object.__new__(Dataflow)  # only the maps and the recording are exercised
     flow.maps, flow.pending = ["ramp"], {"ramp": []}
     flow.components = SimpleNamespace(maps={"ramp": _Ramp()})
-    flow._snapshots, flow.scene = (5.0, 0.05, 0.6), None
+    flow._snapshot_rate_hz, flow._snapshot_spacing_m, flow._outline_level = 5.0, 0.05, 0.6
+    flow.scene = None
     flow._now_s, flow.counts = 0.0, {}  # what the /loop events of flush_maps read
     recording = RunRecording(tmp_path / "a.mcap")
     flow.recording = recording
@@ -206,3 +218,15 @@ def test_the_dataflow_snapshots_at_the_rate_and_at_the_end(tmp_path):
     recording.close()
     times = [t / 1e9 for t, _ in read_recording(tmp_path / "a.mcap")["/map/ramp/grid"]]
     assert times == pytest.approx([1.0, 1.25, 1.3])
+
+
+def test_a_recorded_run_writes_only_table_channels(short_search):
+    """Every topic a real run writes is a channel of the table, with the table's schema."""
+    with open(short_search / RECORDING, "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    for topic, schema in topics.items():
+        assert check_topic(topic, schema).schema == schema
+    written = {check_topic(t, s) for t, s in topics.items()}
+    assert written >= {MOVEMENT, LOOP, METRICS, SCENE, MAP_GRID, SENSOR, ROBOT_STATE}

@@ -52,9 +52,13 @@ def _replay(source: Path, experiment: Path, out: Path) -> int:
 
 
 def test_replay_with_the_runs_own_experiment_reproduces_its_metrics(
-    runs: dict[str, Path], tmp_path: Path
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    capsys.readouterr()
     assert _replay(runs["bhm"], runs["bhm.yaml"], tmp_path / "again") == 0
+    assert "warning" not in capsys.readouterr().err  # its own experiment: nothing to say
+    assert "replay_warnings" not in json.loads(
+        (tmp_path / "again" / "run.json").read_text())["details"]
     replayed = _metrics(tmp_path / "again")
     assert replayed == _metrics(runs["bhm"])  # every key but wall_time_s, exactly
     assert replayed["movements"] == 3
@@ -140,16 +144,23 @@ def test_a_sensor_the_recording_lacks_is_named(
     assert "'fingertip'" in err and "'wrist'" in err and "Traceback" not in err
 
 
-def test_a_cut_recording_replays_what_it_holds(runs: dict[str, Path], tmp_path: Path) -> None:
+def test_a_cut_recording_replays_what_it_holds(
+    runs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     cut = tmp_path / "cut"
     cut.mkdir()
     data = (runs["bhm"] / RECORDING).read_bytes()
     (cut / RECORDING).write_bytes(data[: len(data) * 2 // 3])
     holds = read_recording(cut / RECORDING)
     assert 0 < len(holds.get("/movement", [])) < 3
+    capsys.readouterr()
     assert _replay(cut, runs["bhm.yaml"], tmp_path / "out") == 0
+    # Said on the console, not only in run.json (issue 26, section 4).
+    err = capsys.readouterr().err
+    assert "warning:" in err and "is cut" in err and "shorter run" in err
     record = json.loads((tmp_path / "out" / "run.json").read_text())
     assert record["status"] == "ok" and record["details"]["replayed_cut"]
+    assert "is cut" in record["details"]["replay_warnings"][0]
     metrics = _metrics(tmp_path / "out")
     assert metrics["movements"] == len(holds["/movement"])
     assert "ems_phase1" not in metrics  # a cut run recorded no metrics to carry

@@ -81,7 +81,7 @@ def test_the_page_follows_a_short_run(tmp_path: Path) -> None:
             page = browser.new_page(viewport={"width": 1280, "height": 1150})
             while not lines and worker.is_alive():
                 page.wait_for_timeout(20)
-            url = re.search(r"(http://127\.0\.0\.1:\d+/)", lines[0])
+            url = re.search(r"(http://127\.0\.0\.1:\d+/\?token=[\w-]+)", lines[0])
             assert url is not None, lines
             page.goto(url.group(1))
             page.wait_for_function("window.hfLive && window.hfLive.frames > 0", timeout=20000)
@@ -137,7 +137,7 @@ def test_the_page_says_so_when_the_run_fails(tmp_path: Path) -> None:
         page = browser.new_page(viewport={"width": 1280, "height": 700})
 
         def look() -> None:  # run_live waits for Ctrl-C: the page is still up
-            url = re.search(r"(http://127\.0\.0\.1:\d+/)", lines[0])
+            url = re.search(r"(http://127\.0\.0\.1:\d+/\?token=[\w-]+)", lines[0])
             assert url is not None, lines
             page.goto(url.group(1))
             page.wait_for_function("window.hfLive && window.hfLive.status === 'failed'",
@@ -158,6 +158,96 @@ def test_the_page_says_so_when_the_run_fails(tmp_path: Path) -> None:
     assert "The run failed: the robot 'arm' stopped answering" in seen["banner"]
     assert seen["hf"]["forceSamples"] == 3
     assert "the run: failed" in seen["after"]
+
+
+#: A page of another site: it tries to read the live server every way a page can (the
+#: websocket even with the right token, which such a page would have to guess), and notes
+#: everything it got.
+_FOREIGN_PAGE = """<!doctype html><html><body><script>
+window.got = {frames: 0, fetched: [], sockets: [], done: false};
+const target = new URLSearchParams(location.search).get("target");
+const token = new URLSearchParams(location.search).get("token");
+async function tryFetch(url) {
+  try { const r = await fetch(url); window.got.fetched.push([r.status, await r.text()]); }
+  catch (e) { window.got.fetched.push(["blocked", String(e)]); }
+}
+function trySocket(url) {
+  return new Promise((resolve) => {
+    const ws = new WebSocket(url);
+    ws.onmessage = (m) => { window.got.frames += 1; window.got.sockets.push(m.data); };
+    ws.onclose = () => resolve();
+    setTimeout(() => { ws.close(); resolve(); }, 5000);
+  });
+}
+(async () => {
+  await tryFetch(`http://${target}/frame`);
+  await tryFetch(`http://${target}/frame?token=${token}`);
+  await fetch(`http://${target}/frame?token=${token}`, {mode: "no-cors"}).catch(() => null);
+  await trySocket(`ws://${target}/ws`);
+  await trySocket(`ws://${target}/ws?token=${token}`);
+  window.got.done = true;
+})();
+</script></body></html>"""
+
+
+def test_a_page_from_another_origin_gets_nothing(tmp_path: Path) -> None:
+    """Issue 26 §5: a page served from another origin reads nothing, however it asks; the
+    page opened with the printed address (its token) works; without the token it gets a
+    refusal and no frame."""
+    import http.server
+
+    from hapticframe.live import LiveFeed, LiveServer
+
+    sync_playwright = _sync_playwright()
+
+    class Foreign(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:  # the standard library calls it so
+            body = _FOREIGN_PAGE.encode()
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    feed = LiveFeed()
+    feed.listener("/robot/arm/state", 0.1, {
+        "timestamps_s": [0.1], "positions_m": [[0.01, 0.0]], "headings_rad": [0],
+        "depths_m": [0.04], "movement_index": [0]})
+    foreign = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Foreign)
+    serving = threading.Thread(target=foreign.serve_forever, name="another site")
+    serving.start()
+    try:
+        with LiveServer(feed, port=0) as server, sync_playwright() as playwright:
+            token = server.token
+            target = f"127.0.0.1:{server.port}"
+            browser = playwright.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page()
+            page.goto(f"http://127.0.0.1:{foreign.server_address[1]}/"
+                      f"?target={target}&token={token}")
+            page.wait_for_function("window.got && window.got.done", timeout=30000)
+            got = page.evaluate("window.got")
+            refused_foreign = server.refused
+
+            # The person's own page: the printed address works, the bare one does not.
+            page.goto(server.url)
+            page.wait_for_function("window.hfLive && window.hfLive.frames > 0", timeout=20000)
+            own = page.evaluate("({...window.hfLive})")
+            bare = page.goto(f"http://{target}/")
+            assert bare is not None
+            bare_status, bare_text = bare.status, page.inner_text("body")
+            browser.close()
+    finally:
+        foreign.shutdown()
+        serving.join(10)
+    assert got["frames"] == 0 and got["sockets"] == []
+    assert all("path_points" not in str(answer) for answer in got["fetched"]), got
+    # Two fetches, the no-cors one and the two websockets: each refused by the server.
+    assert refused_foreign >= 4
+    assert own["pathPoints"] == 1 and own["status"] == "running"
+    assert bare_status == 403 and "token" in bare_text
 
 
 def _keep(shot: Path) -> None:

@@ -36,9 +36,9 @@ def test_run_live_serves_the_finished_run_until_ctrl_c(
     def after_the_run() -> None:  # stands in for waiting for Ctrl-C
         printed = capsys.readouterr().out
         seen["printed"] = printed
-        url = re.search(r"live view: (http://127\.0\.0\.1:\d+/)", printed)
+        url = re.search(r"live view: (http://127\.0\.0\.1:\d+/)(\?token=[\w-]+)", printed)
         assert url is not None, printed
-        seen["frame"] = _get(url.group(1) + "frame")
+        seen["frame"] = _get(url.group(1) + "frame" + url.group(2))
 
     monkeypatch.setattr(run_command, "wait_for_interrupt", after_the_run)
     assert main(["run", str(experiment), "--out", str(tmp_path / "out"), "--quiet",

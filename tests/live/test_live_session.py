@@ -41,12 +41,12 @@ class _Page:
 
     @property
     def url(self) -> str:
-        found = re.search(r"(http://127\.0\.0\.1:\d+/)", self.lines[0])
+        found = re.search(r"(http://127\.0\.0\.1:\d+/\?token=[\w-]+)", self.lines[0])
         assert found is not None, self.lines
         return found.group(1)
 
     def wait(self) -> None:
-        self.frames.append(_get(self.url + "frame"))
+        self.frames.append(_get(self.url.replace("/?", "/frame?")))
 
 
 def _failing_run(tmp_path: Path, error: BaseException) -> Any:
@@ -78,7 +78,7 @@ def test_the_page_stays_up_after_a_run_that_did_not_finish(
     assert frame["forces"]["wrist.force_n"]["values"] == [1.0, 2.0]  # the last picture
     assert f"the run {status}" in page.lines[-1] and "until Ctrl-C" in page.lines[-1]
     with pytest.raises(OSError):  # once the person is done, the page goes
-        _get(page.url + "frame")
+        _get(page.url.replace("/?", "/frame?"))
 
 
 def test_sigterm_takes_the_page_down_at_once(tmp_path: Path, experiment: Any) -> None:

@@ -28,6 +28,7 @@ from hapticframe.live import (
 from hapticframe.live._state import WINDOW_S
 from hapticframe.record._foxglove import grid_message
 from hapticframe.record._recording import RunRecording, listening, read_recording
+from hapticframe.run._channels import MapSnapshot
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -201,9 +202,9 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
     state = LiveState(clock=FakeClock())
     recording = RunRecording(tmp_path / "run.mcap", clock=FakeClock())
     recording.add_listener(state.fold)
-    recording.configure_snapshots(5.0, 0.05)
+    recording.configure_snapshots(5.0)
     recording.scene(scene)
-    recording.map_snapshot("ramp", cast(Any, _Ramp()), 0.2)
+    recording.map_snapshot(MapSnapshot.of("ramp", cast(Any, _Ramp()), 0.2, 0.05, 0.6))
     frame = state.frame()
     assert frame["scene"]["region"] == [[0.0, 0.0], [0.5, 0.0], [0.5, 0.25], [0.0, 0.25]]
     [circle] = frame["scene"]["objects"]
@@ -221,7 +222,8 @@ def test_the_page_draws_the_scene_and_the_recorded_estimate(tmp_path: Path) -> N
             n = len(np.asarray(points_m))
             return MapEstimate(np.full(n, 0.5), np.full(n, 0.3))
 
-    recording.map_snapshot("ramp", cast(Any, Empty()), 0.4)  # nothing above 0.6: the outline goes
+    # nothing above 0.6: the outline goes
+    recording.map_snapshot(MapSnapshot.of("ramp", cast(Any, Empty()), 0.4, 0.05, 0.6))
     recording.close()
     later = state.frame()["maps"]["ramp"]
     assert later["version"] == 2 and later["outline"] == [] and later["outline_source"] == "none"
@@ -259,7 +261,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
 
     frames: list[dict[str, Any]] = []
     async with aiohttp.ClientSession() as session:
-        async with session.ws_connect(url + "ws") as ws:
+        async with session.ws_connect(url.replace("/?", "/ws?")) as ws:
             for message in send or []:
                 await ws.send_str(json.dumps(message))
             while len(frames) < want:
@@ -268,7 +270,7 @@ async def _frames(url: str, want: int, send: list[dict[str, Any]] | None = None,
                     push(len(frames))
         async with session.get(url) as page:
             assert page.status == 200 and "live.js" in await page.text()
-        async with session.get(url + "static/live.js") as script:
+        async with session.get(url.split("?")[0] + "static/live.js") as script:
             assert script.status == 200
             text = await script.text()
             assert "http" not in text.replace("location.host", "")  # nothing from elsewhere

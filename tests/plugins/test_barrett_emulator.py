@@ -13,6 +13,7 @@ import pytest
 from hapticframe.devices import FakeClock, MonotonicClock
 from hapticframe_barrett import (
     HAND_NODES,
+    CanPort,
     EmulatedPuck,
     Group,
     Mode,
@@ -104,7 +105,8 @@ def test_host_on_the_monotonic_clock(channel, raw):
     clock = MonotonicClock()
     pucks = [*hand_pucks(speed=1e6, start=1_000)[:2], *wam_pucks(n=1)]
     with PuckBus(channel, pucks, clock=clock, wake_delay_s=0.01) as emulator:
-        host = PuckHost(raw, clock=clock, reply_timeout_s=0.3, wake_time_s=0.05)
+        host = PuckHost(raw, port=CanPort("virtual", channel, clock=clock), reply_timeout_s=0.3,
+                        wake_time_s=0.05)
         woke = host.wake((1, 11, 12, 13), attempts=1)
         assert woke.awake == (1, 11, 12) and woke.failed == (13,)  # 13 is not on the bus
         host.identify((1, 11, 12))

@@ -1,7 +1,7 @@
 """The host helper against the emulated pucks on python-can's virtual bus, fault by fault.
 
-Every wait is on a FakeClock; real time is spent only where python-can's reader thread
-delivers frames (``settle_s`` per wait that ends without its reply)."""
+Every wait is on a PacedCanPort's FakeClock; real time is spent only where python-can's
+reader thread delivers frames (``settle_s`` per wait that ends without its reply)."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from hapticframe_barrett import (
     Group,
     MalformedReply,
     Mode,
+    PacedCanPort,
     PuckBus,
     PuckHost,
     ReplyTimeout,
@@ -60,7 +61,7 @@ def rig() -> Iterator:
         emulator = PuckBus(channel, hand_pucks() if pucks is None else pucks, clock=clock,
                            faults=faults).start()
         bus = can.Bus(interface="virtual", channel=channel)
-        host = PuckHost(bus, clock=clock, settle_s=SETTLE_S, **host_kw)
+        host = PuckHost(bus, port=PacedCanPort(clock, settle_s=SETTLE_S), **host_kw)
         made.append(Rig(clock, emulator, bus, host, faults))
         return made[-1]
 

@@ -78,7 +78,7 @@ def test_frames_reject_malformed_input():
         BioTacFrames(
             layout, good.timestamps_s, good.pac, good.pdc[:2], good.tac, good.tdc, good.electrodes
         )
-    with pytest.raises(ValueError, match="both"):
+    with pytest.raises(ValueError, match="contact labels need position_m"):
         frames(3, contact=[0, 1, 0])
     with pytest.raises(ValueError, match="word_valid"):
         frames(3, word_valid={"pac": np.ones(3, dtype=bool)})

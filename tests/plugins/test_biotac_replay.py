@@ -75,6 +75,27 @@ def test_csv_without_timestamps_is_spaced_one_frame_apart_and_keeps_ground_truth
     assert rec.metadata["ignored_columns"] == ["notes"]
 
 
+def test_positions_without_contact_labels_load_from_csv_and_npz(tmp_path):
+    """A real recording with the robot's positions and no labels feeds the sensor model."""
+    table = csv_rows(8)[:, 1:]
+    xy = np.random.default_rng(2).random((8, 2))
+    path = tmp_path / "positions.csv"
+    path.write_text(",".join(HEADER[1:] + ["x_m", "y_m"]) + "\n"
+                    + "".join(",".join(repr(float(v)) for v in row) + "\n"
+                              for row in np.column_stack([table, xy])))
+    rec = load_csv(path)
+    assert np.array_equal(rec.frames.position_m, xy) and rec.frames.contact is None
+    batch = rec.frames.to_sample_batch()
+    assert "position_m" in batch.channels and "contact" not in batch.channels
+    back = load_npz(save_npz(tmp_path / "positions.npz", rec.frames)).frames
+    assert np.array_equal(back.position_m, xy) and back.contact is None
+    # Labels without positions are still refused.
+    with pytest.raises(ValueError, match="contact labels need position_m"):
+        BioTacFrames(rec.frames.layout, rec.frames.timestamps_s, rec.frames.pac,
+                     rec.frames.pdc, rec.frames.tac, rec.frames.tdc, rec.frames.electrodes,
+                     contact=np.zeros(8))
+
+
 def test_csv_of_a_biotac_sp_is_recognised(tmp_path):
     layout = layout_for("biotac_sp")
     header = (
@@ -143,7 +164,9 @@ def test_malformed_csv_headers_are_located(tmp_path):
     err = located(path, "\n".join([lines[0].replace("tdc", "pdc")] + lines[1:]))
     assert "twice" in str(err) and err.column == 4
     err = located(path, "\n\n" + lines[0] + ",contact\n")
-    assert err.line == 3 and "contact, x_m and y_m" in str(err)
+    assert err.line == 3 and "x_m and y_m together" in str(err)
+    err = located(path, "\n\n" + lines[0] + ",x_m\n")
+    assert err.line == 3 and "x_m and y_m together" in str(err)
     err = located(path, lines[0] + "\n")
     assert "no data rows" in str(err)
     err = located(path, "")

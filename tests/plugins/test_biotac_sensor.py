@@ -150,7 +150,7 @@ def test_replay_of_a_csv_through_the_sensor(registry, tmp_path):
 def test_config_errors_are_clear():
     with pytest.raises(ValidationError, match="needs a path"):
         BioTacSensorConfig(source="replay")
-    with pytest.raises(ValidationError, match=r"\.npz or \.csv"):
+    with pytest.raises(ValidationError, match=r"\.npz, \.csv or \.h5"):
         BioTacSensorConfig(source="replay", path="x.txt")
     with pytest.raises(ValidationError, match="19-electrode"):
         BioTacSensorConfig(source="synthetic", variant="biotac_sp")

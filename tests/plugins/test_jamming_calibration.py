@@ -302,3 +302,21 @@ def test_closed_loop_halts_each_approach_while_jamming():
         assert truth.max_force_n < 80.0
     depths_cm = [round(100 * m.depth_m, 6) for m in robot.movements]
     assert depths_cm == [4.4, 3.4, 2.9, 2.65]
+
+
+def test_free_drag_floor_keeps_the_jamming_threshold_above_free_drag() -> None:
+    """Free drag that changes with depth: a shallow approach's jamming lies below the deep
+    movement's free drag; the floor keeps the fitted threshold above that drag."""
+    n = 200
+    t = np.arange(n)
+    deep_free = (np.full(n, 3.6), np.zeros(n), np.zeros(n, dtype=np.int64))
+    ramp = np.where(t > 120, 1.0 + 0.02 * (t - 120), 1.0)
+    shallow = (ramp, np.gradient(ramp) * 100, np.where(t > 120, 1, 0))
+    floor = F.free_drag_floor([deep_free, shallow])
+    assert floor == pytest.approx(3.6)
+    (fj, _rj, _fc, _rc), _ = F.best_and_thresholds([deep_free, shallow], force_floor=floor)
+    assert fj >= 3.6
+    (fj_free, *_), _ = F.best_and_thresholds([deep_free, shallow])
+    assert fj_free < 3.6  # without it the fit falls below the deep free drag
+    with pytest.raises(ValueError, match="free-labelled"):
+        F.free_drag_floor([(np.ones(3), np.zeros(3), np.ones(3, dtype=np.int64))])

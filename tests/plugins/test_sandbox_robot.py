@@ -94,7 +94,8 @@ def test_sensor_needs_exactly_one_sandbox_robot():
 
 def test_registration_specs():
     (robot_spec,) = sandbox_plugin.hapticframe_robots()
-    (sensor_spec,) = sandbox_plugin.hapticframe_sensors()
+    sensor_spec, taxel_spec = sandbox_plugin.hapticframe_sensors()
+    assert taxel_spec.name == "sandbox-taxels" and taxel_spec.inputs == (Kind.ROBOT,)
     assert isinstance(robot_spec, RobotSpec) and robot_spec.name == "sandbox"
     assert robot_spec.capabilities == {"simulated", "needs-scene"}
     assert robot_spec.load_factory() is SandboxRobot

@@ -35,10 +35,20 @@ const arrivals = [];
 
 function $(id) { return document.getElementById(id); }
 
+// The session's token, from the address the command printed: the server answers no one
+// without it, and the websocket carries it on.
+const TOKEN = new URLSearchParams(location.search).get("token") || "";
+
 function connect() {
-  socket = new WebSocket(`ws://${location.host}/ws`);
+  socket = new WebSocket(`ws://${location.host}/ws?token=${encodeURIComponent(TOKEN)}`);
   socket.onmessage = (event) => {
-    frame = JSON.parse(event.data);
+    const message = JSON.parse(event.data);
+    if (message.error) {  // the server refused what this page asked (a time out of range)
+      hf.refusals = (hf.refusals || 0) + 1;
+      $("errors").textContent = `The server refused: ${message.error}`;
+      return;
+    }
+    frame = message;
     hf.frames += 1;
     arrivals.push(performance.now());
     while (arrivals.length && arrivals[0] < arrivals[arrivals.length - 1] - 2000) arrivals.shift();
@@ -340,7 +350,8 @@ function draw(f) {
   if (map) {
     select.value = selectedMap;
     for (const el of document.querySelectorAll(".level")) el.textContent = map.outline_level;
-    $("std-top").textContent = `${map.std_scale} unsure`;
+    // The scale runs to the map's largest std, as the report's figure does.
+    $("std-top").textContent = `${+map.std_scale.toPrecision(2)} (the map's largest)`;
     const source = {recording: "", grid: ", outline from the grid",
                     none: `, nothing above P = ${map.outline_level} yet`}[map.outline_source] || "";
     $("map-note").textContent = `snapshot at ${map.t_s.toFixed(2)} s${source}`;

@@ -1,0 +1,259 @@
+"""``hapticframe bench raking-real``: ours against the authors' models on the 20 real test trials.
+
+The data and models of Chen, Versace & Jamone (IROS 2024) ship with ``hapticframe_raking``.
+For each of the paper's input sets (1 or 4 taxels, normal force only or 3-axis), the
+authors' three trained Keras LSTMs (read with h5py, run in numpy) and our multi-head
+``raking-estimator`` (trained here on the 80 training trials, ``--trials`` seeds, default 3;
+``--quick``: 1) are scored on the same test steps: every step from the 5th to the last of
+each trial (the authors' ``test_main.py``: each 5-step window's last step), direction and
+depth accuracy and the distance's mean absolute error in mm, per trial; and the estimate
+at each trial's last step (the tool at the object). The verdict per task and input set is
+on the all-steps protocol: ours at least as good as theirs (accuracy not lower, MAE not
+higher), averaged over the training seeds. Per-step cost is the streaming ``update`` of one
+sample on one thread, median over a test trial.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import platform
+import tempfile
+import time
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hapticframe import BenchOptions, atomic_write
+from hapticframe.kinds import BuildContext, SampleBatch
+from hapticframe_raking import (
+    INPUT_SETS,
+    AuthorsModels,
+    EstimatorSettings,
+    RakingEstimator,
+    RakingEstimatorConfig,
+    TrainingTrial,
+    fit_model,
+    load_trials,
+    score_trials,
+    select_inputs,
+    summarize,
+)
+
+from ._targets import load_average, load_note
+
+__all__ = ["TASKS", "run_raking_real", "render_raking_markdown"]
+
+#: (task, score key, higher is better, unit).
+TASKS = (
+    ("direction", "direction_accuracy", True, ""),
+    ("depth", "depth_accuracy", True, ""),
+    ("distance", "distance_mae_mm", False, "mm"),
+)
+_FINAL = {"direction": "final_direction_correct", "depth": "final_depth_correct",
+          "distance": "final_distance_error_mm"}
+STEP_TARGET_MS = 1.0
+
+
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[str]:
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        yield "not limited (threadpoolctl is not installed)"
+        return
+    with threadpool_limits(limits=1):
+        yield "1 (threadpoolctl)"
+
+
+def _per_step_ms(model_dir: Path, input_set: str, trial_force: np.ndarray) -> float:
+    """Median wall time of one streaming update of one sample (ms)."""
+    estimator = RakingEstimator(
+        RakingEstimatorConfig(input_set=input_set, model_dir=str(model_dir)),  # type: ignore[arg-type]
+        BuildContext("timing", np.random.default_rng(0)))
+    times = []
+    for i in range(len(trial_force)):
+        batch = SampleBatch(np.array([0.1 * i]), {"taxel_force": trial_force[i:i + 1]})
+        start = time.perf_counter()
+        estimator.update(batch)
+        times.append(time.perf_counter() - start)
+    return 1e3 * float(np.median(times))
+
+
+def _authors_step_ms(models: AuthorsModels, inputs: np.ndarray) -> float:
+    """Median wall time of the authors' three models on one 5-step window (ms)."""
+    times = []
+    for i in range(5, len(inputs) + 1):
+        window = inputs[None, i - 5:i]
+        start = time.perf_counter()
+        models.direction(window)
+        models.depth(window)
+        models.distance(window)
+        times.append(time.perf_counter() - start)
+    return 1e3 * float(np.median(times))
+
+
+def _verdict(ours: float, theirs: float, higher_better: bool) -> str:
+    better = ours >= theirs if higher_better else ours <= theirs
+    return "met" if better else "missed"
+
+
+def run_raking_real(options: BenchOptions) -> dict[str, Any]:
+    """Score ours and the authors' models; write ``raking-real.json`` and ``raking-real.md``."""
+    seeds = 1 if options.quick else (options.trials or 3)
+    training, testing = load_trials("training"), load_trials("testing")
+    results: dict[str, Any] = {
+        "data": {"training_trials": len(training), "testing_trials": len(testing),
+                 "testing_steps_scored": int(sum(len(t) - 4 for t in testing))},
+        "seeds": seeds, "settings": {}, "input_sets": {}}
+    options.echo(f"raking-real: {len(training)} training and {len(testing)} test trials, "
+                 f"{seeds} training seed(s) per input set")
+    with _one_blas_thread() as blas, tempfile.TemporaryDirectory() as scratch:
+        results["blas_threads"] = blas
+        for input_set in INPUT_SETS:
+            settings = EstimatorSettings(input_set=input_set)
+            results["settings"] = settings.__dict__
+            authors = AuthorsModels.load(input_set)
+            theirs = score_trials(authors.estimate_trial, testing, input_set)
+            trials = [TrainingTrial(select_inputs(t.force, input_set), t.distance_mm,
+                                    t.direction, t.depth) for t in training]
+            ours_runs, train_s = [], []
+            model_dir = Path(scratch) / input_set
+            model_dir.mkdir()
+            for seed in range(seeds):
+                model, report = fit_model(trials, settings,
+                                          np.random.default_rng(options.seed + seed))
+                train_s.append(report["train_s"])
+                ours_runs.append(score_trials(model.estimate_trial, testing, input_set))
+                if seed == 0:
+                    model.save(model_dir)
+            per_trial = {key: np.mean([getattr(r, key) for r in ours_runs], axis=0)
+                         for key in summarize(theirs)}
+            ours_summary = {key: {"mean": float(v.mean()), "std": float(v.std()),
+                                  "median": float(np.median(v)), "min": float(v.min()),
+                                  "max": float(v.max())} for key, v in per_trial.items()}
+            seed_means = {key: [float(getattr(r, key).mean()) for r in ours_runs]
+                          for key in per_trial}
+            entry: dict[str, Any] = {
+                "ours": ours_summary, "ours_seed_means": seed_means,
+                "theirs": summarize(theirs), "train_s_median": float(np.median(train_s)),
+                "per_trial": {"names": list(theirs.names),
+                              "ours": {k: v.tolist() for k, v in per_trial.items()},
+                              "theirs": {k: getattr(theirs, k).tolist() for k in per_trial}},
+                "verdicts": {}}
+            for task, key, higher, _ in TASKS:
+                entry["verdicts"][task] = _verdict(ours_summary[key]["mean"],
+                                                   entry["theirs"][key]["mean"], higher)
+            force = testing[0].force
+            entry["ours_step_ms"] = _per_step_ms(model_dir, input_set, force)
+            entry["theirs_step_ms"] = _authors_step_ms(authors,
+                                                       select_inputs(force, input_set))
+            entry["verdicts"]["step_time"] = ("met" if entry["ours_step_ms"] <= STEP_TARGET_MS
+                                              else "missed")
+            results["input_sets"][input_set] = entry
+            options.echo(_line(input_set, entry))
+    results["machine"] = {"platform": platform.platform(), "numpy": np.__version__,
+                          "load_average_1min": load_average()}
+    results["all_met"] = all(v == "met" for e in results["input_sets"].values()
+                             for v in e["verdicts"].values())
+    atomic_write(options.out_dir / "raking-real.json", json.dumps(results, indent=2) + "\n")
+    atomic_write(options.out_dir / "raking-real.md", render_raking_markdown(results))
+    _figure(options.out_dir / "raking-real.png", results)
+    options.echo(load_note(results["machine"]["load_average_1min"]))
+    options.echo(f"wrote {options.out_dir / 'raking-real.md'} and raking-real.json")
+    return {"all_met": results["all_met"],
+            **{f"{s}_{task}": e["verdicts"][task] for s, e in results["input_sets"].items()
+               for task, *_ in TASKS}}
+
+
+def _line(input_set: str, entry: Mapping[str, Any]) -> str:
+    parts = []
+    for task, key, _, unit in TASKS:
+        ours, theirs = entry["ours"][key]["mean"], entry["theirs"][key]["mean"]
+        parts.append(f"{task} {ours:.3g}{unit} vs {theirs:.3g}{unit} "
+                     f"{entry['verdicts'][task]}")
+    return (f"  {input_set:9s} " + "; ".join(parts)
+            + f"; step {entry['ours_step_ms']:.3f} ms {entry['verdicts']['step_time']}")
+
+
+def _cell(stats: Mapping[str, float], unit: str) -> str:
+    if unit:
+        return f"{stats['mean']:.1f} ± {stats['std']:.1f} (median {stats['median']:.1f})"
+    return f"{stats['mean']:.3f} ± {stats['std']:.3f} (median {stats['median']:.3f})"
+
+
+def render_raking_markdown(results: Mapping[str, Any]) -> str:
+    """The report: a table per protocol, ours beside theirs, with the verdicts."""
+    machine = results["machine"]
+    lines = [
+        "# Real raking data: ours against the authors' models",
+        "",
+        f"{results['data']['testing_trials']} test trials "
+        f"({results['data']['testing_steps_scored']} scored steps), our estimator trained "
+        f"on {results['data']['training_trials']} trials with {results['seeds']} seed(s); "
+        f"mean ± standard deviation over test trials (ours: each trial's score averaged "
+        f"over the seeds). {machine['platform']}; BLAS threads "
+        f"{results['blas_threads']}; {load_note(machine['load_average_1min'])}.",
+        "",
+        "## Every step from the 5th (the authors' test_main.py protocol)",
+        "",
+        "| input set | task | ours | theirs | verdict |",
+        "|---|---|---|---|---|",
+    ]
+    for input_set, e in results["input_sets"].items():
+        for task, key, _, unit in TASKS:
+            name = f"{task} {'MAE (mm)' if unit else 'accuracy'}"
+            lines.append(f"| {input_set} | {name} | {_cell(e['ours'][key], unit)} | "
+                         f"{_cell(e['theirs'][key], unit)} | {e['verdicts'][task]} |")
+    lines += ["", "## At each trial's last step (the tool at the object)", "",
+              "| input set | direction correct | depth correct | distance error (mm) |",
+              "|---|---|---|---|"]
+    for input_set, e in results["input_sets"].items():
+        cells = []
+        for task, _, _, unit in TASKS:
+            key = _FINAL[task]
+            o, t = e["ours"][key], e["theirs"][key]
+            cells.append(f"{o['mean']:.2f} vs {t['mean']:.2f}" if not unit else
+                         f"{o['mean']:.1f} vs {t['mean']:.1f}")
+        lines.append(f"| {input_set} | " + " | ".join(cells) + " |")
+    lines += ["", "(ours vs theirs)", "", "## Cost", "",
+              "| input set | ours per step (ms) | theirs per step, 3 models (ms) | "
+              "training (s, median) | verdict (≤ 1 ms) |", "|---|---|---|---|---|"]
+    for input_set, e in results["input_sets"].items():
+        lines.append(f"| {input_set} | {e['ours_step_ms']:.3f} | {e['theirs_step_ms']:.3f} "
+                     f"| {e['train_s_median']:.1f} | {e['verdicts']['step_time']} |")
+    lines += ["", "## Our means per training seed", ""]
+    for input_set, e in results["input_sets"].items():
+        cells = [f"{task} " + ", ".join(f"{v:.3g}" for v in e["ours_seed_means"][key])
+                 for task, key, _, _ in TASKS]
+        lines.append(f"- {input_set}: " + "; ".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def _figure(path: Path, results: Mapping[str, Any]) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    sets = list(results["input_sets"])
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
+    for ax, (task, key, _, unit) in zip(axes, TASKS, strict=True):
+        for offset, who, color in ((-0.18, "ours", "tab:blue"), (0.18, "theirs", "tab:orange")):
+            values = [results["input_sets"][s]["per_trial"][who][key] for s in sets]
+            x = np.arange(len(sets)) + offset
+            ax.boxplot(values, positions=x, widths=0.3, patch_artist=True,
+                       boxprops={"facecolor": color, "alpha": 0.5}, medianprops={"color": "k"})
+            ax.plot([], [], "s", color=color, alpha=0.5,
+                    label="ours (raking-estimator)" if who == "ours" else "theirs (Keras LSTMs)")
+        ax.set_xticks(np.arange(len(sets)), sets, fontsize=8)
+        ax.set_title(f"{task} {'MAE (mm)' if unit else 'accuracy'} per test trial")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True

@@ -1,0 +1,186 @@
+"""The response library: engine runs on a small grid, stored as plain arrays, interpolated.
+
+A library holds, for each raking depth ``d`` of a grid, the free-sand drag of a plate against
+its travel (the start-up included), and, for each (depth, object radius ``R``, normalised
+lateral offset ``u = |e| / (R + a)``, ``a`` the plate's half-width), the force on the plate
+as a ratio of the free drag at the same travel, against ``s``: the plate front's position
+relative to the object's leading point along the path (negative ahead of it, 0 at its
+leading point). The y ratio is signed for an object on the +y side of the plate.
+
+Everything in a library file is a float64 or int64 array (``numpy.load`` without pickles);
+``load_library`` checks shapes and finiteness and says which array is wrong. Interpolation
+is multilinear over (depth, R, u, s) and clamps at the grid's edges; free drag below the
+shallowest depth follows the power law fitted over the grid (``drag_exponent``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ResponseLibrary", "fit_power_law", "load_library", "material_parameters",
+           "save_library"]
+
+#: The arrays a library file holds, with their dimensions (names of the axes).
+_ARRAYS = {
+    "depths_m": ("depth",),
+    "radii_m": ("radius",),
+    "offsets_u": ("offset",),
+    "s_m": ("s",),
+    "travel_m": ("travel",),
+    "free_drag_n": ("depth", "travel"),
+    "ratio_x": ("depth", "radius", "offset", "s"),
+    "ratio_y": ("depth", "radius", "offset", "s"),
+    "settings": ("setting",),
+}
+
+
+def material_parameters(friction_angle_deg: float, dilation_angle_deg: float
+                        ) -> tuple[float, float]:
+    """Newton's ``(friction, dilatancy)`` for a sand of friction angle φ and dilation angle ψ.
+
+    Newton's Drucker–Prager yield is ``|τ| <= μ p``: ``μ = tan φ``. Its plastic volumetric
+    rate is ``dilatancy · μ`` times the shear rate, which the dilation angle makes
+    ``tan ψ``: ``dilatancy = tan ψ / tan φ`` (0 for ψ = 0, 1 for associated flow).
+    """
+    friction = math.tan(math.radians(friction_angle_deg))
+    return friction, math.tan(math.radians(dilation_angle_deg)) / friction
+
+
+def fit_power_law(
+    depths_m: NDArray[np.float64], drag_n: NDArray[np.float64]
+) -> tuple[float, float]:
+    """Least-squares fit of ``drag = c d**n`` in log space; returns ``(c, n)``.
+
+    Needs at least two distinct positive depths and positive drags (else ValueError).
+    """
+    d = np.asarray(depths_m, dtype=np.float64)
+    f = np.asarray(drag_n, dtype=np.float64)
+    if d.shape != f.shape or d.size < 2 or np.unique(d).size < 2:
+        raise ValueError("a power-law fit needs at least two distinct depths, one drag each")
+    if not (np.all(np.isfinite(d)) and np.all(np.isfinite(f)) and np.all(d > 0) and np.all(f > 0)):
+        raise ValueError("a power-law fit needs finite, positive depths and drags")
+    n, log_c = np.polyfit(np.log(d), np.log(f), 1)
+    return float(np.exp(log_c)), float(n)
+
+
+def _axis_weights(grid: NDArray[np.float64], value: float) -> tuple[int, int, float]:
+    """Indices ``i, j`` and weight ``w`` of ``value`` on ``grid`` (clamped at its ends):
+    the value is ``(1 - w) g[i] + w g[j]``."""
+    if grid.size == 1 or value <= grid[0]:
+        return 0, 0, 0.0
+    if value >= grid[-1]:
+        return grid.size - 1, grid.size - 1, 0.0
+    j = int(np.searchsorted(grid, value, side="right"))
+    i = j - 1
+    return i, j, float((value - grid[i]) / (grid[j] - grid[i]))
+
+
+@dataclasses.dataclass(frozen=True)
+class ResponseLibrary:
+    """The arrays of a library (see the module docstring) and lookups into them."""
+
+    depths_m: NDArray[np.float64]
+    radii_m: NDArray[np.float64]
+    offsets_u: NDArray[np.float64]
+    s_m: NDArray[np.float64]
+    travel_m: NDArray[np.float64]
+    free_drag_n: NDArray[np.float64]
+    ratio_x: NDArray[np.float64]
+    ratio_y: NDArray[np.float64]
+    #: voxel size (m), particles per cell, step (s), iterations, friction, dilatancy,
+    #: density (kg/m³), speed (m/s), build CPU time (s): how it was made.
+    settings: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        for name, dims in _ARRAYS.items():
+            value = getattr(self, name)
+            if value.ndim != len(dims):
+                raise ValueError(f"library array {name!r} must have {len(dims)} dimension(s)")
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"library array {name!r} holds a non-finite value")
+        sizes: dict[str, int] = {}
+        for name, dims in _ARRAYS.items():
+            for axis, dim in enumerate(dims):
+                n = getattr(self, name).shape[axis]
+                if sizes.setdefault(dim, n) != n:
+                    raise ValueError(f"library array {name!r}: axis {dim!r} has {n} entries, "
+                                     f"others have {sizes[dim]}")
+        for name in ("depths_m", "radii_m", "offsets_u", "s_m", "travel_m"):
+            grid = getattr(self, name)
+            if grid.size == 0 or np.any(np.diff(grid) <= 0):
+                raise ValueError(f"library grid {name!r} must be non-empty and increasing")
+        if np.any(self.free_drag_n <= 0):
+            raise ValueError("library array 'free_drag_n' must be positive")
+
+    @property
+    def drag_law(self) -> tuple[float, float]:
+        """``(c, n)`` of ``drag = c d**n`` fitted to the steady free drag of each depth."""
+        return fit_power_law(self.depths_m, self.steady_drag_n)
+
+    @property
+    def steady_drag_n(self) -> NDArray[np.float64]:
+        """Mean free drag over the last half of the travel, per depth."""
+        half = self.travel_m >= self.travel_m[-1] / 2
+        return np.asarray(self.free_drag_n[:, half].mean(axis=1), dtype=np.float64)
+
+    def free_drag(self, depth_m: float, travel_m: float) -> float:
+        """Free drag (N) at ``depth_m`` after ``travel_m`` of a movement (start-up included)."""
+        i, j, w = _axis_weights(self.travel_m, travel_m)
+        row = (1 - w) * self.free_drag_n[:, i] + w * self.free_drag_n[:, j]
+        if depth_m < self.depths_m[0]:
+            # Shallower than the grid: scale the shallowest row by the fitted power law.
+            _c, n = self.drag_law
+            return float(row[0] * (depth_m / self.depths_m[0]) ** n)
+        a, b, v = _axis_weights(self.depths_m, depth_m)
+        return float((1 - v) * row[a] + v * row[b])
+
+    def ratio(self, depth_m: float, radius_m: float, offset_u: float, s_m: float
+              ) -> tuple[float, float]:
+        """Force / free drag along x and y (object on the +y side) at one configuration."""
+        axes = [
+            _axis_weights(self.depths_m, depth_m),
+            _axis_weights(self.radii_m, radius_m),
+            _axis_weights(self.offsets_u, offset_u),
+            _axis_weights(self.s_m, s_m),
+        ]
+        rx = ry = 0.0
+        for corner in range(16):
+            index = []
+            weight = 1.0
+            for k, (i, j, w) in enumerate(axes):
+                upper = (corner >> k) & 1
+                index.append(j if upper else i)
+                weight *= w if upper else 1 - w
+            if weight == 0.0:
+                continue
+            t = tuple(index)
+            rx += weight * float(self.ratio_x[t])
+            ry += weight * float(self.ratio_y[t])
+        return rx, ry
+
+
+def save_library(path: Path, library: ResponseLibrary) -> None:
+    """Write ``library`` as an uncompressed-free ``.npz`` of plain arrays."""
+    arrays = {name: np.asarray(getattr(library, name)) for name in _ARRAYS}
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
+def load_library(path: Path) -> ResponseLibrary:
+    """Read a library written by :func:`save_library` (no pickles); a located ValueError if bad."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = sorted(set(_ARRAYS) - set(data.files))
+            if missing:
+                raise ValueError(f"{path}: library lacks array(s) {', '.join(missing)}")
+            arrays = {name: np.asarray(data[name], dtype=np.float64) for name in _ARRAYS}
+    except (OSError, EOFError) as error:
+        raise ValueError(f"{path}: cannot read the response library ({error})") from error
+    try:
+        return ResponseLibrary(**arrays)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from error

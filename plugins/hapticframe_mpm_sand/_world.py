@@ -1,0 +1,177 @@
+"""The ``mpm-sand`` world: the sandbox's plumbing, the forces from an engine's response library.
+
+:class:`MpmSandRobot` is a :class:`hapticframe_sandbox.SandboxRobot` (movements, depth
+schedule, ground truth, ``follows``, the ``sandbox-force`` sensor) whose per-step force comes
+from a :class:`~hapticframe_mpm_sand._library.ResponseLibrary` instead of the failure-zone
+mechanics:
+
+- free drag: the library's engine drag at the movement's depth and the plate's travel
+  (start-up included), times a slow random fluctuation;
+- each buried object is met as its *equivalent cylinder*: radius the object's half-extent
+  across the heading, centred on that extent, leading point the object's foremost point
+  along the heading; the library's force ratio at (depth, radius, |lateral offset| / (radius
+  + plate half-width), plate front − leading point) adds its excess over 1 (x and y);
+- the engine adds no contact force (its bodies only follow paths), so the world does: a
+  spring on the distance the plate's face has gone past the object's outline within its
+  band (``contact_stiffness_n_per_m``).
+
+Ground truth labels a step *jamming* when the library's x ratio reaches
+``jamming_label_ratio`` (10 % above free drag by default: the engine's account, not the
+failure-zone model's), *contact* while the plate touches.
+"""
+
+from __future__ import annotations
+
+import math
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hapticframe.kinds import BuildContext
+from hapticframe_sandbox import SandboxRobot
+
+from ._config import BUNDLED_LIBRARIES, MpmSandRobotConfig
+from ._library import ResponseLibrary, load_library, material_parameters
+
+__all__ = ["MpmSandRobot", "bundled_library"]
+
+#: Ground-truth states, as the sandbox numbers them.
+FREE, JAMMING, CONTACT = 0, 1, 2
+_LIBRARIES: dict[str, ResponseLibrary] = {}
+
+
+def bundled_library(voxel_size_m: float = 0.0075) -> ResponseLibrary:
+    """The library shipped with the plugin for ``voxel_size_m`` (cached after the first load)."""
+    name = next((n for v, n in BUNDLED_LIBRARIES.items() if math.isclose(v, voxel_size_m)), None)
+    if name is None:
+        sizes = ", ".join(f"{v:g}" for v in BUNDLED_LIBRARIES)
+        raise ValueError(f"no bundled response library at voxel_size_m {voxel_size_m:g} "
+                         f"(bundled: {sizes}); build one and set library_path")
+    path = Path(str(resources.files("hapticframe_mpm_sand") / "data" / name))
+    return _cached(path)
+
+
+def _cached(path: Path) -> ResponseLibrary:
+    key = str(path.resolve())
+    if key not in _LIBRARIES:
+        _LIBRARIES[key] = load_library(path)
+    return _LIBRARIES[key]
+
+
+def check_material(
+    robot_id: str, library: ResponseLibrary, friction_angle_deg: float, dilation_angle_deg: float
+) -> None:
+    """Refuse a scene whose sand is not the library's (its friction and dilatancy)."""
+    friction, dilatancy = material_parameters(friction_angle_deg, dilation_angle_deg)
+    built_friction, built_dilatancy = float(library.settings[4]), float(library.settings[5])
+    if abs(friction - built_friction) > 0.005 or abs(dilatancy - built_dilatancy) > 0.005:
+        phi = math.degrees(math.atan(built_friction))
+        psi = math.degrees(math.atan(built_dilatancy * built_friction))
+        raise ValueError(
+            f"robot {robot_id!r} (type 'mpm-sand'): its response library was built for sand "
+            f"of friction angle {phi:.1f} deg and dilation angle {psi:.1f} deg; the scene's is "
+            f"{friction_angle_deg:g} and {dilation_angle_deg:g} deg. Build a library for it "
+            f"(python -m hapticframe_mpm_sand.build_library --friction-angle-deg "
+            f"{friction_angle_deg:g} --dilation-angle-deg {dilation_angle_deg:g} --out FILE) "
+            "and set library_path"
+        )
+
+
+class MpmSandRobot(SandboxRobot):
+    """A plate raked through sand, its force from the engine's response library.
+
+    Parameters
+    ----------
+    config : MpmSandRobotConfig
+    context : BuildContext
+        Needs ``context.scene``; randomness (the drag fluctuation) from ``context.rng``.
+    """
+
+    config: MpmSandRobotConfig
+
+    def __init__(self, config: MpmSandRobotConfig, context: BuildContext) -> None:
+        self._library = (
+            bundled_library(config.voxel_size_m)
+            if config.library_path is None
+            else _cached(Path(config.library_path))
+        )
+        super().__init__(config, context)
+        if context.scene is not None:
+            check_material(context.id, self._library, context.scene.material.friction_angle_deg,
+                           context.scene.material.dilation_angle_deg)
+        self._outlines = [
+            np.asarray(obj.outline(512), dtype=np.float64) for obj in context.scene.objects
+        ] if context.scene is not None else []
+        self._frames: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
+        self._frames_key: tuple[object, ...] | None = None
+
+    @property
+    def library(self) -> ResponseLibrary:
+        """The response library the forces come from."""
+        return self._library
+
+    def _movement_frames(self) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """Each object's outline in the current movement's frame: along the heading from the
+        start, and across it (+ to the left); computed once per movement (or part of one)."""
+        key = (self._index, self._start_xy, self._direction_xy)
+        if key != self._frames_key:
+            dx, dy = self._direction_xy
+            sx, sy = self._start_xy
+            frames = []
+            for outline in self._outlines:
+                rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
+                frames.append((rx * dx + ry * dy, -rx * dy + ry * dx))
+            self._frames, self._frames_key = frames, key
+        return self._frames
+
+    def _interaction(
+        self, position: tuple[float, float], advance: float
+    ) -> tuple[tuple[float, float], int]:
+        cfg = self.config
+        library = self._library
+        previous: float = self._fluctuation  # type: ignore[has-type]
+        self._fluctuation = self._decay * previous + self._innovation * (
+            cfg.drag_fluctuation_fraction * self._rng.standard_normal()
+        )
+        scale = max(0.0, 1.0 + self._fluctuation)
+        drag = library.free_drag(self._depth, self._travelled) * scale
+        dx, dy = self._direction_xy
+        sx, sy = self._start_xy
+        along = (position[0] - sx) * dx + (position[1] - sy) * dy
+        across = -(position[0] - sx) * dy + (position[1] - sy) * dx
+        half = cfg.plate_width_m / 2
+        u_max = float(library.offsets_u[-1])
+        excess_x = excess_y = 0.0
+        penetration = 0.0
+        for a, c in self._movement_frames():
+            s_m = along - float(a.min())
+            if along > float(a.max()) or s_m < float(library.s_m[0]):
+                continue  # past the object, or farther ahead than any engine run saw it
+            c_low, c_high = float(c.min()), float(c.max())
+            radius = (c_high - c_low) / 2
+            offset = across - (c_low + c_high) / 2
+            u = abs(offset) / (radius + half)
+            taper = 1.0 - max(0.0, u - u_max) / cfg.offset_taper_u
+            if taper > 0.0:
+                rx, ry = library.ratio(self._depth, radius, min(u, u_max), min(0.0, s_m))
+                excess_x += (rx - 1.0) * taper
+                # ratio_y is for an object on the +across side; mirror for the other side.
+                excess_y += ry * taper * (1.0 if offset <= 0 else -1.0)
+            band = np.abs(c - across) <= half
+            if band.any():
+                front = float(a[band].min())
+                if front <= along <= float(a[band].max()):
+                    penetration = max(penetration, along - front)
+        ratio_x = 1.0 + excess_x
+        # Force on the plate: against the heading (x ratio), across it (y ratio).
+        fx = -drag * (ratio_x * dx - excess_y * dy)
+        fy = -drag * (ratio_x * dy + excess_y * dx)
+        state = JAMMING if ratio_x >= cfg.jamming_label_ratio else FREE
+        if penetration > 0.0:
+            state = CONTACT
+            spring = cfg.contact_stiffness_n_per_m * penetration
+            fx, fy = fx - spring * dx, fy - spring * dy
+        self._penetration = penetration
+        return (fx, fy), state

@@ -1,0 +1,82 @@
+"""Config of the ``raking-estimator`` classifier (import-light: pydantic and hapticframe)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from hapticframe import PluginConfig
+
+__all__ = ["DistanceEstimateConfig", "RakingEstimatorConfig"]
+
+
+class RakingEstimatorConfig(PluginConfig):
+    """Distance, direction and depth of a buried object from a tool's tactile forces.
+
+    Streams a ``(4, 3)`` taxel-force channel (4 taxels, x, y, z) and gives at every sample
+    the distance to the object with its uncertainty, the direction class probabilities and
+    the depth class probabilities (``estimates.npz`` of a run); its class probabilities are
+    ``far`` / ``near`` (``near``: P(distance < near_mm)). ``hapticframe train`` fits it on
+    recordings whose sensor also carries the label channels (``hapticframe import`` of the
+    raking data set gives them).
+    """
+
+    input_set: Literal["1_norm", "1_3-axis", "4_norm", "4_3-axis"] = Field(
+        "4_3-axis", description="Which taxel forces it reads: one taxel or four, the normal "
+        "(z) force only or all three axes (the paper's input sets).")
+    force_channel: str = Field("taxel_force", min_length=1,
+                               description="Input channel of (4, 3) taxel forces.")
+    distance_channel: str = Field("distance_mm", min_length=1,
+                                  description="Label channel of the distance (mm), for fit.")
+    direction_channel: str = Field("direction_class", min_length=1,
+                                   description="Label channel of the direction class (0..2).")
+    depth_channel: str = Field("depth_class", min_length=1,
+                               description="Label channel of the depth class (0..1).")
+    window_steps: int = Field(10, ge=2, le=200, description="Samples each estimate reads.")
+    hidden_units: int = Field(32, ge=2, le=512, description="LSTM units.")
+    epochs: int = Field(15, ge=1, le=1000)
+    batch_size: int = Field(128, ge=1, le=65536)
+    learning_rate: float = Field(3e-3, gt=0, le=1, allow_inf_nan=False)
+    skip_first_steps: int = Field(
+        20, ge=0, le=10_000, description="Steps at the start of each training recording left "
+        "out of training (the tool's start-up transient; the authors leave out 20).")
+    restart_after_gap_s: float = Field(
+        0.5, gt=0, le=1e6, allow_inf_nan=False, description="A pause in the samples longer "
+        "than this starts a new window (a new trial; imported trials are 1 s apart).")
+    train_threads: int = Field(1, ge=1, le=256, description="torch threads while training.")
+    near_mm: float = Field(30.0, gt=0, le=10_000, allow_inf_nan=False,
+                           description="Distance below which the class is 'near'.")
+    model_dir: str | None = Field(None, description="A directory hapticframe train wrote "
+                                  "for this component (weights.npz, model.json).")
+    pretrained: bool = Field(False, description="Load the model shipped with the plugin "
+                             "(trained on the 80 training trials, 4_3-axis, seed 7).")
+
+    @model_validator(mode="after")
+    def _one_model(self) -> RakingEstimatorConfig:
+        if self.pretrained and self.model_dir is not None:
+            raise ValueError("give either 'model_dir' or 'pretrained: true', not both")
+        if self.pretrained and self.input_set != "4_3-axis":
+            raise ValueError("the shipped model reads input_set '4_3-axis'")
+        return self
+
+
+class DistanceEstimateConfig(PluginConfig):
+    """Place each observation at the estimated distance and direction ahead of the tool."""
+
+    direction_bearings_deg: tuple[float, float, float] = Field(
+        (-20.0, 0.0, 20.0), description="Bearing of each direction class from the heading "
+        "(counter-clockwise, degrees). The raking data set does not say what its classes "
+        "mean: these are an assumption.")
+    max_range_m: float = Field(0.1, gt=0, le=10, allow_inf_nan=False,
+                               description="Estimates farther than this place no object.")
+    reference_std_m: float = Field(0.01, gt=0, le=10, allow_inf_nan=False,
+                                   description="A standard deviation that halves a weight.")
+    free_points: int = Field(3, ge=0, le=100, description="Free observations per sample "
+                             "between the tool and the estimate less two deviations.")
+    min_weight: float = Field(1e-3, ge=0, le=1, allow_inf_nan=False,
+                              description="Observations lighter than this are dropped.")
+    fallback_distance_m: float = Field(
+        0.03, gt=0, le=10, allow_inf_nan=False, description="Without an estimate (a "
+        "classifier that is not an estimator): the fixed distance ahead, as the failure "
+        "zone's rupture distance.")

@@ -1,0 +1,169 @@
+"""The authors' trained Keras models, read from their HDF5 files with h5py alone.
+
+A Keras 2 ``model.save('x.h5')`` file holds the model's configuration as JSON
+(``attrs['model_config']``) and each layer's weights under ``model_weights/<layer>/`` in
+the order ``attrs['weight_names']`` lists. :func:`load_keras_model` reads a ``Sequential``
+of ``LSTM`` and ``Dense`` layers, checks every setting the numpy forward pass relies on
+(tanh and sigmoid gates, no stateful or backwards LSTM, every layer returning sequences as
+the authors' ``train_main.py`` builds them) and refuses anything else. Nothing in the file
+is executed: a Keras ``Lambda`` layer is refused, not run.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._lstm import DenseLayer, LSTMLayer
+
+__all__ = ["KerasModelError", "KerasSequential", "load_keras_model", "strip_keras_model"]
+
+
+class KerasModelError(ValueError):
+    """A Keras HDF5 file that cannot be read, or holds what the numpy forward cannot run."""
+
+
+@dataclass(frozen=True)
+class KerasSequential:
+    """A Sequential of LSTM and Dense layers, run in float64 numpy.
+
+    ``layers`` in order; ``input_shape`` is ``(steps, features)`` as the model was built.
+    """
+
+    layers: tuple[LSTMLayer | DenseLayer, ...]
+    input_shape: tuple[int | None, int]
+    source: str
+
+    def describe(self) -> list[str]:
+        """One line per layer: type, units and activation, as ``train_main.py`` names them."""
+        out = []
+        for layer in self.layers:
+            if isinstance(layer, LSTMLayer):
+                out.append(f"LSTM(units={layer.units}, return_sequences=True)")
+            else:
+                out.append(f"Dense(units={layer.kernel.shape[1]}, "
+                           f"activation='{layer.activation}')")
+        return out
+
+    def __call__(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Outputs ``(b, T, k)`` for windows ``(b, T, d)`` (every layer returns sequences)."""
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim != 3 or x.shape[2] != self.input_shape[1]:
+            raise ValueError(f"{self.source}: expects windows (b, T, {self.input_shape[1]}), "
+                             f"got {x.shape}")
+        for layer in self.layers:
+            x = layer.sequence(x) if isinstance(layer, LSTMLayer) else layer(x)
+        return x
+
+
+def _text(value: Any) -> str:
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def _weights(group: Any, source: str, name: str) -> list[NDArray[np.float64]]:
+    names = [_text(n) for n in group.attrs.get("weight_names", [])]
+    if not names:
+        raise KerasModelError(f"{source}: layer {name!r} lists no weights")
+    try:
+        return [np.asarray(group[n], dtype=np.float64) for n in names]
+    except KeyError as exc:
+        raise KerasModelError(f"{source}: layer {name!r} lacks weight {exc}") from None
+
+
+def _check(source: str, name: str, config: dict[str, Any], expected: dict[str, Any]) -> None:
+    for key, want in expected.items():
+        if key in config and config[key] != want:
+            raise KerasModelError(f"{source}: layer {name!r} has {key}={config[key]!r}; the "
+                                  f"numpy forward needs {want!r}")
+
+
+def load_keras_model(path: str | Path) -> KerasSequential:
+    """Read a Keras 2 HDF5 Sequential of LSTM and Dense layers (see the module docstring)."""
+    import h5py
+
+    source = str(path)
+    try:
+        handle = h5py.File(path, "r")
+    except OSError as exc:
+        raise KerasModelError(f"{source}: not a readable HDF5 file ({exc})") from None
+    with handle:
+        if "model_config" not in handle.attrs or "model_weights" not in handle:
+            raise KerasModelError(f"{source}: not a Keras model file (no model_config or "
+                                  "model_weights)")
+        try:
+            config = json.loads(_text(handle.attrs["model_config"]))
+        except json.JSONDecodeError as exc:
+            raise KerasModelError(f"{source}: model_config is not JSON ({exc})") from None
+        if config.get("class_name") != "Sequential":
+            raise KerasModelError(f"{source}: a {config.get('class_name')!r} model; only "
+                                  "Sequential is read")
+        layers: list[LSTMLayer | DenseLayer] = []
+        input_shape: tuple[int | None, int] | None = None
+        weights = handle["model_weights"]
+        for entry in config["config"]["layers"]:
+            kind, cfg = entry["class_name"], entry["config"]
+            name = cfg.get("name", "?")
+            shape = cfg.get("batch_input_shape")
+            if shape is not None and input_shape is None:
+                input_shape = (shape[1], int(shape[2]))
+            if kind == "InputLayer":
+                continue
+            if name not in weights:
+                raise KerasModelError(f"{source}: no weights for layer {name!r}")
+            w = _weights(weights[name], source, name)
+            if kind == "LSTM":
+                _check(source, name, cfg, {
+                    "activation": "tanh", "recurrent_activation": "sigmoid", "use_bias": True,
+                    "go_backwards": False, "stateful": False, "time_major": False,
+                    "return_sequences": True})
+                layers.append(LSTMLayer(*w))
+            elif kind == "Dense":
+                _check(source, name, cfg, {"use_bias": True})
+                layers.append(DenseLayer(w[0], w[1], cfg.get("activation", "linear")))
+            else:
+                raise KerasModelError(f"{source}: layer {name!r} is a {kind}; only LSTM and "
+                                      "Dense are read")
+        if input_shape is None or not layers:
+            raise KerasModelError(f"{source}: no input shape or no layers")
+        _chain(layers, input_shape[1], source)
+        return KerasSequential(tuple(layers), input_shape, source)
+
+
+def _chain(layers: Sequence[LSTMLayer | DenseLayer], features: int, source: str) -> None:
+    width = features
+    for layer in layers:
+        if layer.kernel.shape[0] != width:
+            raise KerasModelError(f"{source}: a layer takes {layer.kernel.shape[0]} inputs "
+                                  f"after one of {width}")
+        width = layer.units if isinstance(layer, LSTMLayer) else layer.kernel.shape[1]
+
+
+def strip_keras_model(source: str | Path, target: str | Path) -> None:
+    """Copy a Keras HDF5 model without its optimizer state (configuration and weights only).
+
+    The weights are copied bit for bit; the file stays loadable by Keras
+    (``load_model(..., compile=False)``) and by :func:`load_keras_model`.
+    """
+    import h5py
+
+    with h5py.File(source, "r") as src, h5py.File(target, "w") as dst:
+        for key in ("model_config", "keras_version", "backend"):
+            if key in src.attrs:
+                dst.attrs[key] = src.attrs[key]
+        src_w = src["model_weights"]
+        dst_w = dst.create_group("model_weights")
+        for key, value in src_w.attrs.items():
+            dst_w.attrs[key] = value
+        for layer in src_w:
+            group = dst_w.create_group(layer)
+            for key, value in src_w[layer].attrs.items():
+                group.attrs[key] = value
+            for name in [_text(n) for n in src_w[layer].attrs.get("weight_names", [])]:
+                group.create_dataset(name, data=np.asarray(src_w[layer][name]),
+                                     compression="gzip", compression_opts=9)
