@@ -35,8 +35,10 @@ def test_a_malformed_request_is_refused_without_a_traceback(
         raw: bytes, caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.DEBUG), LiveServer(LiveFeed(), port=0) as server:
         assert _exchange(server.port, raw).split(b" ")[1] == b"400"
-        ok = _exchange(server.port, b"GET /frame HTTP/1.1\r\nHost: 127.0.0.1\r\n"
-                       b"Connection: close\r\n\r\n")
+        token = getattr(server, "token", None)  # the session's token, where the server has one
+        query = f"?token={token}" if token else ""
+        ok = _exchange(server.port, f"GET /frame{query} HTTP/1.1\r\nHost: 127.0.0.1:"
+                       f"{server.port}\r\nConnection: close\r\n\r\n".encode())
         assert ok.startswith(b"HTTP/1.1 200")
     shown = [r for r in caplog.records if r.exc_info or "Error handling" in r.getMessage()]
     assert not shown, [r.getMessage() for r in shown]
