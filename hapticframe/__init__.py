@@ -26,6 +26,7 @@ _LAZY = {
     "ClassifierSpec": "hapticframe._specs",
     "Ellipse": "hapticframe._scene",
     "ComponentView": "hapticframe._config",
+    "DirectoryBusy": "hapticframe._lock",
     "Experiment": "hapticframe._config",
     "ExperimentError": "hapticframe._errors",
     "Finding": "hapticframe._config",
@@ -70,6 +71,7 @@ _LAZY = {
     "get_plugin_manager": "hapticframe._manager",
     "get_registry": "hapticframe._manager",
     "hookimpl": ".hookspecs",
+    "lock_directory": "hapticframe._lock",
     "make_plugin_manager": "hapticframe._manager",
     "run_experiment": "hapticframe.record._recorded",
     "validate_file": "hapticframe._config",
@@ -97,6 +99,8 @@ if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit
     from hapticframe._errors import RunInterrupted as RunInterrupted
     from hapticframe._errors import UsageError as UsageError
     from hapticframe._kind import Kind as Kind
+    from hapticframe._lock import DirectoryBusy as DirectoryBusy
+    from hapticframe._lock import lock_directory as lock_directory
     from hapticframe._manager import get_plugin_manager as get_plugin_manager
     from hapticframe._manager import get_registry as get_registry
     from hapticframe._manager import make_plugin_manager as make_plugin_manager

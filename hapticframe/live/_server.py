@@ -42,6 +42,21 @@ __all__ = ["LiveFeed", "LiveServer", "TimelineFeed", "strict_json"]
 _log = logging.getLogger("hapticframe.live")
 
 STATIC = Path(__file__).parent / "static"
+
+
+class _MalformedRequests(logging.Filter):
+    """Drops aiohttp's record of a malformed request (a bad request line, version or
+    header): the client has its 400 already, and the person at the terminal must not get
+    a traceback for whatever a port scanner sends. A handler's own error still shows."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        from aiohttp.http_exceptions import HttpProcessingError
+
+        error = record.exc_info[1] if record.exc_info else None
+        return not isinstance(error, HttpProcessingError)
+
+
+_MALFORMED = _MalformedRequests()
 #: The default port of ``--live`` and ``view`` (its home: hapticframe._defaults).
 DEFAULT_PORT = LIVE_PORT
 #: The kernel's send buffer of a page's connection (Linux doubles it): about one frame.
@@ -320,6 +335,7 @@ class LiveServer:
         from aiohttp import web
 
         self._stopping = asyncio.Event()
+        logging.getLogger("aiohttp.server").addFilter(_MALFORMED)  # once: a set of filters
 
         @web.middleware
         async def guard(request: web.Request, handler: Any) -> web.StreamResponse:

@@ -392,7 +392,7 @@ def import_bag(bag: str | Path, maps: Sequence[TopicMap], out_dir: str | Path, *
                                       overwrite=overwrite, min_free=min_free_bytes)
         directory.begin({"command": "import-bag", "bag": str(bag),
                          "maps": [str(m) for m in maps], "versions": environment()})
-        _read(reader, streams)
+        _read(bag, reader, streams)
     except BaseException:
         if directory is not None:
             directory.discard()
@@ -415,7 +415,31 @@ def _utc(stamp_ns: int) -> str:
     return f"{datetime.fromtimestamp(seconds, timezone.utc):%Y-%m-%dT%H:%M:%S}.{ns:09d}Z"
 
 
-def _read(reader: Any, streams: Sequence[_Stream]) -> None:
+def _damage_errors() -> tuple[type[BaseException], ...]:
+    """What reading the messages of a damaged bag raises (rosbags' reader errors, and what
+    deserializing cut or flipped bytes raises)."""
+    import sqlite3
+    import struct
+
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Ros1ReaderError
+    from rosbags.rosbag2 import ReaderError as Ros2ReaderError
+
+    # rosbags checks a ROS 1 index entry against its message's header with an assert.
+    return (AnyReaderError, Ros1ReaderError, Ros2ReaderError, sqlite3.DatabaseError,
+            struct.error, ValueError, IndexError, KeyError, UnicodeDecodeError, OSError,
+            AssertionError)
+
+
+def _read(bag: Path, reader: Any, streams: Sequence[_Stream]) -> None:
+    try:
+        _read_messages(reader, streams)
+    except _damage_errors() as exc:
+        raise UsageError(f"{bag} is damaged: its messages cannot be read "
+                         f"({type(exc).__name__}: {exc}); nothing was imported") from exc
+
+
+def _read_messages(reader: Any, streams: Sequence[_Stream]) -> None:
     # Two fingers of one hand are two streams of one topic.
     by_connection: dict[tuple[int, int], list[_Stream]] = {}
     wanted = {}

@@ -17,6 +17,14 @@ process (``hapticframe run``, movements capped, a time limit and an address-spac
 it must end with exit 0 and real metrics, or with a clear error (exit 1 or 2, no "internal
 error"); a run that exits 2 was refused only when building, which counts as a failure (the
 refusal belongs to ``validate``), and so does a time-out.
+
+Issue 26 adds five families (:mod:`hapticframe_bench._fuzz_families`): damaged recordings
+through ``recover``, ``report``, ``replay`` and the ``recording`` sensor; two writers into
+one output directory; fault schedules per device; damaged ROS bags through ``import-bag``;
+and a hostile client of the live server. Each case is refused (exit 2, located), ends
+cleanly, or is a finding: an internal error, an exit 0 with a null or NaN result, or a lost
+or mixed output (:mod:`hapticframe_bench._fuzz_common`). The report counts the three per
+family.
 """
 
 from __future__ import annotations
@@ -45,6 +53,7 @@ from hapticframe import (
     atomic_write,
     validate_file,
 )
+from hapticframe_bench._fuzz_families import FAMILIES, run_families, tally
 
 __all__ = [
     "CATEGORIES",
@@ -70,6 +79,9 @@ RUN_MEMORY_BYTES = 6 * 1024**3
 MAX_MOVEMENTS = 3
 DEFAULT_MUTANTS = 320
 QUICK_MUTANTS = 60
+#: Cases of each family of issue 26 (recordings, writers, faults, bags, live).
+DEFAULT_CASES = 100
+QUICK_CASES = 20
 
 
 @dataclass(frozen=True)
@@ -296,50 +308,94 @@ def _run_child(mutant: Mutant, workdir: Path, started: float, max_movements: int
 
 
 def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
-             check: Callable[..., Outcome] = check_mutant) -> dict[str, Any]:
-    """``hapticframe bench fuzz`` (see the module docstring): ``--trials`` mutants (default
-    320, 60 with ``--quick``), ``--seed``; writes ``fuzz.json`` and ``fuzz.md`` into
-    ``--out`` and returns the summary."""
+             check: Callable[..., Outcome] = check_mutant,
+             families: tuple[str, ...] = FAMILIES) -> dict[str, Any]:
+    """``hapticframe bench fuzz``: the examples' mutants (see the module docstring) and the
+    families of issue 26 (``recordings``, ``writers``, ``faults``, ``bags``, ``live``: see
+    :mod:`hapticframe_bench._fuzz_families`). ``--trials`` cases per family (default 320
+    mutants and 100 cases of each other family; 60 and 20 with ``--quick``), ``--seed``;
+    writes ``fuzz.json`` and ``fuzz.md`` into ``--out`` and returns the summary."""
     root = Path(examples_dir) if examples_dir is not None else _bundled_examples()
     count = options.trials or (QUICK_MUTANTS if options.quick else DEFAULT_MUTANTS)
+    family_count = options.trials or (QUICK_CASES if options.quick else DEFAULT_CASES)
     mutants = generate_mutants(root, count, options.seed)
     out_dir = Path(options.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     outcomes: list[Outcome] = []
+    load_before = os.getloadavg()
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="hapticframe-fuzz-") as tmp:
         for k, mutant in enumerate(mutants):
             outcome = check(mutant, Path(tmp) / f"m{k:04d}")
             outcomes.append(outcome)
             mark = "ok  " if outcome.ok else "FAIL"
-            options.echo(f"[{k + 1:>4}/{len(mutants)}] {mark} {outcome.status:<15} "
+            options.echo(f"[examples {k + 1:>4}/{len(mutants)}] {mark} {outcome.status:<15} "
                          f"{mutant.category:<9} {mutant.example}: {mutant.change[:70]}"
                          + (f" -> {outcome.detail[:120]}" if outcome.detail else ""))
-    failures = [o for o in outcomes if not o.ok]
-    counts: dict[str, int] = {}
-    for o in outcomes:
-        counts[o.status] = counts.get(o.status, 0) + 1
-    failure_records = [{"example": o.mutant.example, "category": o.mutant.category,
-                        "change": o.mutant.change, "status": o.status, "detail": o.detail}
-                       for o in failures]
+        examples_s = time.perf_counter() - started
+        by_family, notes = run_families(Path(tmp) / "families", root, family_count,
+                                        options.seed, options.echo, families)
+    failure_records = [{"family": "examples", "example": o.mutant.example,
+                        "category": o.mutant.category, "change": o.mutant.change,
+                        "status": o.status, "detail": o.detail}
+                       for o in outcomes if not o.ok]
+    for family, found in by_family.items():
+        failure_records += [{"family": family, "kind": o.case.kind, "change": o.case.change,
+                             "status": o.status, "detail": o.detail} for o in found if not o.ok]
+    report = {"examples": tally(outcomes, examples_s)}
+    for family, found in by_family.items():
+        report[family] = tally(found, notes.get("seconds", {}).get(family, 0.0))
     summary: dict[str, Any] = {
+        "cases": sum(r["cases"] for r in report.values()),
         "mutants": len(outcomes),
         "seed": options.seed,
-        "by_status": counts,
+        "families": report,
+        "internal_errors": sum(r["internal_errors"] for r in report.values()),
+        "exit0_null": sum(r["exit0_null"] for r in report.values()),
+        "lost_or_mixed": sum(r["lost_or_mixed"] for r in report.values()),
+        "other_findings": sum(r["other_findings"] for r in report.values()),
+        "live_token_feature": notes.get("live_token_feature"),
+        "fault_runs_cap": notes.get("fault_runs_cap"),
+        "skipped": notes.get("skipped", {}),
         "failures": failure_records,
         "wall_time_s": time.perf_counter() - started,
+        "machine": {"cpu_count": os.cpu_count(), "load_average_1min":
+                    {"start": load_before[0], "end": os.getloadavg()[0]}},
     }
     atomic_write(out_dir / "fuzz.json", json.dumps(summary, indent=2) + "\n")
-    lines = ["# Fuzzing the examples", "",
-             f"{len(outcomes)} mutants, seed {options.seed}: "
-             + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-             + f"; {len(failures)} failures; {summary['wall_time_s']:.0f} s.", ""]
-    lines += [f"- {f['status']}: {f['example']} {f['change'][:80]} — {f['detail'][:160]}"
-              for f in failure_records]
-    atomic_write(out_dir / "fuzz.md", "\n".join(lines) + "\n")
-    options.echo(f"fuzz: {len(outcomes)} mutants, {len(failures)} failures "
+    atomic_write(out_dir / "fuzz.md", _markdown(summary))
+    options.echo(f"fuzz: {summary['cases']} cases, {len(failure_records)} findings "
                  f"({out_dir / 'fuzz.md'})")
     return summary
+
+
+def _markdown(summary: dict[str, Any]) -> str:
+    machine = summary["machine"]
+    load = machine["load_average_1min"]
+    lines = ["# Fuzzing", "",
+             f"{summary['cases']} cases, seed {summary['seed']}, "
+             f"{summary['wall_time_s']:.0f} s on {machine['cpu_count']} CPUs (load average "
+             f"{load['start']:.2f} at the start, {load['end']:.2f} at the end).", "",
+             "| family | cases | internal errors | exit 0 with null | lost or mixed | "
+             "other findings | time (s) | outcomes |",
+             "|---|---:|---:|---:|---:|---:|---:|---|"]
+    for family, row in summary["families"].items():
+        statuses = ", ".join(f"{k} {v}" for k, v in row["by_status"].items())
+        lines.append(f"| {family} | {row['cases']} | {row['internal_errors']} | "
+                     f"{row['exit0_null']} | {row['lost_or_mixed']} | {row['other_findings']} "
+                     f"| {row['seconds']:.0f} | {statuses} |")
+    feature = summary.get("live_token_feature")
+    lines += ["", "The live server's token, Host and Origin checks were "
+              + ("present and asserted." if feature else
+                 "absent (foreign requests counted as served, not asserted)."
+                 if feature is not None else "not tried.")]
+    for family, why in summary.get("skipped", {}).items():
+        lines.append(f"Skipped {family}: {why}.")
+    if summary["failures"]:
+        lines += ["", "## Findings", ""]
+        lines += [f"- {f['family']} / {f['status']}: {f['change'][:100]} — {f['detail'][:200]}"
+                  for f in summary["failures"]]
+    return "\n".join(lines) + "\n"
 
 
 def _bundled_examples() -> Path:

@@ -66,8 +66,10 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
     )
     yield BenchSpec(
         name="fuzz",
-        summary="Mutants of the examples: each refused at validate with located "
-        "issues, or run to a clean end; --trials mutants (default 320).",
+        summary="Mutants of the examples, damaged recordings and bags, concurrent writers, "
+        "fault schedules and a hostile live-page client: each refused with a located "
+        "message or run to a clean end; --trials cases per family (default 320 mutants, "
+        "100 of each other family).",
         factory="hapticframe_bench._fuzz:run_fuzz",
     )
     yield BenchSpec(

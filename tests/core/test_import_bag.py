@@ -341,3 +341,43 @@ def test_parse_map() -> None:
         "/biotac_pub", "BT0001", "tip", "/biotac_pub:BT0001=tip")
     with pytest.raises(UsageError):
         parse_map("=x")
+
+
+def _message_records_at(blob: bytes) -> list[int]:
+    """Where the message data records (op 0x02) of the first chunk of a ROS 1 bag lie: after
+    the magic line, the bag header record (its data is padding) and the chunk record's
+    header, among the chunk's connection and message records."""
+    def record(at: int) -> tuple[bytes, int]:  # (header, where the next record starts)
+        header_len = int.from_bytes(blob[at:at + 4], "little")
+        header = blob[at + 4:at + 4 + header_len]
+        data_at = at + 4 + header_len
+        return header, data_at + 4 + int.from_bytes(blob[data_at:data_at + 4], "little")
+
+    _, at = record(len(b"#ROSBAG V2.0\n"))  # the bag header record
+    header, end = record(at)
+    at += 4 + len(header) + 4  # into the chunk record's data
+    found = []
+    while at < end:
+        header, following = record(at)
+        if b"op=\x02" in header:
+            found.append(at)
+        at = following
+    return found
+
+
+def test_a_bag_damaged_inside_a_chunk_exits_2(small_bag: Path, tmp_path: Path,
+                                              capsys: Any) -> None:
+    # Issue 26 (found by `hapticframe bench fuzz`, family "bags"): a bag whose index reads
+    # but whose chunk is damaged gave "internal error: ReaderError" while reading messages.
+    blob = bytearray(small_bag.read_bytes())
+    records = _message_records_at(bytes(blob))
+    assert records
+    for at in records:  # each message's first header field longer than its header
+        blob[at + 4:at + 8] = (0x7FFFFFF0).to_bytes(4, "little")
+    bag = tmp_path / "damaged.bag"
+    bag.write_bytes(bytes(blob))
+    assert main(["import-bag", str(bag), "--map", "/ft/wrench=ft",
+                 "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "internal error" not in err and f"{bag} is damaged" in err
+    assert not (tmp_path / "out" / "run.mcap").exists()

@@ -263,3 +263,19 @@ def test_a_dask_local_cluster_gives_the_same_accuracy(tiny: Path, tmp_path: Path
 
 def test_points_are_frozen_records() -> None:
     assert Point("baseline").is_baseline and not Point("x=1", (("x", 1),)).is_baseline
+
+
+def test_a_sweep_into_a_directory_another_command_writes_is_refused(
+        tiny: Path, tmp_path: Path, capsys: Any) -> None:
+    # Issue 26 §2: sweep takes the output directory's lock as run does (found by
+    # `hapticframe bench fuzz`, family "writers": a sweep wrote its points beside a holder).
+    from hapticframe import lock_directory
+
+    out = tmp_path / "busy"
+    out.mkdir()
+    with lock_directory(out, "run"):
+        code = main(["sweep", str(tiny), "--vary", "run.max_movements=1", "--trials", "1",
+                     "--workers", "1", "--out", str(out)])
+        assert code == 2
+        assert "is in use by run" in capsys.readouterr().err
+        assert sorted(p.name for p in out.iterdir()) == [".hapticframe.lock"]
