@@ -645,17 +645,8 @@ def check_robot_refuses_outside_workspace(
             movement = ExploratoryMovement(
                 np.asarray(start, dtype=np.float64), np.asarray(end, dtype=np.float64), 0.05,
                 phase="kit", label="kit")
-            try:
-                robot.begin(movement)
-            except ValueError as exc:
-                if not str(exc) or raised_by_record_validation(exc):
-                    raise _invalid(spec, what, exc) from exc
-                if robot.step() is not None:
-                    raise CheckFailure(
-                        f"begin() refused {what}, but step() then returned a state"
-                    ) from None
+            if _refused(robot, spec, what, movement):
                 continue
-            robot.halt("kit")
             raise CheckFailure(
                 f"begin() accepted {what} ({bounds}): a robot that declares a workspace must "
                 "raise ValueError, so that even a direct caller cannot move there"
@@ -665,6 +656,22 @@ def check_robot_refuses_outside_workspace(
             raise CheckFailure("a movement inside the workspace gave no states")
     finally:
         release_component(robot)
+
+
+def _refused(robot: Robot, spec: PluginSpec, what: str, movement: ExploratoryMovement) -> bool:
+    """Whether ``begin(movement)`` refused it with a ValueError of the robot's own (and no
+    step followed); a movement it accepted is halted at once."""
+    try:
+        robot.begin(movement)
+    except ValueError as exc:
+        if not str(exc) or raised_by_record_validation(exc):
+            raise _invalid(spec, what, exc) from exc
+        if robot.step() is not None:
+            raise CheckFailure(
+                f"begin() refused {what}, but step() then returned a state") from None
+        return True
+    robot.halt("kit")
+    return False
 
 
 @check(Kind.ROBOT)
@@ -678,17 +685,8 @@ def check_robot_refuses_bad_depth(spec: PluginSpec, *, registry: Registry | None
         for what, depth in (("a negative depth", -0.01), ("a zero depth", 0.0),
                             ("a NaN depth", math.nan)):
             movement = dataclasses.replace(inside, depth_m=depth)
-            try:
-                robot.begin(movement)
-            except ValueError as exc:
-                if not str(exc) or raised_by_record_validation(exc):
-                    raise _invalid(spec, what, exc) from exc
-                if robot.step() is not None:
-                    raise CheckFailure(
-                        f"begin() refused {what}, but step() then returned a state"
-                    ) from None
+            if _refused(robot, spec, what, movement):
                 continue
-            robot.halt("kit")
             raise CheckFailure(
                 f"begin() accepted {what} ({depth} m): it must raise ValueError; implement "
                 "Robot._begin and leave the checks to Robot.begin"
