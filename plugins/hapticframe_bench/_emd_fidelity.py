@@ -513,13 +513,20 @@ def _rows_by(table: dict[str, Any], kind: str) -> list[dict[str, Any]]:
 def choose_default(downstream: Sequence[dict[str, Any]],
                    frame_ms: dict[str, dict[str, float]], tolerance: float = 0.01) -> Setting:
     """The candidate with the lowest median frame time whose balanced accuracy is within
-    ``tolerance`` of the best candidate's on both the test split and the robustness set."""
+    ``tolerance`` of the best candidate's on both the test split and the robustness set.
+
+    When no candidate is that close on both (one is best on the test split, another on the
+    robustness set), the candidates whose larger shortfall is the smallest are kept instead.
+    """
     if not downstream:
         raise ValueError("no downstream rows to choose from")
     best_test = max(d["test"] for d in downstream)
     best_robust = max(d["robustness"] for d in downstream)
+
+    least = min(max(best_test - d["test"], best_robust - d["robustness"]) for d in downstream)
+    within = max(tolerance, float(least))
     ok = [d for d in downstream
-          if d["test"] >= best_test - tolerance and d["robustness"] >= best_robust - tolerance]
+          if d["test"] >= best_test - within and d["robustness"] >= best_robust - within]
     pick = min(ok, key=lambda d: frame_ms.get(d["label"], {"frame_ms_median": np.inf})
                ["frame_ms_median"])
     return Setting(float(pick["sd_threshold"]), int(pick["max_sifts"]))
