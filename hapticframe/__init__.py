@@ -58,6 +58,7 @@ _LAZY = {
     "RobotSpec": "hapticframe._specs",
     "RunError": "hapticframe._errors",
     "RunSettings": "hapticframe._config",
+    "RunInconclusive": "hapticframe.run._verdict",
     "RunInterrupted": "hapticframe._errors",
     "RunSummary": "hapticframe.run._results",
     "Scene": "hapticframe._scene",
@@ -131,3 +132,4 @@ if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit
     from hapticframe.hookspecs import hookimpl as hookimpl
     from hapticframe.record._recorded import run_experiment as run_experiment
     from hapticframe.run._results import RunSummary as RunSummary
+    from hapticframe.run._verdict import RunInconclusive as RunInconclusive

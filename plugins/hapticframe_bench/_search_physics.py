@@ -105,7 +105,12 @@ def _record(objects: Sequence[Mapping[str, Any]], seed: int, run_dir: Path) -> N
     data["robots"][0]["type"] = WORLD
     data.setdefault("run", {}).update({"halt_on_interaction": False, "figures": False})
     experiment = hapticframe.validate_with_overrides(data, (), source=f"<record {run_dir}>")
-    hapticframe.run_experiment(experiment, run_dir, overwrite=True, echo=lambda _line: None)
+    try:
+        hapticframe.run_experiment(experiment, run_dir, overwrite=True, echo=lambda _line: None)
+    except hapticframe.RunInconclusive:
+        # A calibration recording rakes on through contact on purpose, so its movements end
+        # at the force limit: no search result, but the recording (kept) is what is wanted.
+        pass
 
 
 def _train(recorded: Path, out: Path) -> dict[str, float]:

@@ -13,6 +13,7 @@ Both run the engine (``physics`` extra); :func:`run_physics_checks` is the bench
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 import math
 import os
@@ -21,6 +22,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+
+from hapticframe import UsageError
 
 from ._engine import EngineSettings, RakeCase, rake
 from ._library import fit_power_law
@@ -120,6 +123,9 @@ def run_physics_checks(options: Any) -> dict[str, Any]:
     """``hapticframe bench physics-checks``: both checks at the bench resolution (5 mm cells;
     ``--quick``: 7.5 mm), written to ``physics-checks.json`` and ``physics-checks.md``."""
     echo: Callable[[str], None] = getattr(options, "echo", print)
+    if importlib.util.find_spec("newton") is None:  # checked before any work, not mid-run
+        raise UsageError("bench physics-checks runs the engine itself: pip install "
+                         "'hapticframe[physics]' (NVIDIA Newton on Warp, about 480 MB)")
     voxel = 0.0075 if options.quick else 0.005
     settings = EngineSettings(voxel_size_m=voxel)
     depths = (0.02, 0.03, 0.044)

@@ -152,3 +152,17 @@ def test_a_scene_of_other_sand_is_refused_with_the_build_command():
         _robot(scene=scene)
     with pytest.raises(ValueError, match=r"no bundled response library at voxel_size_m 0\.02"):
         _robot(voxel_size_m=0.02)
+
+
+def test_the_physics_checks_say_what_to_install_without_the_engine() -> None:
+    import importlib.util
+    import types
+
+    from hapticframe import UsageError
+    from hapticframe_mpm_sand._checks import run_physics_checks
+
+    if importlib.util.find_spec("newton") is not None:
+        pytest.skip("the physics extra is installed: the checks would run the engine")
+    options = types.SimpleNamespace(quick=True, seed=0, echo=lambda _line: None)
+    with pytest.raises(UsageError, match=r"hapticframe\[physics\]"):
+        run_physics_checks(options)
