@@ -35,6 +35,11 @@ class DeviceHealth:
         Recovery attempts (see :meth:`DeviceLifecycle.recover`).
     overflows : int
         Times received data were dropped because a buffer limit was reached.
+    late_samples : int
+        Samples that arrived later after their stamp than the device allows (a networked
+        source: a ROS 2 topic).
+    out_of_order : int
+        Samples whose stamp was not after the last delivered one (dropped, never delivered).
     """
 
     bytes: int = 0
@@ -48,6 +53,8 @@ class DeviceHealth:
     invalid_samples: int = 0
     recoveries: int = 0
     overflows: int = 0
+    late_samples: int = 0
+    out_of_order: int = 0
     _seen: dict[int, ParserStats] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )

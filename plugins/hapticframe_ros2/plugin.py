@@ -1,0 +1,48 @@
+"""Registration of the ROS 2 sensor and robot (import-light: no cyclonedds here)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from hapticframe import Kind, RobotSpec, SensorSpec, hookimpl
+
+from ._config import Ros2RobotConfig, Ros2TopicSensorConfig
+
+__all__ = ["hapticframe_robots", "hapticframe_sensors"]
+
+_HINT = "pip install 'hapticframe[ros2]' (cyclonedds)"
+# The kit's checks run against the emulated rig, on a domain of their own.
+_CHECK_DOMAIN = 231
+
+
+@hookimpl
+def hapticframe_sensors() -> Iterator[SensorSpec]:
+    yield SensorSpec(
+        name="ros2-topic",
+        summary="A ROS 2 topic (geometry_msgs/WrenchStamped or sensor_msgs/Imu) over DDS, "
+        "without a ROS install: stamps from the headers, late, dropped and out-of-order "
+        "samples counted.",
+        config=Ros2TopicSensorConfig,
+        factory="hapticframe_ros2._sensor:Ros2TopicSensor",
+        capabilities=frozenset({"hardware"}),
+        install_hint=_HINT,
+        inputs=(Kind.ROBOT,),
+        check_config={"topic": "/hapticframe/wrench", "domain_id": _CHECK_DOMAIN,
+                      "robot_sync_timeout_s": 1.0},
+        check_inputs=("robot/ros2",),
+    )
+
+
+@hookimpl
+def hapticframe_robots() -> Iterator[RobotSpec]:
+    yield RobotSpec(
+        name="ros2",
+        summary="A ros2_control rig over DDS: each movement a Path goal and a PoseStamped "
+        "setpoint per control period, the plate's pose read back, a stop on halt; 'rig: "
+        "emulated' serves the sandbox behind the topics.",
+        config=Ros2RobotConfig,
+        factory="hapticframe_ros2._robot:Ros2Robot",
+        capabilities=frozenset({"hardware"}),
+        install_hint=_HINT,
+        check_config={"rig": "emulated", "domain_id": _CHECK_DOMAIN},
+    )
