@@ -151,6 +151,8 @@ class EmulatedRig:
             while not self._stop.is_set():
                 worked = self._handle_goals()
                 for setpoint in self._setpoints.take(N=64):
+                    if not isinstance(setpoint, PoseStamped):
+                        continue  # a writer that left
                     self._handle_setpoint(setpoint)
                     worked = True
                     last_pose = time.monotonic()
@@ -164,7 +166,8 @@ class EmulatedRig:
             raise
 
     def _handle_goals(self) -> bool:
-        goals = self._goals.take(N=64)
+        # A writer that leaves shows as an InvalidSample (no data): not a goal.
+        goals = [g for g in self._goals.take(N=64) if isinstance(g, Path)]
         for goal in goals:
             if not goal.poses:
                 self.robot.halt("stop")

@@ -122,7 +122,11 @@ class Ros2Robot(Robot, DeviceLifecycle):
     # -- the pose stream -----------------------------------------------------------------------
 
     def _take_poses(self) -> None:
+        from ._messages import PoseStamped
+
         for msg in self._pose_reader.take(N=256):
+            if not isinstance(msg, PoseStamped):
+                continue  # the rig's writer left (an InvalidSample: no data)
             stamp = msg.header.stamp
             t = time_of(int(stamp.sec), int(stamp.nanosec))
             p = msg.pose.position

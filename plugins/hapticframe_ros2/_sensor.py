@@ -89,6 +89,7 @@ class Ros2TopicSensor(Sensor, DeviceLifecycle):
             })
         self._endpoint: Any = None
         self._reader: Any = None
+        self._message: type = object
         self._last_t = -math.inf
         self._last_arrival = math.inf
         self._stalled = False
@@ -105,6 +106,7 @@ class Ros2TopicSensor(Sensor, DeviceLifecycle):
         from ._messages import Imu, WrenchStamped
 
         message = WrenchStamped if self.config.message == _WRENCH else Imu
+        self._message = message
         self._endpoint = Endpoint(self.config.domain_id)
         self._reader = self._endpoint.reader(self.config.topic, message, self.config.qos)
 
@@ -168,7 +170,9 @@ class Ros2TopicSensor(Sensor, DeviceLifecycle):
             if not samples:
                 return
             for msg in samples:
-                self._accept(msg)
+                if isinstance(msg, self._message):
+                    self._accept(msg)
+                # else: an InvalidSample, the publisher left (no data): the stall watch sees it
             if len(samples) < _TAKE_N:
                 return
 
