@@ -34,6 +34,8 @@ BUNDLED = {
     ("robot", "dynamixel"),
     ("robot", "barrett-wam"),
     ("robot", "barrett-hand"),
+    ("robot", "ros2"),
+    ("sensor", "ros2-topic"),
 }
 
 

@@ -34,33 +34,33 @@ __all__ = [
 
 
 @dataclass
-class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):  # type: ignore[call-arg]
     sec: int32 = 0
     nanosec: uint32 = 0
 
 
 @dataclass
-class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):  # type: ignore[call-arg]
     stamp: Time = field(default_factory=Time)
     frame_id: str = ""
 
 
 @dataclass
-class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):  # type: ignore[call-arg]
     x: float64 = 0.0
     y: float64 = 0.0
     z: float64 = 0.0
 
 
 @dataclass
-class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):  # type: ignore[call-arg]
     x: float64 = 0.0
     y: float64 = 0.0
     z: float64 = 0.0
 
 
 @dataclass
-class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):  # type: ignore[call-arg]
     x: float64 = 0.0
     y: float64 = 0.0
     z: float64 = 0.0
@@ -68,25 +68,25 @@ class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
 
 
 @dataclass
-class Wrench(IdlStruct, typename="geometry_msgs::msg::dds_::Wrench_"):
+class Wrench(IdlStruct, typename="geometry_msgs::msg::dds_::Wrench_"):  # type: ignore[call-arg]
     force: Vector3 = field(default_factory=Vector3)
     torque: Vector3 = field(default_factory=Vector3)
 
 
 @dataclass
-class WrenchStamped(IdlStruct, typename="geometry_msgs::msg::dds_::WrenchStamped_"):
+class WrenchStamped(IdlStruct, typename="geometry_msgs::msg::dds_::WrenchStamped_"):  # type: ignore[call-arg]
     header: Header = field(default_factory=Header)
     wrench: Wrench = field(default_factory=Wrench)
 
 
 @dataclass
-class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):  # type: ignore[call-arg]
     position: Point = field(default_factory=Point)
     orientation: Quaternion = field(default_factory=Quaternion)
 
 
 @dataclass
-class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):  # type: ignore[call-arg]
     header: Header = field(default_factory=Header)
     pose: Pose = field(default_factory=Pose)
 
@@ -96,7 +96,7 @@ def _zeros9() -> list[float]:
 
 
 @dataclass
-class Imu(IdlStruct, typename="sensor_msgs::msg::dds_::Imu_"):
+class Imu(IdlStruct, typename="sensor_msgs::msg::dds_::Imu_"):  # type: ignore[call-arg]
     header: Header = field(default_factory=Header)
     orientation: Quaternion = field(default_factory=Quaternion)
     orientation_covariance: array[float64, 9] = field(default_factory=_zeros9)
@@ -107,7 +107,7 @@ class Imu(IdlStruct, typename="sensor_msgs::msg::dds_::Imu_"):
 
 
 @dataclass
-class Path(IdlStruct, typename="nav_msgs::msg::dds_::Path_"):
+class Path(IdlStruct, typename="nav_msgs::msg::dds_::Path_"):  # type: ignore[call-arg]
     header: Header = field(default_factory=Header)
     poses: sequence[PoseStamped] = field(default_factory=list)
 

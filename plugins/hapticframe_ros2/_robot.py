@@ -88,7 +88,7 @@ class Ros2Robot(Robot, DeviceLifecycle):
 
             assert self.context.scene is not None
             self._rig = EmulatedRig.for_robot(cfg, self.context.scene, self.context.id,
-                                              seed=self.context.rng.integers(2**31))
+                                              seed=int(self.context.rng.integers(2**31)))
             self._rig.start()
         self._endpoint = Endpoint(cfg.domain_id)
         self._goal_writer = self._endpoint.writer(cfg.goal_topic, Path, cfg.qos)

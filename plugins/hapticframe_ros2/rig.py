@@ -13,11 +13,15 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ._rig import EmulatedRig
 
 __all__ = ["main", "rig_for_experiment"]
 
 
-def rig_for_experiment(path: str, *, domain_id: int | None = None):  # type: ignore[no-untyped-def]
+def rig_for_experiment(path: str, *, domain_id: int | None = None) -> EmulatedRig:
     """The :class:`~hapticframe_ros2.EmulatedRig` behind the topics of the experiment at
     ``path`` (``domain_id`` overrides the robot's)."""
     from hapticframe import Kind, validate_file

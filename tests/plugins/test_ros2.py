@@ -16,13 +16,12 @@ import yaml
 pytest.importorskip("cyclonedds", reason="the 'ros2' extra (cyclonedds) is not installed")
 rosbags_typesys = pytest.importorskip("rosbags.typesys", reason="rosbags is not installed")
 
-from hapticframe_ros2 import _messages as M  # noqa: E402
-from hapticframe_ros2._config import QosConfig  # noqa: E402
-from hapticframe_ros2._dds import Endpoint, stamp_of  # noqa: E402
-
 from hapticframe import run_experiment, validate_file  # noqa: E402
 from hapticframe.devices import DeviceError  # noqa: E402
 from hapticframe.kinds import BuildContext  # noqa: E402
+from hapticframe_ros2 import _messages as M  # noqa: E402
+from hapticframe_ros2._config import QosConfig  # noqa: E402
+from hapticframe_ros2._dds import Endpoint, stamp_of  # noqa: E402
 
 EXAMPLE = Path(__file__).parents[2] / "examples" / "search-ros2.yaml"
 _DOMAINS = itertools.count()
@@ -136,3 +135,144 @@ def test_search_over_dds_makes_the_in_process_movements(tmp_path):
                                   local["sensor/wrist/force_n"][first])
     assert over_dds["object_found"] and in_process["object_found"]
     assert over_dds["movements"] == in_process["movements"] == rig.counts["movements"]
+
+
+def _sensor(domain: int, **config: object):
+    from hapticframe_ros2 import Ros2TopicSensor, Ros2TopicSensorConfig
+
+    cfg = Ros2TopicSensorConfig.model_validate(
+        {"topic": "/ft/wrench", "domain_id": domain, "connect_timeout_s": 2.0, **config})
+    return Ros2TopicSensor(cfg, BuildContext("wrist", np.random.default_rng(0)))
+
+
+def _wrench(t: float, fx: float = 1.0) -> M.WrenchStamped:
+    return M.WrenchStamped(M.Header(M.Time(*stamp_of(t)), "ft"),
+                           M.Wrench(M.Vector3(fx, 2.0, 3.0)))
+
+
+def _read_until(sensor, n: int, timeout_s: float = 2.0):
+    batches, got, deadline = [], 0, time.monotonic() + timeout_s
+    while got < n and time.monotonic() < deadline:
+        batch = sensor.read()
+        batches.append(batch)
+        got += len(batch)
+        time.sleep(0.005)
+    return batches
+
+
+def test_sensor_checks_every_sample():
+    domain = fresh_domain()
+    peer = Endpoint(domain)
+    writer = peer.writer("/ft/wrench", M.WrenchStamped, QosConfig())
+    sensor = _sensor(domain, rate_hz=100.0)
+    try:
+        sensor.configure()
+        sensor.activate()
+        # In order, a gap of 3 lost samples, one out of order, one non-finite.
+        for t, fx in [(1.00, 1.0), (1.01, 1.0), (1.05, 1.0), (1.02, 9.0), (1.06, math.nan)]:
+            writer.write(_wrench(t, fx))
+        batches = _read_until(sensor, 4)
+        times = np.concatenate([b.timestamps_s for b in batches])
+        force = np.concatenate([b.channels["force_n"] for b in batches])
+        valid = np.concatenate([b.valid["force_n"] for b in batches])
+        np.testing.assert_allclose(times, [1.00, 1.01, 1.05, 1.06])
+        assert 9.0 not in force[:, 0]  # the out-of-order sample is never delivered
+        assert valid.tolist() == [True, True, True, False]
+        health = sensor.health
+        assert health.out_of_order == 1
+        assert health.dropped_samples == 3
+        assert health.invalid_samples == 1
+        # A clock that jumps ahead stops the run with a message, delivering nothing.
+        writer.write(_wrench(5000.0))
+        with pytest.raises(DeviceError, match="jumped forward"):
+            _read_until(sensor, 1)
+    finally:
+        sensor.close()
+        peer.close()
+
+
+def test_sensor_counts_a_topic_that_disappears_as_a_stall():
+    domain = fresh_domain()
+    peer = Endpoint(domain)
+    writer = peer.writer("/ft/wrench", M.WrenchStamped, QosConfig())
+    sensor = _sensor(domain, stall_s=0.05)
+    try:
+        sensor.configure()
+        sensor.activate()
+        writer.write(_wrench(1.0))
+        assert len(np.concatenate([b.timestamps_s for b in _read_until(sensor, 1)])) == 1
+        del writer
+        peer.close()  # the publisher leaves the domain
+        time.sleep(0.2)
+        assert len(sensor.read()) == 0
+        assert sensor.health.stalls == 1
+    finally:
+        sensor.close()
+
+
+def test_sensor_refuses_a_topic_of_another_type():
+    domain = fresh_domain()
+    peer = Endpoint(domain)
+    _imu_writer = peer.writer("/ft/wrench", M.Imu, QosConfig())  # Imu where a wrench is meant
+    sensor = _sensor(domain, connect_timeout_s=0.5)
+    try:
+        sensor.configure()
+        with pytest.raises(DeviceError, match="another type"):
+            sensor.activate()
+    finally:
+        sensor.close()
+        peer.close()
+
+
+def test_robot_refuses_to_move_on_a_stale_pose_stream(tmp_path):
+    from hapticframe.kinds import ExploratoryMovement
+    from hapticframe_ros2 import Ros2Robot, Ros2RobotConfig
+
+    domain = fresh_domain()
+    peer = Endpoint(domain)
+    poses = peer.writer("/hapticframe/plate_pose", M.PoseStamped, QosConfig())
+    cfg = Ros2RobotConfig.model_validate({"domain_id": domain, "pose_timeout_s": 0.1,
+                                          "connect_timeout_s": 2.0})
+    robot = Ros2Robot(cfg, BuildContext("arm", np.random.default_rng(0)))
+    try:
+        robot.configure()
+        poses.write(M.PoseStamped(M.Header(M.Time(0, 0), "world"),
+                                  M.Pose(M.Point(0.1, 0.1, -0.044))))
+        robot.activate()
+        time.sleep(0.3)  # the rig falls silent
+        with pytest.raises(DeviceError, match="stale"):
+            robot.begin(ExploratoryMovement(np.array([0.1, 0.1]), np.array([0.2, 0.1])))
+    finally:
+        robot.close()
+        peer.close()
+
+
+def test_validate_and_listing_need_no_cyclonedds():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['cyclonedds'] = None\n"
+        "from hapticframe import validate_file\n"
+        f"validate_file({str(EXAMPLE)!r})\n"
+        "assert 'cyclonedds.domain' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+def test_run_without_the_extra_says_what_to_install(tmp_path):
+    import subprocess
+    import sys
+
+    hf = shutil.which("hapticframe", path=str(Path(sys.executable).parent))
+    assert hf is not None
+    code = (
+        "import sys; sys.modules['cyclonedds'] = None; sys.modules['cyclonedds.domain'] = None\n"
+        "from hapticframe.cli import main\n"
+        f"sys.exit(main(['run', {str(EXAMPLE)!r}, '--out', {str(tmp_path / 'x')!r}]))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "hapticframe[ros2]" in done.stderr
+    assert "Traceback" not in done.stderr
