@@ -146,7 +146,23 @@ class RunSettings(BaseModel):
     )
     snapshot_spacing_m: float = Field(
         0.01, gt=0, le=0.1,
-        description="Grid spacing of the map snapshots in run.mcap (metres).",
+        description="Grid spacing of the map snapshots in run.mcap (metres); coarser where "
+        "the region needs more than snapshot_max_cells cells at this spacing.",
+    )
+    snapshot_max_cells: int = Field(
+        16384, ge=1, le=10_000_000,
+        description="Most grid cells in one map snapshot: over a large region the snapshot's "
+        "spacing grows until its grid has at most this many, so that recording costs the "
+        "same share of the run at every region size (16384: the 0.75 x 0.5 m search area "
+        "at 1 cm, a 3 x 2 m region at 1.9 cm, 10 x 10 m at 7.9 cm).",
+    )
+    snapshot_cpu_share: float = Field(
+        0.04, gt=0, le=1.0,
+        description="Largest share of the run's CPU time that map snapshots may take: a "
+        "snapshot that is due is skipped while the snapshots so far took more (the maps' "
+        "last state is always written). Small maps stay at snapshot_rate_hz; a large map's "
+        "snapshots (each changed tile's covariance) thin out so the recording costs the "
+        "same share at every region size. 1: every due snapshot.",
     )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,

@@ -8,6 +8,7 @@ and records everything for ``trace.npz``.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping
 from typing import Any
 
@@ -42,6 +43,12 @@ class Dataflow:
     #: The run's recording (see :attr:`recording`); maps changed since the last snapshot.
     _recording: RecordingWriter | None = None
     _maps_changed = False
+    #: CPU seconds the map snapshots took, and the CPU clock at the start of the run: a
+    #: snapshot that is due is taken only while the snapshots stay within
+    #: ``run.snapshot_cpu_share`` of the run's CPU (the last state is always written).
+    _snapshot_cpu_s = 0.0
+    _snapshot_cpu_share = 1.0
+    _cpu_start_s = 0.0
 
     def __init__(
         self,
@@ -56,6 +63,9 @@ class Dataflow:
         run = experiment.model.run
         self._snapshot_rate_hz = run.snapshot_rate_hz
         self._snapshot_spacing_m = run.snapshot_spacing_m
+        self._snapshot_max_cells = run.snapshot_max_cells
+        self._snapshot_cpu_share = run.snapshot_cpu_share
+        self._cpu_start_s = time.process_time()
         self._outline_level = run.outline_level
         self.scene = experiment.model.scene
         self.recording = None
@@ -378,13 +388,22 @@ class Dataflow:
         if final:
             if not self._maps_changed or recording.snapshot_rate_hz <= 0:
                 return
-        elif not recording.snapshot_due():
+        elif not self._within_snapshot_budget() or not recording.snapshot_due():
             return
         self._maps_changed = False
+        started = time.process_time()
         for map_id in self.maps:
             recording.map_snapshot(MapSnapshot.of(
                 map_id, self.components.maps[map_id], recording.now_s,
-                self._snapshot_spacing_m, self._outline_level))
+                self._snapshot_spacing_m, self._outline_level, self._snapshot_max_cells))
+        self._snapshot_cpu_s += time.process_time() - started
+
+    def _within_snapshot_budget(self) -> bool:
+        """True while the snapshots so far took at most ``run.snapshot_cpu_share`` of the
+        run's CPU time: a large map's snapshot (every changed tile's covariance) would
+        otherwise cost a share of the run that grows with the region."""
+        elapsed = time.process_time() - self._cpu_start_s
+        return self._snapshot_cpu_s <= self._snapshot_cpu_share * elapsed
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):

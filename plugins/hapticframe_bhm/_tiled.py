@@ -168,12 +168,18 @@ class TiledBeliefs:
         self._covariances: OrderedDict[tuple[int, int], None] = OrderedDict()
         self._packed: dict[tuple[int, int], tuple[FloatArray, FloatArray, FloatArray]] = {}
         self._tril: dict[int, tuple[IntArray, IntArray]] = {}
+        # Each tile's last grid moments, kept until the tile fuses again: a grid query (a
+        # recorded map snapshot) then costs in proportion to the tiles that changed, not to
+        # the region (every tile's covariance rebuilt per snapshot made a 3 x 2 m
+        # recording +30 % CPU).
+        self._grid_moments: dict[tuple[int, int], tuple[bytes, bytes, FloatArray, FloatArray]] = {}
 
     def reset(self) -> None:
         """Drop every tile: the whole region is the prior again."""
         self.tiles.clear()
         self._covariances.clear()
         self._packed.clear()
+        self._grid_moments.clear()
 
     # --- points to hinges -----------------------------------------------------------------
 
@@ -241,6 +247,7 @@ class TiledBeliefs:
                 observations.points_m[rows], observations.targets[rows],
                 observations.weights[rows],
             )
+            self._grid_moments.pop(tile, None)
             self._tile(tile).update(part)
             self._touched(tile)
 
@@ -340,7 +347,14 @@ class TiledBeliefs:
             rows = np.flatnonzero(row_tile == tile[1])
             if columns.size and rows.size:
                 # Contiguous runs: the tile's cells are a rectangle of the grid.
-                part_mean, part_std = self._tile(tile).grid_moments(qx[columns], qy[rows])
+                tile_qx, tile_qy = qx[columns], qy[rows]
+                key = (tile_qx.tobytes(), tile_qy.tobytes())
+                cached = self._grid_moments.get(tile)
+                if cached is not None and cached[:2] == key:
+                    part_mean, part_std = cached[2], cached[3]
+                else:
+                    part_mean, part_std = self._tile(tile).grid_moments(tile_qx, tile_qy)
+                    self._grid_moments[tile] = (*key, part_mean, part_std)
                 block = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
                 mean[block], std[block] = part_mean, part_std
                 self._touched(tile)

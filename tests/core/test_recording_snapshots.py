@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -202,6 +203,7 @@ def test_the_dataflow_snapshots_at_the_rate_and_at_the_end(tmp_path):
     flow.maps, flow.pending = ["ramp"], {"ramp": []}
     flow.components = SimpleNamespace(maps={"ramp": _Ramp()})
     flow._snapshot_rate_hz, flow._snapshot_spacing_m, flow._outline_level = 5.0, 0.05, 0.6
+    flow._snapshot_max_cells = 16384
     flow.scene = None
     flow._now_s, flow.counts = 0.0, {}  # what the /loop events of flush_maps read
     recording = RunRecording(tmp_path / "a.mcap")
@@ -230,3 +232,43 @@ def test_a_recorded_run_writes_only_table_channels(short_search):
         assert check_topic(topic, schema).schema == schema
     written = {check_topic(t, s) for t, s in topics.items()}
     assert written >= {MOVEMENT, LOOP, METRICS, SCENE, MAP_GRID, SENSOR, ROBOT_STATE}
+
+
+def test_a_snapshot_grid_is_coarsened_to_at_most_its_cell_budget() -> None:
+    """The snapshot's cells, and so its cost, are bounded at every region size."""
+    import math
+
+    from hapticframe.run._channels import snapshot_spacing
+
+    assert snapshot_spacing(0.75, 0.5, 0.01, 16384) == 0.01  # the sandbox: unchanged
+    for width, height in ((3.0, 2.0), (10.0, 10.0), (100.0, 0.5)):
+        spacing = snapshot_spacing(width, height, 0.01, 16384)
+        cells = math.ceil(width / spacing) * math.ceil(height / spacing)
+        assert spacing > 0.01 and 0.9 * 16384 < cells <= 16384
+    assert snapshot_spacing(1.0, 1.0, 0.01, 1) >= 1.0
+    with pytest.raises(ValueError, match="max_cells"):
+        snapshot_spacing(1.0, 1.0, 0.01, 0)
+
+
+def test_due_snapshots_are_skipped_while_they_exceed_their_cpu_share(tmp_path) -> None:
+    flow = object.__new__(Dataflow)
+    flow.maps, flow.pending = ["ramp"], {"ramp": []}
+    flow.components = SimpleNamespace(maps={"ramp": _Ramp()})
+    flow._snapshot_rate_hz, flow._snapshot_spacing_m, flow._outline_level = 5.0, 0.05, 0.6
+    flow._snapshot_max_cells = 16384
+    flow.scene, flow._now_s, flow.counts = None, 0.0, {}
+    recording = RunRecording(tmp_path / "a.mcap")
+    flow.recording = recording
+    flow._snapshot_cpu_share, flow._cpu_start_s = 0.01, time.process_time()
+    flow._snapshot_cpu_s = 1e6  # as if the snapshots had taken far more than their share
+    for t in (1.0, 2.0, 3.0):
+        recording.robot_state("arm", RobotState(t, np.zeros(2), 0.0, 0.0), 0)
+        flow._maps_changed = True
+        flow.flush_maps()
+    assert flow._maps_changed  # every due snapshot skipped: over budget
+    flow.snapshot_maps(final=True)  # the last state is always written
+    assert not flow._maps_changed
+    recording.close()
+    reader = make_reader(open(tmp_path / "a.mcap", "rb"))
+    grids = [m for _, c, m in reader.iter_messages() if c.topic == "/map/ramp/grid"]
+    assert len(grids) == 1

@@ -138,3 +138,31 @@ def test_packed_tiles_answer_as_before(data, monkeypatch) -> None:
     packed.update(more)  # a packed tile's precision comes back from its factor
     np.testing.assert_allclose(packed.query(test.points_m[1000:2000]).mean,
                                whole.query(test.points_m[1000:2000]).mean, atol=1e-8)
+
+
+def test_a_repeated_grid_query_recomputes_only_the_tiles_that_fused_since(data, monkeypatch
+                                                                          ) -> None:
+    """A recorded snapshot costs in proportion to the tiles that changed (issue 36 §3)."""
+    from hapticframe_bhm._dense import DenseBelief
+
+    train, _ = data
+    region = RegionConfig(x_min_m=0.0, x_max_m=3.0, y_min_m=0.0, y_max_m=2.0)
+    bhm, reference = build(region=region), build(region=region)
+    bhm.update(train)
+    reference.update(train)
+    first = bhm.probability_grid(0.02)
+    calls: list[int] = []
+    original = DenseBelief.grid_moments
+    monkeypatch.setattr(DenseBelief, "grid_moments",
+                        lambda self, qx, qy: calls.append(1) or original(self, qx, qy))
+    again = bhm.probability_grid(0.02)
+    assert not calls  # nothing fused: every tile's moments come from the last query
+    for a, b in zip(first, again, strict=True):
+        np.testing.assert_array_equal(a, b)
+    corner = Observations(np.array([[0.1, 0.1]]), np.array([1.0]))
+    bhm.update(corner)
+    reference.update(corner)
+    fused = bhm.probability_grid(0.02)
+    assert 0 < len(calls) < len(bhm.tiled.tiles)  # only the tiles the point reached
+    for a, b in zip(fused, reference.probability_grid(0.02), strict=True):
+        np.testing.assert_array_equal(a, b)  # the same as a map that never cached
