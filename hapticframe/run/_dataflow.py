@@ -47,6 +47,7 @@ class Dataflow:
     #: snapshot that is due is taken only while the snapshots stay within
     #: ``run.snapshot_cpu_share`` of the run's CPU (the last state is always written).
     _snapshot_cpu_s = 0.0
+    _last_snapshot_cpu_s = 0.0
     _snapshot_cpu_share = 1.0
     _cpu_start_s = 0.0
 
@@ -396,14 +397,17 @@ class Dataflow:
             recording.map_snapshot(MapSnapshot.of(
                 map_id, self.components.maps[map_id], recording.now_s,
                 self._snapshot_spacing_m, self._outline_level, self._snapshot_max_cells))
-        self._snapshot_cpu_s += time.process_time() - started
+        self._last_snapshot_cpu_s = time.process_time() - started
+        self._snapshot_cpu_s += self._last_snapshot_cpu_s
 
     def _within_snapshot_budget(self) -> bool:
-        """True while the snapshots so far took at most ``run.snapshot_cpu_share`` of the
-        run's CPU time: a large map's snapshot (every changed tile's covariance) would
-        otherwise cost a share of the run that grows with the region."""
+        """True while the snapshots so far, and one more costing as much as the last, take
+        at most ``run.snapshot_cpu_share`` of the run's CPU time: a large map's snapshot
+        (every changed tile's covariance) would otherwise cost a share of the run that
+        grows with the region."""
         elapsed = time.process_time() - self._cpu_start_s
-        return self._snapshot_cpu_s <= self._snapshot_cpu_share * elapsed
+        planned = self._snapshot_cpu_s + self._last_snapshot_cpu_s
+        return planned <= self._snapshot_cpu_share * elapsed
 
     def _record_batch(self, kind: str, cid: str, batch: SampleBatch) -> None:
         if not len(batch):
