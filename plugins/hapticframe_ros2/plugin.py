@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 
 from hapticframe import Kind, RobotSpec, SensorSpec, hookimpl
@@ -11,8 +12,13 @@ from ._config import Ros2RobotConfig, Ros2TopicSensorConfig
 __all__ = ["hapticframe_robots", "hapticframe_sensors"]
 
 _HINT = "pip install 'hapticframe[ros2]' (cyclonedds)"
-# The kit's checks run against the emulated rig, on a domain of their own.
+# The kit's checks run against the emulated rig, on a domain of their own, under topics of
+# this process alone: parallel test workers (pytest-xdist) each run a rig on the same domain,
+# and DDS matches topics by name, so a shared name would cross their streams.
 _CHECK_DOMAIN = 231
+_CHECK_PREFIX = f"/hapticframe_check_{os.getpid()}"
+_CHECK_TOPICS = {name: f"{_CHECK_PREFIX}/{name.removesuffix('_topic')}"
+                 for name in ("goal_topic", "setpoint_topic", "pose_topic", "wrench_topic")}
 
 
 @hookimpl
@@ -27,7 +33,7 @@ def hapticframe_sensors() -> Iterator[SensorSpec]:
         capabilities=frozenset({"hardware"}),
         install_hint=_HINT,
         inputs=(Kind.ROBOT,),
-        check_config={"topic": "/hapticframe/wrench", "domain_id": _CHECK_DOMAIN,
+        check_config={"topic": _CHECK_TOPICS["wrench_topic"], "domain_id": _CHECK_DOMAIN,
                       "robot_sync_timeout_s": 1.0},
         check_inputs=("robot/ros2",),
     )
@@ -44,5 +50,5 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
         factory="hapticframe_ros2._robot:Ros2Robot",
         capabilities=frozenset({"hardware"}),
         install_hint=_HINT,
-        check_config={"rig": "emulated", "domain_id": _CHECK_DOMAIN},
+        check_config={"rig": "emulated", "domain_id": _CHECK_DOMAIN, **_CHECK_TOPICS},
     )
