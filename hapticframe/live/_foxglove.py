@@ -22,12 +22,13 @@ import json
 from collections.abc import Mapping
 from typing import Any
 
+from hapticframe._defaults import FOXGLOVE_PORT
 from hapticframe._errors import UsageError
 
 __all__ = ["DEFAULT_FOXGLOVE_PORT", "FOXGLOVE_EXTRA", "FoxgloveBridge"]
 
 #: Foxglove's own default port for a WebSocket connection.
-DEFAULT_FOXGLOVE_PORT = 8765
+DEFAULT_FOXGLOVE_PORT = FOXGLOVE_PORT
 #: What to install for ``--foxglove``.
 FOXGLOVE_EXTRA = "pip install 'hapticframe[foxglove]' (the foxglove-sdk package)"
 
