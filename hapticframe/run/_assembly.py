@@ -13,6 +13,7 @@ deactivates and cleans up the devices in reverse order before any component is c
 from __future__ import annotations
 
 import logging
+import math
 import zlib
 from collections.abc import Callable
 from contextlib import ExitStack
@@ -23,7 +24,8 @@ import numpy as np
 
 from hapticframe._config import ComponentEntry, Experiment
 from hapticframe._errors import ExperimentError, HapticframeError, Issue, RunError
-from hapticframe.kinds import BuildContext, Component, Device
+from hapticframe._kind import Kind
+from hapticframe.kinds import BuildContext, Component, Device, Robot, RunClock
 from hapticframe.run._components import Components
 
 __all__ = ["LEAVE_OUT", "Substitute", "activate_devices", "build_components", "component_rng"]
@@ -106,7 +108,10 @@ def build_components(
         When an implementation cannot be imported.
     """
     scene = experiment.model.scene
-    built = Components()
+    # One clock for the run, handed to every component: its period is the first robot's
+    # control period (from its config, before anything is built), else the open loop's tick.
+    clock = RunClock(_control_period_s(experiment))
+    built = Components(clock)
     for entry in experiment.components:
         chosen = choose(entry) if choose is not None else None
         if chosen == LEAVE_OUT:
@@ -122,6 +127,7 @@ def build_components(
             inputs={name: built[name] for name in entry.inputs if name in built},
             scene=scene,
             progress=progress,
+            clock=clock,
         )
         try:
             component = factory(config, context)
@@ -137,6 +143,10 @@ def build_components(
         if isinstance(component, Component):
             stack.callback(_closer(component, on_close_error))
         built.add(entry.id, entry.kind, component, plugin=plugin)
+    if built.robots:
+        # The robots' time: the latest state of any (in a team, the one that moves now).
+        robots = tuple(built.robots.values())
+        clock.follow(lambda: _latest_time_s(robots), 1.0 / float(robots[0].control_rate_hz))
     if activate:
         names = {e.id: _named(e) for e in experiment.components}
         activate_devices(built, stack, on_close_error, names)
@@ -187,6 +197,24 @@ def activate_devices(
                 raise RunError(f"cannot {doing} {what}: {type(exc).__name__}: {exc}") from exc
         activated.append(cid)
     return activated
+
+
+def _latest_time_s(robots: tuple[Robot, ...]) -> float:
+    """The time of the robots' latest state (NaN before any has one: the clock holds)."""
+    times = [float(r.state.timestamp_s) for r in robots if r.state is not None]
+    return max(times) if times else math.nan
+
+
+def _control_period_s(experiment: Experiment) -> float:
+    """The run's control period: the first robot's ``control_rate_hz`` where its config
+    says it, else ``run.live_tick_s`` (an open loop advances its clock by it per read)."""
+    for entry in experiment.components:
+        if entry.kind is Kind.ROBOT:
+            rate = getattr(entry.config, "control_rate_hz", None)
+            if isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0:
+                return 1.0 / float(rate)
+            break
+    return float(experiment.model.run.live_tick_s)
 
 
 def _named(entry: ComponentEntry) -> str:
