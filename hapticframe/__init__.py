@@ -41,6 +41,7 @@ _LAZY = {
     "FeatureExtractorSpec": "hapticframe._specs",
     "HapticframeError": "hapticframe._errors",
     "Issue": "hapticframe._errors",
+    "ChannelSpec": "hapticframe._contracts",
     "Kind": "hapticframe._kind",
     "Knob": "hapticframe._specs",
     "MapSpec": "hapticframe._specs",

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from hapticframe._config._load import LoadedFile
 from hapticframe._config._roles import evaluated_map_id
 from hapticframe._config._sizes import Size, format_bytes
+from hapticframe._contracts import ChannelSpec, channel_disagreement, describe_channel
 from hapticframe._errors import Issue, PluginImportError
 from hapticframe._kind import Kind
 
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from hapticframe._config._model import ComponentEntry
 
 __all__ = [
+    "contract_mismatch",
     "ComponentView",
     "Finding",
     "ValidationContext",
@@ -263,6 +265,7 @@ def core_checks(
             report.error(f"scene.{path}", message)
     _check_loop(entries, model.run, report)
     _check_inputs(entries, model.run, scene, report)
+    _check_channels(entries, report)
     _check_run_settings(entries, model.run, scene, report)
     _check_pace(entries, model.run, scene, report)
     return report.errors, report.warnings
@@ -358,6 +361,42 @@ def _check_inputs(
             report.warning(where, (
                 f"{named} plans on a map but has none in its inputs: name the map it reads"
             ))
+
+
+def contract_mismatch(
+    consumer: ComponentEntry, input_id: str, input_type: str,
+    produced: Mapping[str, ChannelSpec], what_input: str = "",
+) -> list[str]:
+    """The channels on which ``consumer``'s declared ``consumes`` and what its input
+    ``input_id`` produces disagree, one message each naming both declarations."""
+    consumed = consumer.registered.spec.reads
+    messages = []
+    for name in consumed.keys() & produced.keys():
+        why = channel_disagreement(produced[name], consumed[name])
+        if why:
+            messages.append(
+                f"{consumer.kind} {consumer.id!r} ({consumer.type}) reads "
+                f"{describe_channel(name, consumed[name])}; its input {input_id!r} "
+                f"({input_type}) {what_input or 'declares'} "
+                f"{describe_channel(name, produced[name])} ({why}): wire it to an input that "
+                "delivers what it reads, or convert the channel with a feature extractor "
+                "(`hapticframe plugins --channels` lists both sides)"
+            )
+    return messages
+
+
+def _check_channels(entries: list[ComponentEntry], report: _Report) -> None:
+    """Each consumer's declared channels against what its inputs' specs produce."""
+    by_id = {e.id: e for e in entries}
+    for entry in entries:
+        for input_id in entry.inputs:
+            source = by_id.get(input_id)
+            if source is None:
+                continue
+            for message in contract_mismatch(
+                entry, input_id, source.type, source.registered.spec.produces
+            ):
+                report.error(f"{entry.path}.inputs", message)
 
 
 def _check_run_settings(

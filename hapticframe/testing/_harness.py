@@ -274,8 +274,8 @@ def synthetic_batch(
     dt = 1.0 / spec.sample_rate_hz
     t = np.asarray(t0 + dt * (1 + np.arange(n)), dtype=np.float64)
     channels = {}
-    for name, shape in spec.consumes.items():
-        size = (n, *shape)
+    for name, channel in spec.reads.items():
+        size = (n, *channel.kit_shape)
         if fill == "zero":
             values = np.zeros(size)
         elif fill == "constant":

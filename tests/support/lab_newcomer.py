@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from hapticframe import PluginConfig, SensorSpec, hookimpl
-from hapticframe.kinds import ChannelInfo, SampleBatch, Sensor
+from hapticframe import ChannelSpec, ClassifierSpec, PluginConfig, SensorSpec, hookimpl
+from hapticframe.kinds import ChannelInfo, Classifier, ClassProbabilities, SampleBatch, Sensor
 
 
 class FakeFtConfig(PluginConfig):
@@ -57,6 +57,36 @@ class FakeFtClocked(FakeFt):
         return SampleBatch(times - self.config.late_s, {"force_n": force})
 
 
+class PlanarConfig(PluginConfig):
+    threshold_n: float = Field(5.0, gt=0, description="Contact above this in-plane force.")
+
+
+class PlanarForceClassifier(Classifier):
+    """Reads the in-plane force (x, y): contact when its x component exceeds a threshold."""
+
+    classes = ("free", "contact")
+
+    def update(self, batch: SampleBatch) -> ClassProbabilities:
+        return self.predict_proba(batch)
+
+    def predict_proba(self, batch: SampleBatch) -> ClassProbabilities:
+        x = batch.channels["force_n"][:, 0]
+        p = np.clip(x / (2 * self.config.threshold_n), 0.0, 1.0)
+        return ClassProbabilities(batch.timestamps_s, np.column_stack([1 - p, p]), self.classes)
+
+    def fit(self, batches: Any, labels: Any) -> None:
+        """Nothing to fit."""
+
+
+@hookimpl
+def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
+    yield ClassifierSpec(
+        name="lab-planar", summary="Contact from the in-plane force's x component.",
+        config=PlanarConfig, factory=f"{__name__}:PlanarForceClassifier",
+        consumes={"force_n": ChannelSpec((2,), "N", "uses the x component of (x, y)")},
+    )
+
+
 @hookimpl
 def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec(
@@ -66,4 +96,5 @@ def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec(
         name="lab-fake-ft-clocked", summary="The fake 3-axis force sensor on the run's clock.",
         config=FakeFtConfig, factory=f"{__name__}:FakeFtClocked", inputs=(),
+        produces={"force_n": ChannelSpec((3,), "N", "x, y, z in the sensor frame")},
     )
