@@ -138,6 +138,7 @@ def _movements(
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
+            session.details["ended_by"] = "the planner proposed no further movement"
             return
         # The movement's parts: one robot's, or several when one robot's workspace ends.
         robot = team.pick(movement.start_m, movement.end_m)
@@ -212,6 +213,10 @@ def _movements(
         if reason == STREAM_OUT_OF_STEP:
             _end_out_of_step(session, flow)
             return
+    session.details["ended_by"] = (
+        f"run.max_movements ({limit})" if limit == settings.max_movements
+        else f"the planner's max_movements ({limit})"
+    )
     session.echo(f"stopped after {limit} movements (the movement limit)")
 
 
@@ -356,22 +361,46 @@ def _open_loop(session: Session, flow: Dataflow) -> None:
     sensors = [s for sid, s in session.components.sensors.items() if sid not in training]
     if not sensors:
         raise RunError("nothing to run: the experiment has no sensors and no robot")
-    max_reads = session.settings.max_reads
+    settings = session.settings
+    max_reads = settings.max_reads
     devices = devices_of(session.components)
-    pacer = _pacer(devices, session.settings.live_tick_s)
+    pacer = _pacer(devices, settings.live_tick_s)
     clock = session.components.clock
+    # The stated length (run.duration_s) in reads of one control period each.
+    planned = (
+        None if settings.duration_s is None
+        else max(1, math.ceil(settings.duration_s / clock.period_s - 1e-9))
+    )
     reads = 0
-    while reads < max_reads:
-        reads += 1
+    ended_by = ""
+    while True:
         if all(s.exhausted for s in sensors):
+            ended_by = "the sensors ended"
             break
+        if planned is not None and reads >= planned:
+            ended_by = f"run.duration_s ({settings.duration_s:g} s, {planned} reads)"
+            break
+        if reads >= max_reads:
+            session.details["limit"] = {
+                "setting": "run.max_reads", "value": max_reads, "reads": reads,
+                "clock_s": clock.now_s(),
+                "reason": (
+                    f"stopped at run.max_reads ({max_reads:,} reads, {clock.now_s():.6g} s "
+                    "of the run's clock) before its sensors ended"
+                    + ("" if planned is None else " or its run.duration_s was reached")
+                    + ": a limit, not the run's end (state its length with run.duration_s)"
+                ),
+            }
+            session.echo(f"stopped: {session.details['limit']['reason']}")
+            break
+        reads += 1
         pacer.wait()
         if not clock.follows:
             clock.advance()  # the open loop's control period: one per read
         flow.tick()
         flow.flush_maps()
-    else:
-        session.echo(f"stopped after {max_reads} reads (run.max_reads)")
+    if ended_by:
+        session.details["ended_by"] = ended_by
     session.details["sensor_reads"] = reads
     _note_force(session, flow.force_max_n)
     faults = device_faults(devices)

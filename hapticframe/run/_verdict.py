@@ -98,7 +98,13 @@ def _halts(session: Session) -> list[str]:
 def inconclusive_reasons(session: Session) -> list[str]:
     """Why the finished run's figures are no result (empty: they are one)."""
     arrays = session.recorder.arrays()
-    return _out_of_step(session) + _delivery(session, arrays) + _halts(session)
+    return (_out_of_step(session) + _limit(session) + _delivery(session, arrays)
+            + _halts(session))
+
+
+def _limit(session: Session) -> list[str]:
+    limit = session.details.get("limit")
+    return [str(limit["reason"])] if limit else []
 
 
 def _out_of_step(session: Session) -> list[str]:

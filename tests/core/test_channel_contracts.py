@@ -31,7 +31,7 @@ classifiers:
   - id: planar
     type: lab-planar
     inputs: [lab]
-run: {{max_reads: 50, figures: false}}
+run: {{duration_s: 0.5, figures: false}}
 """
 
 
