@@ -160,7 +160,9 @@ class Registry:
 
         blocking = self._blocking(name)
         if blocking:
-            which = ", ".join(f"{s.entry_point!r} of {s.distribution} {s.version}" for s in blocking)
+            which = ", ".join(
+                f"{s.entry_point!r} of {s.distribution} {s.version}" for s in blocking
+            )
             parts = [
                 f"{kind} type {shown(name)} is blocked: its plugin's entry point {which} is "
                 "named in HAPTICFRAME_BLOCKED_PLUGINS, so it was not loaded; remove it from "
