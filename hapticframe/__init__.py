@@ -35,6 +35,7 @@ _LAZY = {
     "apply_overrides": "hapticframe._config._overrides",
     "validate_with_overrides": "hapticframe._config._overrides",
     "atomic_path": "hapticframe._atomic",
+    "channel_disagreement": "hapticframe._contracts",
     "atomic_write": "hapticframe._atomic",
     "save_npz": "hapticframe._atomic",
     "ValidationContext": "hapticframe._config",
