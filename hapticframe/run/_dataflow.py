@@ -27,10 +27,15 @@ from hapticframe.kinds import (
     Sensor,
 )
 from hapticframe.run._channels import LOOP, MapSnapshot, RecordingWriter
+from hapticframe.run._clock_check import StepCheck
 from hapticframe.run._components import Components
 from hapticframe.run._streams import InputAligner, PoseHistory, TraceRecorder, _merge_exact
 
 __all__ = ["Dataflow"]
+
+#: The key of the clock check's state in a :meth:`Dataflow.checkpoint` (no component id:
+#: ids start with a letter).
+_STEP_CHECK = "#step-check"
 
 
 class Dataflow:
@@ -50,6 +55,8 @@ class Dataflow:
     _last_snapshot_cpu_s = 0.0
     _snapshot_cpu_share = 1.0
     _cpu_start_s = 0.0
+    #: A closed loop's check of every stream against the robot's time (None: unchecked).
+    step_check: StepCheck | None = None
 
     def __init__(
         self,
@@ -253,8 +260,11 @@ class Dataflow:
         """
         outputs: dict[str, SampleBatch] = {}
         sensors = self.components.sensors
+        step_check = self.step_check
         for sensor_id in self.sensors:
-            outputs[sensor_id] = sensors[sensor_id].read()
+            outputs[sensor_id] = batch = sensors[sensor_id].read()
+            if step_check is not None:
+                step_check.check(sensor_id, batch)
         extractors = self.components.feature_extractors
         for fe_id in self.extractors:
             outputs[fe_id] = extractors[fe_id].update(self._inputs(fe_id, outputs))
@@ -312,12 +322,21 @@ class Dataflow:
 
     def checkpoint(self) -> dict[str, Any]:
         """The aligners' kept samples, taken with the rewindable components' snapshots."""
-        return {cid: aligner.checkpoint() for cid, aligner in self.aligners.items()}
+        state: dict[str, Any] = {
+            cid: aligner.checkpoint() for cid, aligner in self.aligners.items()
+        }
+        if self.step_check is not None:
+            state[_STEP_CHECK] = self.step_check.checkpoint()
+        return state
 
     def rewind(self, checkpoint: Mapping[str, Any]) -> None:
-        """Return the aligners to a :meth:`checkpoint`."""
+        """Return the aligners (and the clock check) to a :meth:`checkpoint`."""
         for cid, state in checkpoint.items():
-            self.aligners[cid].rewind(state)
+            if cid == _STEP_CHECK:
+                if self.step_check is not None:
+                    self.step_check.rewind(state)
+            else:
+                self.aligners[cid].rewind(state)
 
     @property
     def rewindable(self) -> list[str]:

@@ -24,6 +24,8 @@ refused at the extremes of its range, or built and driven there within the memor
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
   times; every sensor is read until it ends, bounded by reads and by seconds of its own
   clock, and one that ends without declaring ``finite`` is told to declare it),
+  ``check_sensor_keeps_time`` (driven for 100 control periods of the run's clock, its time
+  advances by 100 periods within one sample; the message gives the fix),
   ``check_sensor_valid_samples_finite`` (no NaN or
   infinity in a sample the batch marks valid), ``check_sensor_read_all_matches_reads``
   (the ``read_all()`` and joined ``iter_recordings()`` of a sensor that ends equal what
@@ -115,6 +117,7 @@ from hapticframe.testing._streams import (
     check_aligned_inputs_stream_as_batch,
     check_numerical_extremes,
     check_sensor_contract,
+    check_sensor_keeps_time,
     check_sensor_read_all_matches_reads,
     check_sensor_valid_samples_finite,
     check_stream_contract,
@@ -152,6 +155,7 @@ __all__ = [
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "check_sensor_contract",
+    "check_sensor_keeps_time",
     "check_sensor_model_contract",
     "check_sensor_model_extremes",
     "check_sensor_model_streaming",

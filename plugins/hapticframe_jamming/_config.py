@@ -22,7 +22,14 @@ class ForceRateJammingConfig(PluginConfig):
     scale with speed: recalibrate (``fit``) for other speeds or real sensors.
     """
 
-    force_channel: str = Field("force_n", description="Input channel holding the force (N).")
+    force_channel: str = Field(
+        "force_n",
+        description="Input channel holding the force (N), of any number of components: the "
+        "classifier uses its magnitude |F|, the Euclidean norm over all of them (the "
+        "sandbox's 2 in-plane components; a wrist sensor's or the force observer's 3, the "
+        "vertical one included). Its thresholds are calibrated on the sandbox's in-plane "
+        "force: recalibrate (fit) for a 3-axis force.",
+    )
     sample_rate_hz: float | None = Field(
         None,
         gt=0,

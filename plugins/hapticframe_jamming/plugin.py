@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, Knob, hookimpl
+from hapticframe import ChannelSpec, ClassifierSpec, Knob, hookimpl
 
 from ._config import ForceRateJammingConfig
 
@@ -19,7 +19,10 @@ def hapticframe_classifiers() -> Iterator[ClassifierSpec]:
         validator="hapticframe_jamming._checks:check",
         capabilities=frozenset({"trainable"}),
         requires=("scipy",),
-        consumes={"force_n": (2,)},
+        # |F| of whatever components the force has: the sandbox's 2 in-plane ones, a wrist
+        # sensor's or the force observer's 3 (docs/plugin-authoring.md, channel contracts).
+        consumes={"force_n": ChannelSpec(
+            (None,), "N", "uses |F|, the Euclidean norm over all its components", example=(2,))},
         sample_rate_hz=100.0,
         knobs=(
             Knob("cutoff_hz", "a higher low-pass cutoff: jamming and contact detected sooner, "

@@ -38,6 +38,7 @@ from hapticframe.kinds import (
 
 from .heavy_config import HeavyConfig
 from .lab_devices import DeviceSensorConfig, MixConfig
+from .lab_newcomer import FakeFtConfig
 from .labplugin import (
     CellConfig,
     CellMap,
@@ -476,6 +477,9 @@ BROKEN = [
      "check_sensor_contract", "go back"),
     (SensorSpec("wrong-shape", "x", SweepConfig, f"{M}:WrongShapeSensor"),
      "check_sensor_contract", "declared (3,)"),
+    # Issue 34's newcomer: five samples a read at 100 Hz on a time counter of its own.
+    (SensorSpec("own-time-counter", "x", FakeFtConfig, "tests.support.lab_newcomer:FakeFt"),
+     "check_sensor_keeps_time", "context.clock.due_times"),
     (FeatureExtractorSpec("undeclared-feature", "x", ScaleConfig, f"{M}:UndeclaredFeature",
                           consumes=_FORCE),
      "check_stream_contract", "output_channels"),
