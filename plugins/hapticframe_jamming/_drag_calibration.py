@@ -67,8 +67,8 @@ def _step_s(t: NDArray[np.float64]) -> NDArray[np.float64]:
 def _contact_thresholds(traces: Sequence[DragTrace], ys: Sequence[NDArray[np.int64]],
                         base: tuple[float, float]) -> tuple[float, float]:
     """Ratio and ratio rate whose AND rule best separates contact from the rest (per-sample
-    balanced accuracy over free, jamming and contact, armed samples only); ``base`` when
-    no contact was recorded."""
+    balanced accuracy over free, jamming and contact, armed samples only; the ratio at
+    least 1); ``base`` when no contact was recorded."""
     armed = np.concatenate([tr.armed for tr in traces])
     y = np.concatenate(ys)[armed]
     if not np.any(y == 2) or not np.any(y != 2):
@@ -83,8 +83,13 @@ def _contact_thresholds(traces: Sequence[DragTrace], ys: Sequence[NDArray[np.int
     for members, above in zip(groups[:-1], counts[:-1], strict=True):
         score += 1.0 - above / members.sum()
     score += counts[-1] / groups[-1].sum()  # the contact group (last)
+    # Contact pushes at least as hard as the free drag: a ratio threshold below 1 would
+    # leave the rate alone to decide, and a noisy rate in free sand with it.
+    score = np.where(r_cand[:, None] >= 1.0, score, -np.inf)
+    if not np.isfinite(score).any():
+        return base
     i, j = F.plateau_argmax(score)
-    return max(float(r_cand[i]), 0.0), float(q_cand[j])
+    return float(r_cand[i]), float(q_cand[j])
 
 
 def operating_points(traces: Sequence[DragTrace], ys: Sequence[NDArray[np.int64]],

@@ -129,16 +129,23 @@ class DragTracker:
     def step(self, t: float, force: float, rate: float) -> tuple[bool, float, float, float]:
         """One filtered sample: (armed, ratio f/b, ratio rate f'/b in 1/s, CUSUM).
 
-        Before the drag is estimated (not armed) the ratio is 1, its rate 0, the CUSUM 0.
+        Before the drag is estimated (not armed) the CUSUM is 0 and the ratio and its rate
+        are against the median of the last ``settle_window_s`` once one has passed (1 and 0
+        before).
         ``force`` and ``rate`` must be finite (the classifier holds the last valid sample).
         """
         s = self.settings
         if self._start_t is None:
             self._start_t = t
         if self._drag is None:
-            self._warm_up(t, force)
+            provisional = self._warm_up(t, force)
             self._last_t = t
-            return False, 1.0, 0.0, 0.0
+            if provisional is None:
+                return False, 1.0, 0.0, 0.0
+            # Contact is still caught in the warm-up, against the last window's median (a
+            # movement may start next to an object); jamming is not.
+            ratio = min(max(force / provisional, _MIN_RATIO), _MAX_RATIO)
+            return False, ratio, rate / provisional, 0.0
         last = t if self._last_t is None else self._last_t
         dt = min(max(t - last, 0.0), s.max_dt_s)
         self._last_t = t
@@ -153,7 +160,9 @@ class DragTracker:
             self._drag = max(drag + weight * (force - drag), s.min_drag)
         return True, ratio, rate / drag, cusum
 
-    def _warm_up(self, t: float, force: float) -> None:
+    def _warm_up(self, t: float, force: float) -> float | None:
+        """Keep the sample; arm when the start-up has settled. Returns the provisional drag
+        (the last window's median, floored) once a window has passed, else None."""
         s = self.settings
         window = self._window
         window.append((t, force))
@@ -163,17 +172,19 @@ class DragTracker:
         assert self._start_t is not None
         elapsed = t - self._start_t
         last = [f for (ti, f) in window if ti > t - s.settle_window_s]
+        provisional = (max(_median(last), s.min_drag)
+                       if elapsed >= s.settle_window_s and last else None)
         if elapsed >= s.warmup_max_s:
             self._arm(last)
-            return
+            return provisional
         if elapsed < max(s.warmup_min_s, span):
-            return
+            return provisional
         before = [f for (ti, f) in window if ti <= t - s.settle_window_s]
-        if not before or not last:
-            return
-        previous, current = _median(before), _median(last)
-        if current <= previous + s.settle_fraction * abs(previous):
-            self._arm(last)
+        if before and last:
+            previous, current = _median(before), _median(last)
+            if current <= previous + s.settle_fraction * abs(previous):
+                self._arm(last)
+        return provisional
 
     def _arm(self, last: list[float]) -> None:
         self._drag = max(_median(last), self.settings.min_drag) if last else self.settings.min_drag
@@ -189,10 +200,11 @@ def probabilities_row(
     Logits ``(0, m_j, m_c + max(m_j, 0))`` as in the force-rate classifier, with
     ``m_j = (S - h) / scale`` and ``m_c`` the smaller scaled margin of ratio and ratio rate
     over the contact thresholds; the arg-max is contact when ``m_c > 0``, else jamming when
-    ``S > h``, else free. Not armed (warm-up): the row of a force at the drag.
+    ``S > h``, else free. Not armed (warm-up): no jamming (the CUSUM counts as 0), contact
+    by the ratios the tracker gave.
     """
     if not armed:
-        ratio, ratio_rate, cusum = 1.0, 0.0, 0.0
+        cusum = 0.0
     m_j = (cusum - rule.cusum_threshold) / rule.cusum_scale
     m_c = min((ratio - rule.contact_ratio) / rule.ratio_scale,
               (ratio_rate - rule.contact_ratio_rate) / rule.ratio_rate_scale)
