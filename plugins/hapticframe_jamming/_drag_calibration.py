@@ -23,6 +23,9 @@ __all__ = ["DRIFT_CANDIDATES", "LEVEL_CANDIDATES", "WARMUP_CANDIDATES", "Operati
 #: Drifts tried by ``fit``: forces 2 % to 100 % above the drag, as log-ratios.
 DRIFT_CANDIDATES = tuple(float(v) for v in np.log1p(
     [0.03, 0.06, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3, 0.4, 0.6, 1.0]))
+#: The loosest contact thresholds fit may choose: force / drag, and force rate / drag (1/s).
+MIN_CONTACT_RATIO = 2.0
+MIN_CONTACT_RATE = 5.0
 #: Minimum warm-ups tried (s): the start-up of the rig and sand at hand.
 WARMUP_CANDIDATES = (0.5, 0.8, 1.1, 1.5)
 #: CUSUM levels tried (log-ratio x s): 0 (a plain ratio threshold) and 1e-4 to 3.
@@ -67,8 +70,9 @@ def _step_s(t: NDArray[np.float64]) -> NDArray[np.float64]:
 def _contact_thresholds(traces: Sequence[DragTrace], ys: Sequence[NDArray[np.int64]],
                         base: tuple[float, float]) -> tuple[float, float]:
     """Ratio and ratio rate whose AND rule best separates contact from the rest (per-sample
-    balanced accuracy over free, jamming and contact, armed samples only; the ratio at
-    least 1); ``base`` when no contact was recorded."""
+    balanced accuracy over free, jamming and contact, armed samples only; at least
+    :data:`MIN_CONTACT_RATIO` and :data:`MIN_CONTACT_RATE`); ``base`` when no contact was
+    recorded."""
     armed = np.concatenate([tr.armed for tr in traces])
     y = np.concatenate(ys)[armed]
     if not np.any(y == 2) or not np.any(y != 2):
@@ -83,9 +87,11 @@ def _contact_thresholds(traces: Sequence[DragTrace], ys: Sequence[NDArray[np.int
     for members, above in zip(groups[:-1], counts[:-1], strict=True):
         score += 1.0 - above / members.sum()
     score += counts[-1] / groups[-1].sum()  # the contact group (last)
-    # Contact pushes at least as hard as the free drag: a ratio threshold below 1 would
-    # leave the rate alone to decide, and a noisy rate in free sand with it.
-    score = np.where(r_cand[:, None] >= 1.0, score, -np.inf)
+    # Contact is a spring: it at least doubles the drag within a millimetre or two and
+    # rises at several drags per second. Looser thresholds let the start-up ramp (checked
+    # for contact during the warm-up) or a noisy rate in free sand decide.
+    allowed = (r_cand[:, None] >= MIN_CONTACT_RATIO) & (q_cand[None, :] >= MIN_CONTACT_RATE)
+    score = np.where(allowed, score, -np.inf)
     if not np.isfinite(score).any():
         return base
     i, j = F.plateau_argmax(score)
@@ -146,7 +152,7 @@ def calibrate_drag_ratio(
     from a fresh state and the contact thresholds are fitted on its ratios (when contact
     was recorded). Among the CUSUM levels whose false alarms on free raking stay within
     ``false_alarms_per_m`` times the free distance, the candidate with the most early
-    detections wins, then the longest mean lead, the fewest false alarms, the shorter
+    detections wins, then the fewest false alarms, the longest mean lead, the shorter
     warm-up, and the larger (more conservative) drift and level. When none meets the
     budget the one with the fewest false alarms is taken and the report says
     ``budget_met: false``.
@@ -190,9 +196,10 @@ def calibrate_drag_ratio(
             for p in operating_points(traces, ys, float(drift), warmup, base.speed_m_per_s,
                                       contact):
                 met = p.false_alarms <= base.false_alarms_per_m * p.free_distance_m
-                # Within the budget: most early detections, longest lead, fewest alarms,
-                # then the shorter warm-up and the more conservative drift and level.
-                key = ((met, p.early, round(p.mean_lead_m, 3), -p.false_alarms,
+                # Within the budget: most early detections, then the fewest alarms (the
+                # budget is a ceiling, not a target), the longest lead (to the cm), the
+                # shorter warm-up and the more conservative drift and level.
+                key = ((met, p.early, -p.false_alarms, round(p.mean_lead_m, 2),
                         -p.warmup_min_s, p.drift, p.cusum_threshold) if met else
                        (met, -p.false_alarms, p.early, round(p.mean_lead_m, 3),
                         -p.warmup_min_s, p.drift, p.cusum_threshold))

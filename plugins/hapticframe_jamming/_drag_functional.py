@@ -130,8 +130,8 @@ class DragTracker:
         """One filtered sample: (armed, ratio f/b, ratio rate f'/b in 1/s, CUSUM).
 
         Before the drag is estimated (not armed) the CUSUM is 0 and the ratio and its rate
-        are against the median of the last ``settle_window_s`` once one has passed (1 and 0
-        before).
+        are against the median of the last ``settle_window_s`` once two have passed (1 and
+        0 before).
         ``force`` and ``rate`` must be finite (the classifier holds the last valid sample).
         """
         s = self.settings
@@ -162,7 +162,7 @@ class DragTracker:
 
     def _warm_up(self, t: float, force: float) -> float | None:
         """Keep the sample; arm when the start-up has settled. Returns the provisional drag
-        (the last window's median, floored) once a window has passed, else None."""
+        (the last window's median, floored) once two windows have passed, else None."""
         s = self.settings
         window = self._window
         window.append((t, force))
@@ -172,8 +172,10 @@ class DragTracker:
         assert self._start_t is not None
         elapsed = t - self._start_t
         last = [f for (ti, f) in window if ti > t - s.settle_window_s]
+        # Two windows in: a start-up ramp from rest is then at most 4/3 of the last
+        # window's median, so only a force that jumps reads as contact.
         provisional = (max(_median(last), s.min_drag)
-                       if elapsed >= s.settle_window_s and last else None)
+                       if elapsed >= span and last else None)
         if elapsed >= s.warmup_max_s:
             self._arm(last)
             return provisional
