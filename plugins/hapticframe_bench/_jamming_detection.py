@@ -488,6 +488,15 @@ def render_markdown(summary: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _color(label: str) -> str:
+    """One colour per classifier and configuration, the same in every panel."""
+    if label.startswith("force-rate"):
+        return "tab:gray" if "defaults" in label else "tab:brown"
+    if "defaults" in label:
+        return "tab:blue"
+    return "tab:green" if "here" in label else "tab:purple"
+
+
 def _figure(path: Path, summary: Mapping[str, Any]) -> bool:
     try:
         import matplotlib
@@ -501,7 +510,7 @@ def _figure(path: Path, summary: Mapping[str, Any]) -> bool:
     for ax, (data, block) in zip(np.atleast_1d(axes), blocks.items(), strict=True):
         for label, row in block["rows"].items():
             auc = row["roc_auc"]
-            ax.plot(row["roc"]["fpr"], row["roc"]["tpr"],
+            ax.plot(row["roc"]["fpr"], row["roc"]["tpr"], color=_color(label),
                     ls="--" if label.startswith("force-rate") else "-",
                     label=f"{label} (AUC {_num(auc, 3)})")
         ax.plot([0, 1], [0, 1], color="0.7", lw=0.8, label="chance")
