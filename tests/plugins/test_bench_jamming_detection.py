@@ -11,7 +11,6 @@ import pytest
 
 from hapticframe import BenchOptions
 
-pytest.importorskip("h5py")
 pytestmark = pytest.mark.slow  # about 6 s: two worlds at one depth, 14 real trials
 
 
