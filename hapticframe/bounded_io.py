@@ -242,10 +242,12 @@ def open_hdf5(path: str | os.PathLike[str]) -> Any:
     try:
         return h5py.File(path, "r", locking=False)
     except Exception as exc:  # h5py: OSError for most damage, others for some
-        raise BoundedReadError(f"not a readable HDF5 file ({_h5_reason(exc)})") from None
+        raise BoundedReadError(f"not a readable HDF5 file (not an HDF5 file, or a damaged "
+                               f"one: {_h5_reason(exc)})"
+                               ) from None
 
 
-def hdf5_child(group: Any, name: str, _hops: list[int] | None = None) -> Any:
+def hdf5_child(group: Any, name: str, _hops: dict[str, Any] | None = None) -> Any:
     """The object ``name`` names in ``group`` (one path component or several), or None.
 
     Each component is looked up link by link: a hard link is followed, a soft link only when
@@ -259,7 +261,8 @@ def hdf5_child(group: Any, name: str, _hops: list[int] | None = None) -> Any:
         cannot be read (the message gives the object's path in the file).
     """
     h5py = _h5py()
-    hops = [0] if _hops is None else _hops  # soft links followed in this lookup, nested ones too
+    # Soft links followed in this lookup (nested ones too), and the path first asked for.
+    hops = {"n": 0, "asked": f"{group.name.rstrip('/')}/{name}"} if _hops is None else _hops
     node = group
     for part in [p for p in name.split("/") if p]:
         if not isinstance(node, h5py.Group):
@@ -270,18 +273,18 @@ def hdf5_child(group: Any, name: str, _hops: list[int] | None = None) -> Any:
     return node
 
 
-def _follow(h5py: Any, group: Any, part: str, hops: list[int]) -> Any:
+def _follow(h5py: Any, group: Any, part: str, hops: dict[str, Any]) -> Any:
     where = f"{group.name.rstrip('/')}/{part}"
     via = ""  # the soft link's target, once one is followed
-    while hops[0] <= MAX_SOFT_LINKS:
+    while hops["n"] <= MAX_SOFT_LINKS:
         try:
             link = group.get(part, getlink=True)
         except Exception as exc:
             raise BoundedReadError(f"{where}: the link cannot be read ({_h5_reason(exc)})"
                                    ) from None
         if link is None and via:
-            raise BoundedReadError(f"{where} is a soft link to {via!r}, which is not in the "
-                                   "file")
+            raise BoundedReadError(f"{hops['asked']} is a soft link to {via!r}, which is not "
+                                   "in the file")
         if link is None:
             return None
         if isinstance(link, h5py.ExternalLink):
@@ -289,7 +292,7 @@ def _follow(h5py: Any, group: Any, part: str, hops: list[int]) -> Any:
                 f"{where} is an external link to {link.filename!r}; links outside the file "
                 "are not followed: copy the data into the file")
         if isinstance(link, h5py.SoftLink):
-            hops[0] += 1
+            hops["n"] += 1
             target = via = str(link.path)
             parent, _, leaf = target.rstrip("/").rpartition("/")
             base = group.file if target.startswith("/") else group
@@ -306,8 +309,8 @@ def _follow(h5py: Any, group: Any, part: str, hops: list[int]) -> Any:
         except Exception as exc:
             raise BoundedReadError(f"{where}: the object cannot be read (a damaged object "
                                    f"header? {_h5_reason(exc)})") from None
-    raise BoundedReadError(f"{where}: soft links lead through more than {MAX_SOFT_LINKS} "
-                           "others (a loop?)")
+    raise BoundedReadError(f"{hops['asked']}: its soft links lead through more than "
+                           f"{MAX_SOFT_LINKS} others (a loop?)")
 
 
 def hdf5_members(group: Any) -> list[tuple[str, Any]]:
@@ -351,7 +354,7 @@ def read_hdf5_dataset(dataset: Any, max_cells: int, kinds: str = "biuf") -> NDAr
     if cells > max_cells:
         raise BoundedReadError(
             f"{where}: declares {' x '.join(map(str, shape))} = {cells} values, more than "
-            f"the {max_cells} read from one file")
+            f"the {max_cells} still allowed for this file")
     try:
         return np.asarray(dataset[()])
     except Exception as exc:
