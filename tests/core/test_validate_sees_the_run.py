@@ -17,9 +17,11 @@ from hapticframe.threads import machine_cpus
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "search-ellipse.yaml"
 
 
-def _with(tmp_path: Path, section: str, index: int, **config: Any) -> Path:
+def _with(tmp_path: Path, section: str, index: int, run: dict[str, Any] | None = None,
+          **config: Any) -> Path:
     data = yaml.safe_load(EXAMPLE.read_text(encoding="utf-8"))
     data[section][index].setdefault("config", {}).update(config)
+    data.setdefault("run", {}).update(run or {})
     path = tmp_path / "experiment.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     return path
@@ -38,17 +40,21 @@ def test_the_example_validates(tmp_path: Path) -> None:
     validate_file(_with(tmp_path, "robots", 0, acceleration_m_per_s2=0.5))
 
 
-def test_a_ramp_too_slow_to_end_a_movement(tmp_path: Path) -> None:
+def test_an_acceleration_near_zero_is_refused_by_its_field(tmp_path: Path) -> None:
     message = _refused(_with(tmp_path, "robots", 0, acceleration_m_per_s2=1e-9),
                        "robots[0].config.acceleration_m_per_s2")
-    assert "run.max_steps_per_movement" in message and "at least" in message, message
+    assert "0.001" in message, message
 
 
-def test_the_smallest_acceleration_said_is_enough(tmp_path: Path) -> None:
-    message = _refused(_with(tmp_path, "robots", 0, acceleration_m_per_s2=1e-6),
+@pytest.mark.parametrize("acceleration", [1e-3, 0.003])
+def test_a_ramp_too_slow_to_end_a_movement_within_the_run_s_steps(
+        tmp_path: Path, acceleration: float) -> None:
+    run = {"max_steps_per_movement": 3000}  # 30 s at 100 Hz; the diagonal alone takes 18 s
+    message = _refused(_with(tmp_path, "robots", 0, run, acceleration_m_per_s2=acceleration),
                        "robots[0].config.acceleration_m_per_s2")
+    assert "run.max_steps_per_movement (3000)" in message and "at least" in message, message
     least = float(message.split("at least ")[1].split(" ")[0])
-    validate_file(_with(tmp_path, "robots", 0, acceleration_m_per_s2=least * 1.01))
+    validate_file(_with(tmp_path, "robots", 0, run, acceleration_m_per_s2=least * 1.01))
 
 
 def test_a_planner_depth_of_zero(tmp_path: Path) -> None:
