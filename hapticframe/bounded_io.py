@@ -97,8 +97,8 @@ def open_regular(path: str | os.PathLike[str]) -> IO[bytes]:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
             raise BoundedReadError(
-                f"the path is {_kind(mode)}, not a regular file; recordings are read from "
-                "files only"
+                f"the path is {_kind(mode)}, not a regular file; hapticframe reads "
+                "regular files only"
             )
         if hasattr(os, "set_blocking"):
             os.set_blocking(fd, True)
@@ -171,7 +171,7 @@ def read_npz(
             if dtype.hasobject:
                 raise BoundedReadError(
                     f"array {name!r} holds Python objects ({dtype}): loading it would "
-                    "unpickle, which recordings never do (allow_pickle=False); save numbers "
+                    "unpickle, which hapticframe never does (allow_pickle=False); save numbers "
                     "and strings only"
                 )
             total += math.prod(shape) * dtype.itemsize
