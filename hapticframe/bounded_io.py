@@ -12,6 +12,13 @@ add the file in their own located error type.
 
 The recording readers of ``trace-recording`` and ``biotac`` use it, and a lab's plugin can;
 :mod:`hapticframe.artifacts` reads saved models the same way.
+
+HDF5 (h5py, imported only when used): :func:`open_hdf5` opens regular files only,
+:func:`hdf5_child` and :func:`hdf5_members` look objects up link by link (soft links only
+when they resolve inside the file, external links never), and :func:`read_hdf5_dataset`
+refuses raw data stored outside the file and checks the dataspace before reading. Every
+h5py failure (a damaged object header, a loop) becomes a :class:`BoundedReadError` naming
+the object's path. ``hapticframe import``, the BOLT reader and the Keras reader use them.
 """
 
 from __future__ import annotations
