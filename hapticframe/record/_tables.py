@@ -424,16 +424,24 @@ def _sheet_cells(path: Path, name: str, sheet: Any) -> _Cells:
     sheet.reset_dimensions()
     rows: _Cells = []
     width = 0
+    read = 0  # rows read, empty ones included (those after the last cell are dropped)
     try:
         for row in sheet.iter_rows(values_only=True):
-            width = max(width, len(row))
-            if (len(rows) + 1) * width > MAX_CELLS:
+            read += 1
+            cells = len(row)
+            while cells and row[cells - 1] is None:
+                cells -= 1
+            if not cells:
+                continue
+            width = max(width, cells)
+            if read * width > MAX_CELLS:
                 raise TableError([
-                    f"{where}: a cell at row {len(rows) + 1}, column {width} "
-                    f"({column_letters(width)}) makes the sheet's grid {len(rows) + 1} rows "
-                    f"x {width} columns, more than the {MAX_CELLS} cells an import reads; "
-                    "delete the cells far from the data"])
-            rows.append(list(row))
+                    f"{where}: the cell at row {read}, column {cells} "
+                    f"({column_letters(cells)}) makes the sheet's grid {read} rows x {width} "
+                    f"columns, more than the {MAX_CELLS} cells an import reads; delete the "
+                    "cells far from the data"])
+            rows.extend([] for _ in range(read - 1 - len(rows)))
+            rows.append(list(row[:cells]))
     except TableError:
         raise
     except Exception as exc:  # openpyxl: a damaged sheet raises many kinds
