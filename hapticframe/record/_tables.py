@@ -362,9 +362,8 @@ def _check_xlsx_xml(path: Path) -> None:
                 raise TableError([f"{path}: the workbook's parts decompress to "
                                   f"{format_bytes(total)}, more than "
                                   f"{format_bytes(MAX_TABLE_BYTES)}; split the trials"])
-            for info in members:
-                if info.filename.lower().endswith((".xml", ".rels", ".vml")):
-                    _scan_xml(path, archive, info)
+            for info in members:  # every part, whatever its name: a sheet's may be any
+                _scan_xml(path, archive, info)
     except FileNotFoundError:
         raise TableError([f"{path}: no such file"]) from None
     except (BoundedReadError, OSError, zipfile.BadZipFile, zlib.error, EOFError) as exc:
@@ -376,9 +375,13 @@ def _scan_xml(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> No
     with archive.open(info) as member:
         first = True
         while chunk := member.read(1 << 20):
-            if first and (chunk[:2] in (b"\xff\xfe", b"\xfe\xff") or b"\x00" in chunk[:4]):
-                raise TableError([f"{path}, part {info.filename}: XML that is not UTF-8; "
-                                  "save the workbook again from a spreadsheet program"])
+            if first:
+                if chunk[:2] in (b"\xff\xfe", b"\xfe\xff") or (
+                        chunk[:1] == b"<" and b"\x00" in chunk[:4]):
+                    raise TableError([f"{path}, part {info.filename}: XML that is not UTF-8; "
+                                      "save the workbook again from a spreadsheet program"])
+                if not chunk.removeprefix(b"\xef\xbb\xbf").lstrip().startswith(b"<"):
+                    return  # not XML (an image, a binary part): openpyxl does not parse it
             first = False
             window = (keep + chunk).upper()
             if b"<!DOCTYPE" in window or b"<!ENTITY" in window:
