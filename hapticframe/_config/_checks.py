@@ -547,6 +547,8 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                         f"({run.max_steps_per_movement}): raise it or the planner's "
                         "speed_m_per_s"
                     ))
+                else:
+                    _check_ramps(rated, length, speed, run, report)
             step_m = speed / min(rate for _, rate in rated)
             if narrowest is not None:
                 width = narrowest.min_width_m()
@@ -581,6 +583,37 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                     f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
                 ))
     _check_snapshots(entries, run, scene, report)
+
+
+def _movement_s(length_m: float, speed: float, acceleration: float) -> float:
+    """Duration of a trapezoidal movement (ramps at ``acceleration``, cruise at ``speed``);
+    a movement too short to reach the speed is a triangle."""
+    if length_m * acceleration >= speed * speed:
+        return length_m / speed + speed / acceleration
+    return 2.0 * math.sqrt(length_m / acceleration)
+
+
+def _check_ramps(rated: list[tuple[ComponentEntry, float]], length: float, speed: float,
+                 run: Any, report: _Report) -> None:
+    """A robot that ramps its speed (``acceleration_m_per_s2``) must still end the longest
+    line within ``run.max_steps_per_movement`` steps: a tiny acceleration makes a movement
+    that never ends."""
+    for robot, rate in rated:
+        acceleration = _number(robot.config, "acceleration_m_per_s2")
+        if acceleration is None:
+            continue
+        steps = _ceil(_movement_s(length, speed, acceleration) * rate)
+        if steps > run.max_steps_per_movement:
+            # The smallest acceleration that ends the line within the limit.
+            budget_s = run.max_steps_per_movement / rate
+            least = 4 * length / budget_s**2 if budget_s >= 2 * length / speed \
+                else speed / (budget_s - length / speed)
+            report.error(f"{robot.path}.config.acceleration_m_per_s2", (
+                f"a line across the planner's region ({length:.4g} m) at {speed:.4g} m/s, "
+                f"ramped at {acceleration:.4g} m/s², takes {steps:.4g} steps at {rate:.4g} "
+                f"Hz, more than run.max_steps_per_movement ({run.max_steps_per_movement}): "
+                f"the acceleration must be at least {least:.4g} m/s² (or None)"
+            ))
 
 
 def _check_workspaces(planner: ComponentEntry, robots: list[ComponentEntry],

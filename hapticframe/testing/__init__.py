@@ -19,6 +19,9 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 (each declared knob names a config field and its values validate),
 ``check_declared_sizes`` (each field the validator declares with a ``hapticframe.Size`` is
 refused at the extremes of its range, or built and driven there within the memory limit),
+``check_run_range_ends`` (each end of an acceleration's, a depth's or a filter cutoff's
+range is refused or driven cleanly, without an error or NaN, and no thread count above the
+machine's CPUs is accepted),
 ``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
@@ -90,7 +93,7 @@ from hapticframe.testing._runner import (
     parametrize_with_checks,
     run_checks,
 )
-from hapticframe.testing._sizes import check_declared_sizes
+from hapticframe.testing._sizes import check_declared_sizes, check_run_range_ends
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
@@ -136,6 +139,7 @@ __all__ = [
     "check_builds",
     "check_config_round_trip",
     "check_declared_sizes",
+    "check_run_range_ends",
     "check_deterministic",
     "check_knobs",
     "check_lazy_import",
