@@ -108,6 +108,10 @@ class RunOutcome:
     outline_level : float
         The occupancy level of an estimated outline (``run.outline_level``, thesis: 0.6);
         a figure that draws a map's outline draws it at this level.
+    verdict : str
+        Empty, or what every figure of the run says about its outcome when the run found
+        nothing ("object not found: ..."); draw it with
+        :func:`hapticframe.plotting.draw_verdict`.
     """
 
     out_dir: Path
@@ -117,6 +121,7 @@ class RunOutcome:
     wall_time_s: float
     figures: bool = True
     outline_level: float = OUTLINE_LEVEL
+    verdict: str = ""
 
 
 #: The ways a consumer's inputs can be aligned (see :class:`InputAlignment`).

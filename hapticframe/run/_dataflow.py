@@ -98,6 +98,8 @@ class Dataflow:
         # stall check watches it grow).
         self.force_limit_n: float | None = None
         self.force_violation: tuple[float, float] | None = None
+        #: The ``sensor/channel`` of :attr:`force_violation` (what the halt line names).
+        self.force_violation_stream = ""
         self.valid_force_samples = 0
         self._robot_keys: dict[str, tuple[str, ...]] = {}
         #: Committed sensor samples and robot states so far (``sensor/ID``, ``robot/ID``):
@@ -465,7 +467,8 @@ class Dataflow:
                         if valid is None or bool(valid[0]):
                             self.valid_force_samples += 1
                             if limit is not None and norm > limit:
-                                self._note_violation(float(batch.timestamps_s[0]), norm)
+                                self._note_violation(float(batch.timestamps_s[0]), norm,
+                                                     f"{sensor.id}/{name}")
                     continue
                 values = values.reshape(n, -1)
                 norms = np.linalg.norm(values, axis=1)
@@ -480,12 +483,14 @@ class Dataflow:
                     over = np.flatnonzero(usable & (norms > limit))
                     if over.size:
                         first = int(over[0])
-                        self._note_violation(float(batch.timestamps_s[first]), float(norms[first]))
+                        self._note_violation(float(batch.timestamps_s[first]),
+                                             float(norms[first]), f"{sensor.id}/{name}")
 
-    def _note_violation(self, timestamp_s: float, force_n: float) -> None:
+    def _note_violation(self, timestamp_s: float, force_n: float, stream: str) -> None:
         # The earliest violating sample of a commit (sensors are committed one by one).
         if self.force_violation is None or timestamp_s < self.force_violation[0]:
             self.force_violation = (timestamp_s, force_n)
+            self.force_violation_stream = stream
 
     def take_force_violation(self) -> tuple[float, float] | None:
         """The first valid force sample above the limit committed since the last call (or

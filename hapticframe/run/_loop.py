@@ -26,7 +26,12 @@ from hapticframe.run._channels import SAFETY_HALT
 from hapticframe.run._clock_check import STREAM_OUT_OF_STEP, StepCheck
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
-from hapticframe.run._safety import FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE, SafetyMonitor
+from hapticframe.run._safety import (
+    FORCE_LIMIT,
+    FORCE_STREAM_STALLED,
+    OUTSIDE_WORKSPACE,
+    SafetyMonitor,
+)
 from hapticframe.run._session import Session
 
 __all__ = ["device_faults", "devices_of", "run_loop"]
@@ -446,5 +451,18 @@ def _progress(
     session.echo(
         f"EM {result.index + 1:>3} {m.phase or '':<7} "
         f"{result.halt_reason or 'completed':<12} state {state:<8} "
-        f"{steps:>5d} steps{force:<27}{robots}{label}{device_faults(devices)}"
+        f"{steps:>5d} steps{force:<27}{robots}{label}{_limit_hit(session, result)}"
+        f"{device_faults(devices)}"
     )
+
+
+def _limit_hit(session: Session, result: MovementResult) -> str:
+    """``  force limit: wrist/force_n 85.2 N > 80 N`` for a movement the force limit
+    halted (the stream and sample that crossed it), else empty."""
+    for halt in reversed(session.safety_halts):
+        if halt.get("movement") != result.index:
+            continue
+        if halt.get("reason") == FORCE_LIMIT:
+            return (f"  force limit: {halt.get('stream') or 'a force'} "
+                    f"{float(halt['force_n']):.1f} N > {float(halt['limit_n']):g} N")
+    return ""
