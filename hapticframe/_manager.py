@@ -59,6 +59,9 @@ class PluginManager(pluggy.PluginManager):
         self.add_hookspecs(hookspecs)
         self.sources: dict[int, Source] = {}
         self.broken: list[BrokenPlugin] = []
+        #: Entry points not loaded because HAPTICFRAME_BLOCKED_PLUGINS (or ``blocked``)
+        #: names them: a type they register is reported as blocked, not as unknown.
+        self.blocked: list[Source] = []
         self._registry: Registry | None = None
 
     def parse_hookimpl_opts(self, plugin: Any, name: str) -> Any:
@@ -94,7 +97,7 @@ class PluginManager(pluggy.PluginManager):
         return self._registry
 
     def _collect(self) -> Registry:
-        registry = Registry(broken=list(self.broken))
+        registry = Registry(broken=list(self.broken), blocked=list(self.blocked))
         for kind in Kind:
             caller = getattr(self.hook, kind.hook_name)
             for impl in caller.get_hookimpls():
@@ -192,9 +195,12 @@ def make_plugin_manager(
         pm.set_blocked(name)
     for ep, dist_name, version in _entry_points():
         is_core = dist_name.lower() == _CORE_DISTRIBUTION
-        if ep.name in blocked_names or (not autoload and not is_core):
-            continue
         source = Source(dist_name, version, ep.name, ep.value)
+        if ep.name in blocked_names:
+            pm.blocked.append(source)
+            continue
+        if not autoload and not is_core:
+            continue
         try:
             plugin = ep.load()
         except Exception as exc:

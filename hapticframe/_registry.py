@@ -86,6 +86,8 @@ class Registry:
     benchmarks: dict[str, tuple[BenchSpec, Source]] = field(default_factory=dict)
     broken: list[BrokenPlugin] = field(default_factory=list)
     conflicts: list[Conflict] = field(default_factory=list)
+    #: Entry points that ``HAPTICFRAME_BLOCKED_PLUGINS`` kept from loading.
+    blocked: list[Source] = field(default_factory=list)
 
     def add(self, spec: PluginSpec, source: Source) -> None:
         existing = self.plugins[spec.kind].get(spec.name)
@@ -135,11 +137,45 @@ class Registry:
         """Every plugin called ``name``, of any kind."""
         return [kinds[name] for kinds in self.plugins.values() if name in kinds]
 
+    def _blocking(self, name: str) -> list[Source]:
+        """The blocked entry points whose name, or whose module's, matches the type ``name``
+        (``jamming`` for ``force-rate-jamming``, ``loadcell`` for ``lab-load-cell``): a
+        blocked plugin is never imported, so its types are known only by its names."""
+        def bare(text: str) -> str:
+            return "".join(ch for ch in text.lower() if ch.isalnum())
+
+        wanted = bare(name)
+        found = []
+        for source in self.blocked:
+            module = source.module.partition(":")[0].split(".")[0]
+            names = {bare(source.entry_point), bare(module.removeprefix("hapticframe_"))}
+            if any(len(n) >= 3 and (n in wanted or (len(wanted) >= 3 and wanted in n))
+                   for n in names):
+                found.append(source)
+        return found
+
     def unknown_message(self, kind: Kind, name: str) -> str:
         """Why ``name`` is not a usable plugin of ``kind`` and what is close to it."""
         from hapticframe._errors import shown
 
-        parts = [f"unknown {kind} type {shown(name)}"]
+        blocking = self._blocking(name)
+        if blocking:
+            which = ", ".join(
+                f"{s.entry_point!r} of {s.distribution} {s.version}" for s in blocking
+            )
+            parts = [
+                f"{kind} type {shown(name)} is blocked: its plugin's entry point {which} is "
+                "named in HAPTICFRAME_BLOCKED_PLUGINS, so it was not loaded; remove it from "
+                "that variable to use the plugin"
+            ]
+        else:
+            parts = [f"unknown {kind} type {shown(name)}"]
+            if self.blocked:
+                parts.append(
+                    "not loaded because HAPTICFRAME_BLOCKED_PLUGINS names them: "
+                    + ", ".join(f"{s.entry_point!r} of {s.distribution}" for s in self.blocked)
+                    + " (it may be one of theirs)"
+                )
         for broken in self.broken:
             if broken.name == name:
                 parts.append(

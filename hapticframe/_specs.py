@@ -10,11 +10,13 @@ from __future__ import annotations
 import importlib
 import re
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 from pydantic import BaseModel, ConfigDict
 
+from hapticframe._contracts import ChannelSpec, as_channel_specs
 from hapticframe._errors import PluginImportError
 from hapticframe._kind import Kind
 
@@ -196,10 +198,19 @@ class PluginSpec:
     inputs : tuple of Kind
         Kinds whose components may appear in this component's ``inputs``; the default is
         set per kind.
-    consumes : mapping of str to tuple of int
-        For feature extractors and classifiers: the input channels read, with the shape of
-        one sample (``{"force_n": (2,)}``). The conformance kit feeds synthetic samples of
-        this layout.
+    consumes : mapping of str to ChannelSpec (or a shape tuple)
+        The channels this plugin reads, its contract with its inputs: the shape of one
+        sample (``None`` for an axis of any size), the unit and what it does with them
+        (``{"force_n": ChannelSpec((None,), "N", "uses |F|", example=(2,))}``; a tuple is
+        a shape of any unit). ``validate`` refuses an input that produces one of these
+        channels in another shape or unit. The conformance kit feeds feature extractors and
+        classifiers synthetic samples of this layout (``ChannelSpec.kit_shape``). Sensor
+        models, maps and planners read their kind's record by default
+        (``class_probabilities``, ``observations``, ``occupancy``).
+    produces : mapping of str to ChannelSpec
+        The channels this plugin delivers, as far as its spec can say before it is built
+        (a sensor whose channels come from a file declares none); classifiers, sensor
+        models, maps and robots produce their kind's record by default.
     sample_rate_hz : float
         Rate of the samples the kit feeds to ``consumes`` channels.
     check_config : mapping or None
@@ -220,6 +231,9 @@ class PluginSpec:
 
     kind: ClassVar[Kind]
     default_inputs: ClassVar[tuple[Kind, ...]] = ()
+    #: What a plugin of this kind reads and delivers unless its spec says otherwise.
+    default_consumes: ClassVar[Mapping[str, ChannelSpec]] = {}
+    default_produces: ClassVar[Mapping[str, ChannelSpec]] = {}
 
     name: str
     summary: str
@@ -229,7 +243,10 @@ class PluginSpec:
     install_hint: str = ""
     requires: tuple[str, ...] = ()
     inputs: tuple[Kind, ...] | None = None
-    consumes: dict[str, tuple[int, ...]] = field(default_factory=dict, hash=False)
+    consumes: Mapping[str, ChannelSpec | tuple[int | None, ...]] = field(
+        default_factory=dict, hash=False
+    )
+    produces: Mapping[str, ChannelSpec] = field(default_factory=dict, hash=False)
     sample_rate_hz: float = 100.0
     check_config: dict[str, Any] | None = field(default=None, hash=False)
     check_inputs: tuple[str, ...] = ()
@@ -275,11 +292,18 @@ class PluginSpec:
                     f"plugin {self.name!r}: check_inputs entry {ref!r} must be 'kind/name'"
                 )
         object.__setattr__(self, "check_inputs", tuple(self.check_inputs))
-        object.__setattr__(
-            self, "consumes", {k: tuple(int(n) for n in v) for k, v in self.consumes.items()}
-        )
+        what = f"plugin {self.name!r}"
+        consumes = as_channel_specs(self.consumes, f"{what} consumes")
+        produces = as_channel_specs(self.produces, f"{what} produces")
+        object.__setattr__(self, "consumes", consumes or dict(self.default_consumes))
+        object.__setattr__(self, "produces", produces or dict(self.default_produces))
         inputs = self.default_inputs if self.inputs is None else tuple(Kind(k) for k in self.inputs)
         object.__setattr__(self, "inputs", inputs)
+
+    @property
+    def reads(self) -> Mapping[str, ChannelSpec]:
+        """``consumes`` as it is once the spec is built: every channel a ChannelSpec."""
+        return cast(Mapping[str, ChannelSpec], self.consumes)
 
     @property
     def key(self) -> tuple[Kind, str]:
@@ -302,6 +326,15 @@ class PluginSpec:
         )
 
 
+#: The records of the kinds after the classifiers, as channels of their contracts.
+_PROBS = ChannelSpec((None,), "1", "one probability per class, classes[0] the background")
+_POSE = ChannelSpec((3,), "m, m, rad", "the fingertip's x, y and heading (RobotState)")
+_OBSERVATIONS = ChannelSpec(
+    (2,), "m", "Observations: points (m, 2) m, targets in [0, 1], weights"
+)
+_OCCUPANCY = ChannelSpec((), "1", "MapEstimate: occupancy mean and std at (q, 2) points")
+
+
 @dataclass(frozen=True)
 class SensorSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.SENSOR
@@ -318,30 +351,39 @@ class FeatureExtractorSpec(PluginSpec):
 class ClassifierSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.CLASSIFIER
     default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.SENSOR, Kind.FEATURE_EXTRACTOR)
+    default_produces: ClassVar[Mapping[str, ChannelSpec]] = {"class_probabilities": _PROBS}
 
 
 @dataclass(frozen=True)
 class SensorModelSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.SENSOR_MODEL
     default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.CLASSIFIER, Kind.ROBOT, Kind.SENSOR)
+    default_consumes: ClassVar[Mapping[str, ChannelSpec]] = {
+        "class_probabilities": _PROBS, "pose": _POSE,
+    }
+    default_produces: ClassVar[Mapping[str, ChannelSpec]] = {"observations": _OBSERVATIONS}
 
 
 @dataclass(frozen=True)
 class MapSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.MAP
     default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.SENSOR_MODEL,)
+    default_consumes: ClassVar[Mapping[str, ChannelSpec]] = {"observations": _OBSERVATIONS}
+    default_produces: ClassVar[Mapping[str, ChannelSpec]] = {"occupancy": _OCCUPANCY}
 
 
 @dataclass(frozen=True)
 class PlannerSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.PLANNER
     default_inputs: ClassVar[tuple[Kind, ...]] = (Kind.MAP,)
+    default_consumes: ClassVar[Mapping[str, ChannelSpec]] = {"occupancy": _OCCUPANCY}
 
 
 @dataclass(frozen=True)
 class RobotSpec(PluginSpec):
     kind: ClassVar[Kind] = Kind.ROBOT
     default_inputs: ClassVar[tuple[Kind, ...]] = ()
+    default_produces: ClassVar[Mapping[str, ChannelSpec]] = {"pose": _POSE}
 
 
 SPEC_TYPES: dict[Kind, type[PluginSpec]] = {

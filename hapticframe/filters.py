@@ -12,10 +12,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["butterworth_sos", "sos_filter", "sos_step_state"]
+__all__ = ["MIN_CUTOFF_RATIO", "butterworth_sos", "sos_filter", "sos_step_state"]
 
 FloatArray = NDArray[np.float64]
 
+#: The smallest cutoff, as a fraction of the sample rate, whose sections float64 holds: a
+#: biquad's DC gain divides by ``1 + a1 + a2``, about ``(π fc / fs)²`` computed from terms
+#: near 1, so its relative error grows as ``1e-16 (fs / fc)²``; at 1e-5 it is about 1e-6,
+#: and below about 1e-8 the gain (and the filtered force) becomes NaN.
+MIN_CUTOFF_RATIO = 1e-5
 #: Inputs longer than this are filtered by scipy's compiled sosfilt, shorter ones in Python.
 _PYTHON_FILTER_MAX = 256
 
@@ -41,6 +46,12 @@ def butterworth_sos(cutoff_hz: float, sample_rate_hz: float, order: int) -> Floa
         raise ValueError(
             f"cutoff {cutoff_hz} Hz must lie between 0 and the Nyquist frequency "
             f"{sample_rate_hz / 2} Hz"
+        )
+    if cutoff_hz < MIN_CUTOFF_RATIO * sample_rate_hz:
+        raise ValueError(
+            f"cutoff {cutoff_hz:.4g} Hz is below {MIN_CUTOFF_RATIO:g} of the sample rate "
+            f"({sample_rate_hz:.4g} Hz): the filter's coefficients lose their precision in "
+            f"float64; the smallest cutoff is {MIN_CUTOFF_RATIO * sample_rate_hz:.4g} Hz"
         )
     n = int(order)
     if n < 1:

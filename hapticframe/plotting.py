@@ -34,6 +34,7 @@ __all__ = [
     "draw_occupancy_map",
     "draw_outlines",
     "draw_path",
+    "draw_verdict",
     "layout_map",
     "map_figure",
     "new_figure",
@@ -55,6 +56,9 @@ _COLORBAR_IN = (0.18, 0.15, 0.8)  # gap, bar, tick and axis labels
 _RIGHT_IN = 0.3
 _LEGEND_PAD_IN = 0.2
 _LEGEND_FONT = 8
+_NOTE_FONT = 7
+_NOTE_LINE_IN = 0.13  # a 7-point line with its leading
+_NOTE_CHAR_IN = 0.052  # the widest average character of a 7-point line, generous
 
 
 def new_figure(width_in: float = 7.0, height_in: float = 5.0) -> Figure:
@@ -87,8 +91,12 @@ def layout_map(
     min_width_in: float = 6.0,
     legend_columns: int = 3,
     legend_background: str | None = None,
+    note: str = "",
 ) -> None:
     """Size ``figure`` around a map of ``bounds`` and add the legend of what ``axes`` drew.
+
+    ``note`` (lines of small grey text: what the map is, how to read it) goes below the
+    legend, with room made for it.
 
     The axes box gets the region's aspect, so an equal-aspect map fills it; the legend
     (one entry per labelled artist) goes below the x label, on ``legend_background`` when
@@ -114,7 +122,11 @@ def layout_map(
     right = sum(_COLORBAR_IN) if colorbar_axes is not None else _RIGHT_IN
     width = max(_LEFT_IN + w + right, min_width_in, legend_w + 2 * _LEGEND_PAD_IN)
     left = _LEFT_IN + (width - (_LEFT_IN + w + right)) / 2  # centre a narrow map
-    bottom = _BOTTOM_IN + (legend_h + _LEGEND_PAD_IN if legend is not None else 0.0)
+    note_h = 0.0
+    if note:
+        note_h = _NOTE_LINE_IN * (note.count("\n") + 1) + 0.05
+        legend_w = max(legend_w, _NOTE_CHAR_IN * max(len(x) for x in note.splitlines()))
+    bottom = _BOTTOM_IN + note_h + (legend_h + _LEGEND_PAD_IN if legend is not None else 0.0)
     title_in = _TITLE_IN if axes.get_title() else 0.15
     height = bottom + h + title_in
     figure.set_size_inches(width, height)
@@ -128,7 +140,10 @@ def layout_map(
             ((left + w + gap) / width, bottom / height, bar / width, h / height)
         )
     if legend is not None:
-        legend.set_bbox_to_anchor((0.5, 0.05 / height), transform=figure.transFigure)
+        legend.set_bbox_to_anchor((0.5, (0.05 + note_h) / height), transform=figure.transFigure)
+    if note:
+        figure.text(_LEGEND_PAD_IN / width, 0.05 / height, note, fontsize=_NOTE_FONT,
+                    color="0.25", ha="left", va="bottom")
 
 
 def save_figure(figure: Figure, path: str | Path) -> Path:
@@ -152,6 +167,18 @@ def save_figure(figure: Figure, path: str | Path) -> Path:
         figure.savefig(temp, format=path.suffix.lstrip(".").lower() or "png", dpi=DPI,
                        pil_kwargs={"compress_level": 3})
     return path
+
+
+def draw_verdict(axes: Axes, verdict: str) -> bool:
+    """Write ``verdict`` (a run that found nothing says so on every figure) in a red box
+    in the upper-left corner of ``axes``; False, drawing nothing, when it is empty."""
+    if not verdict:
+        return False
+    axes.text(0.01, 0.98, verdict, transform=axes.transAxes, ha="left", va="top",
+              fontsize=8, color="darkred", zorder=10,
+              bbox={"boxstyle": "round,pad=0.3", "facecolor": "white", "edgecolor": "darkred",
+                    "alpha": 0.9})
+    return True
 
 
 def draw_outlines(
@@ -269,12 +296,13 @@ def draw_occupancy_map(
     movements: Sequence[MovementResult] = (),
     outline_level: float | None = None,
     extra: Callable[[Axes], None] | None = None,
+    verdict: str = "",
 ) -> Figure:
     """An occupancy map's mean or std over ``region``: ``values`` (``(len(ys), len(xs))``)
     from 0 to ``vmax`` on viridis, the true ``outlines`` (magenta: green vanishes into
     viridis), the ``movements`` (white), the ``outline_level`` curve when given, and what
-    ``extra`` draws on the axes; returns the laid-out Figure (save it with
-    :func:`save_figure`)."""
+    ``extra`` draws on the axes, and ``verdict`` (:func:`draw_verdict`); returns the
+    laid-out Figure (save it with :func:`save_figure`)."""
     x, y = np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)
     grid = np.asarray(values, dtype=np.float64)
     figure, axes, colorbar_axes = map_figure()
@@ -289,6 +317,7 @@ def draw_occupancy_map(
     draw_movements(axes, movements, colour="white")
     if extra is not None:
         extra(axes)
+    draw_verdict(axes, verdict)
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title)

@@ -5,15 +5,41 @@ and leaves the other cores to the run loop; :func:`blas_threads` limits BLAS ins
 ``with`` block through ``threadpoolctl`` (a core dependency: without the limit, BLAS picks its
 own thread count and a map's sums change in their last bits), and does nothing when no limit
 is asked.
+
+A thread count in a config is a :data:`ThreadCount`: at least 1 and at most the CPUs this
+process may run on (:func:`machine_cpus`), so that ``validate`` refuses a count that would
+oversubscribe the machine (1024 BLAS threads on 2 cores hang a map update) at its field.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
-from typing import Any
+import os
+from typing import Annotated, Any
 
-__all__ = ["blas_threads"]
+from pydantic import AfterValidator, Field
+
+__all__ = ["ThreadCount", "blas_threads", "machine_cpus"]
+
+
+def machine_cpus() -> int:
+    """The CPUs this process may run on (its affinity where the system says, else all)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+def _at_most_cpus(value: int) -> int:
+    cpus = machine_cpus()
+    if value > cpus:
+        raise ValueError(f"{value} threads is more than the {cpus} CPUs this machine gives the "
+                         f"run; use at most {cpus}")
+    return value
+
+
+#: A thread count a config may ask for: 1 to :func:`machine_cpus`.
+ThreadCount = Annotated[int, Field(ge=1), AfterValidator(_at_most_cpus)]
 
 
 @functools.cache

@@ -16,6 +16,7 @@ BUNDLED = {
     ("feature_extractor", "emd-features"),
     ("feature_extractor", "sparse-coding"),
     ("classifier", "force-rate-jamming"),
+    ("classifier", "drag-ratio-jamming"),
     ("classifier", "fusion-rnn"),
     ("classifier", "linear-svm"),
     ("classifier", "sf-rnn"),

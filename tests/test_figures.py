@@ -127,7 +127,33 @@ def test_maps_draw_the_estimated_outline_at_the_run_outline_level(search_figures
 def test_forces_legend_names_only_the_onsets_that_happened(search_figures) -> None:
     labels = legend_labels(search_figures["forces.png"])
     # Every movement of the example jams before the fingertip touches the object.
-    assert "jamming onset" in labels and "contact onset" not in labels
+    assert "true jamming onset" in labels and "true contact onset" not in labels
+    assert "true state: jamming" in labels and "true state: contact" not in labels
+
+
+def test_forces_names_the_true_force_and_draws_the_classifier_thresholds(
+    search_figures,
+) -> None:
+    figure = search_figures["forces.png"]
+    labels = legend_labels(figure)
+    # The example's force-rate-jamming defaults: 6 N jamming, 30 N contact.
+    assert "jamming force threshold 6 N" in labels
+    assert "contact force threshold 30 N" in labels
+    assert "true plate force" in figure.axes[0].get_ylabel()
+
+
+def test_log_odds_scale_is_symmetric_about_zero_and_the_map_explained(search_figures) -> None:
+    figure = search_figures["logodds_phase1.png"]
+    low, high = figure.axes[0].images[0].get_clim()
+    assert low == -high and high > 0
+    note = " ".join(t.get_text() for t in figure.texts)
+    assert "baseline map" in note and "darker squares" in note
+
+
+def test_a_found_object_puts_no_verdict_on_any_figure(search_figures) -> None:
+    for name, figure in search_figures.items():
+        texts = [t.get_text() for ax in figure.axes for t in ax.texts]
+        assert not any("not found" in text for text in texts), name
 
 
 def test_paths_draw_one_phase_two_region(search_figures) -> None:
@@ -273,3 +299,24 @@ def test_the_check_catches_a_proxy_entry_and_a_clipped_title() -> None:
     figure.add_subplot().set_title("a title far wider than a three-inch figure can hold")
     with pytest.raises(AssertionError, match="clipped"):
         check_figure(figure, "clipped")
+
+
+def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch) -> None:
+    # The engine's sand: the same search finds no object (README, "sand our models did not
+    # write"); every figure says so, and outline.png's title says it has no outline.
+    captured: dict[str, Figure] = {}
+    save = plotting.save_figure
+
+    def capture(figure: Figure, path: Path) -> Path:
+        captured[Path(path).name] = figure
+        return save(figure, path)
+
+    monkeypatch.setattr(plotting, "save_figure", capture)
+    experiment = validate_file(ROOT / "examples" / "search-ellipse-physics.yaml")
+    result = run_experiment(experiment, tmp_path, echo=lambda _: None, progress=False)
+    assert result["object_found"] is False
+    assert SEARCH_FIGURES <= set(captured)
+    for name, figure in captured.items():
+        texts = [t.get_text() for ax in figure.axes for t in ax.texts]
+        assert any(text.startswith("object not found") for text in texts), name
+    assert "no estimated outline" in captured["outline.png"].axes[0].get_title()

@@ -1,6 +1,11 @@
 """Experiment files: loading, the registry-built model, and validation."""
 
-from hapticframe._config._checks import ComponentView, Finding, ValidationContext
+from hapticframe._config._checks import (
+    ComponentView,
+    Finding,
+    ValidationContext,
+    contract_mismatch,
+)
 from hapticframe._config._load import LoadedFile, load_file, load_text
 from hapticframe._config._model import (
     SCHEMA_VERSION,
@@ -31,6 +36,7 @@ __all__ = [
     "Size",
     "ValidationContext",
     "build_experiment_model",
+    "contract_mismatch",
     "load_file",
     "load_text",
     "validate_data",

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from hapticframe._config._load import LoadedFile
 from hapticframe._config._roles import evaluated_map_id
 from hapticframe._config._sizes import Size, format_bytes
+from hapticframe._contracts import ChannelSpec, channel_disagreement, describe_channel
 from hapticframe._errors import Issue, PluginImportError
 from hapticframe._kind import Kind
 
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from hapticframe._config._model import ComponentEntry
 
 __all__ = [
+    "contract_mismatch",
     "ComponentView",
     "Finding",
     "ValidationContext",
@@ -263,6 +265,7 @@ def core_checks(
             report.error(f"scene.{path}", message)
     _check_loop(entries, model.run, report)
     _check_inputs(entries, model.run, scene, report)
+    _check_channels(entries, report)
     _check_run_settings(entries, model.run, scene, report)
     _check_pace(entries, model.run, scene, report)
     return report.errors, report.warnings
@@ -360,11 +363,99 @@ def _check_inputs(
             ))
 
 
+def contract_mismatch(
+    consumer: ComponentEntry, input_id: str, input_type: str,
+    produced: Mapping[str, ChannelSpec], what_input: str = "",
+) -> list[str]:
+    """The channels on which ``consumer``'s declared ``consumes`` and what its input
+    ``input_id`` produces disagree, one message each naming both declarations."""
+    consumed = consumer.registered.spec.reads
+    messages = []
+    for name in consumed.keys() & produced.keys():
+        why = channel_disagreement(produced[name], consumed[name])
+        if why:
+            messages.append(
+                f"{consumer.kind} {consumer.id!r} ({consumer.type}) reads "
+                f"{describe_channel(name, consumed[name])}; its input {input_id!r} "
+                f"({input_type}) {what_input or 'declares'} "
+                f"{describe_channel(name, produced[name])} ({why}): wire it to an input that "
+                "delivers what it reads, or convert the channel with a feature extractor "
+                "(`hapticframe plugins --channels` lists both sides)"
+            )
+    return messages
+
+
+def _check_channels(entries: list[ComponentEntry], report: _Report) -> None:
+    """Each consumer's declared channels against what its inputs' specs produce."""
+    by_id = {e.id: e for e in entries}
+    for entry in entries:
+        for input_id in entry.inputs:
+            source = by_id.get(input_id)
+            if source is None:
+                continue
+            for message in contract_mismatch(
+                entry, input_id, source.type, source.registered.spec.produces
+            ):
+                report.error(f"{entry.path}.inputs", message)
+
+
+#: The capability of a sensor that ends (a recording, a file): an open loop over sensors
+#: that all declare it ends when they do.
+FINITE = "finite"
+
+
+def _sample_bytes(entry: ComponentEntry) -> tuple[float, bool]:
+    """Bytes one sample of a sensor takes in trace.npz (its time and every value), and
+    whether its spec declares its channels (else: one value is assumed)."""
+    produces = entry.registered.spec.produces
+    values = sum(math.prod(1 if n is None else n for n in c.shape) for c in produces.values())
+    return 8.0 * (1 + (values if produces else 1)), bool(produces)
+
+
+def _check_bounded(entries: list[ComponentEntry], run: Any, report: _Report) -> None:
+    """An open loop over a sensor that never ends needs ``run.duration_s``; a closed loop
+    refuses it (its length is its planner's)."""
+    closed = bool(_of(entries, Kind.PLANNER) or _of(entries, Kind.ROBOT))
+    if closed:
+        if run.duration_s is not None:
+            report.error("run.duration_s", (
+                "run.duration_s bounds an open loop (no robot); this closed loop ends when "
+                "its planner has no movement left or at run.max_movements: remove it"
+            ))
+        return
+    training = set(run.train_from.values())
+    endless = [e for e in _of(entries, Kind.SENSOR)
+               if e.id not in training and FINITE not in e.registered.spec.capabilities]
+    if not endless or run.duration_s is not None:
+        return
+    per_read, guessed = 0.0, []
+    for entry in endless:
+        size, declared = _sample_bytes(entry)
+        per_read += size
+        if not declared:
+            guessed.append(entry.id)
+    total = per_read * run.max_reads
+    clock_s = run.max_reads * run.live_tick_s
+    named = ", ".join(repr(i) for i in guessed)
+    assumed = f"; {named} declares no channels, counted as one value a sample" if guessed else ""
+    report.error("run", (
+        f"this open loop streams {_ids(endless)}, which never ends (no 'finite' "
+        "capability), and states no length: without run.duration_s it reads until "
+        f"run.max_reads, {run.max_reads:,} reads ({clock_s:,.0f} s of the run's clock at "
+        f"{run.live_tick_s:g} s a read), and writes at least {format_bytes(total)} of "
+        f"samples into trace.npz and as much into run.mcap (one sample a read; k samples a "
+        f"read: k times that{assumed}). Set run.duration_s (seconds of the run's clock), "
+        "e.g. `run: {duration_s: 60}`"
+    ))
+
+
 def _check_run_settings(
     entries: list[ComponentEntry], run: Any, scene: Any, report: _Report
 ) -> None:
     """``run.evaluation_map`` names a map; ``run.label_channel`` is a channel of the
-    sensors that deliver labels, where their configs say which channels they have."""
+    sensors that deliver labels, where their configs say which channels they have; an open
+    loop over a sensor that never ends states its length."""
+    _check_bounded(entries, run, report)
     by_id = {e.id: e for e in entries}
     maps = _of(entries, Kind.MAP)
     if run.evaluation_map is not None and (
@@ -456,6 +547,8 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                         f"({run.max_steps_per_movement}): raise it or the planner's "
                         "speed_m_per_s"
                     ))
+                else:
+                    _check_ramps(rated, length, speed, run, report)
             step_m = speed / min(rate for _, rate in rated)
             if narrowest is not None:
                 width = narrowest.min_width_m()
@@ -490,6 +583,37 @@ def _check_pace(entries: list[ComponentEntry], run: Any, scene: Any, report: _Re
                     f"{MAX_EVALUATION_POINTS:.3g}: raise run.evaluation_spacing_m"
                 ))
     _check_snapshots(entries, run, scene, report)
+
+
+def _movement_s(length_m: float, speed: float, acceleration: float) -> float:
+    """Duration of a trapezoidal movement (ramps at ``acceleration``, cruise at ``speed``);
+    a movement too short to reach the speed is a triangle."""
+    if length_m * acceleration >= speed * speed:
+        return length_m / speed + speed / acceleration
+    return 2.0 * math.sqrt(length_m / acceleration)
+
+
+def _check_ramps(rated: list[tuple[ComponentEntry, float]], length: float, speed: float,
+                 run: Any, report: _Report) -> None:
+    """A robot that ramps its speed (``acceleration_m_per_s2``) must still end the longest
+    line within ``run.max_steps_per_movement`` steps: a tiny acceleration makes a movement
+    that never ends."""
+    for robot, rate in rated:
+        acceleration = _number(robot.config, "acceleration_m_per_s2")
+        if acceleration is None:
+            continue
+        steps = _ceil(_movement_s(length, speed, acceleration) * rate)
+        if steps > run.max_steps_per_movement:
+            # The smallest acceleration that ends the line within the limit.
+            budget_s = run.max_steps_per_movement / rate
+            least = 4 * length / budget_s**2 if budget_s >= 2 * length / speed \
+                else speed / (budget_s - length / speed)
+            report.error(f"{robot.path}.config.acceleration_m_per_s2", (
+                f"a line across the planner's region ({length:.4g} m) at {speed:.4g} m/s, "
+                f"ramped at {acceleration:.4g} m/s², takes {steps:.4g} steps at {rate:.4g} "
+                f"Hz, more than run.max_steps_per_movement ({run.max_steps_per_movement}): "
+                f"the acceleration must be at least {least:.4g} m/s² (or None)"
+            ))
 
 
 def _check_workspaces(planner: ComponentEntry, robots: list[ComponentEntry],

@@ -61,7 +61,18 @@ class RunSettings(BaseModel):
         "rate, where the configs say both (planner `speed_m_per_s`, robot `control_rate_hz`).",
     )
     max_reads: _Count = Field(
-        1_000_000, ge=1, le=10**10, description="Sensor reads in an open-loop run (no robot)."
+        1_000_000, ge=1, le=10**10,
+        description="Safety bound on the sensor reads of an open-loop run (no robot): a run "
+        "that reaches it before its sensors end (or its duration_s) stopped at a limit and "
+        "is no result (run.json: status failed, details.limit; exit 1).",
+    )
+    duration_s: float | None = Field(
+        None, gt=0, le=1e7,
+        description="An open-loop run's length in seconds of the run's clock, which moves "
+        "one control period (live_tick_s) per read: the run reads its sensors "
+        "ceil(duration_s / live_tick_s) times. Required when a streamed sensor never ends "
+        "(does not declare 'finite'); None: until every sensor ends. A closed loop ends with "
+        "its planner or max_movements instead.",
     )
     map_update_every_steps: _Count = Field(
         0, ge=0,

@@ -152,11 +152,12 @@ SUMMARY_METRICS = (
 )
 
 
-def summary_line(metrics: Any, label_channel: str = "contact") -> str:
+def summary_line(metrics: Any, label_channel: str = "contact", *, searched: bool = True) -> str:
     """The few figures a person reads after a run: search result, force, accuracy, time
-    (``contact`` in the names stands for ``run.label_channel``)."""
+    (``contact`` in the names stands for ``run.label_channel``). ``searched``: False for a
+    run without a planner (perception, raking), whose zero movements say nothing."""
     wanted = [k.replace("contact_", f"{label_channel}_", 1) for k in SUMMARY_METRICS]
-    if "object_found" not in metrics and "objects_found" not in metrics:
+    if not searched or ("object_found" not in metrics and "objects_found" not in metrics):
         wanted.remove("movements")  # no search: a perception run's zero movements say nothing
     parts = []
     for key in wanted:
@@ -166,6 +167,13 @@ def summary_line(metrics: Any, label_channel: str = "contact") -> str:
         elif isinstance(value, (int, float)) and not math.isnan(value):  # NaN: metrics.json
             parts.append(f"{key}={short_number(value)}")
     return ", ".join(parts)
+
+
+def searches(experiment: Any) -> bool:
+    """Whether ``experiment`` plans movements (has a planner): its summary counts them."""
+    from hapticframe._kind import Kind
+
+    return bool(experiment.of_kind(Kind.PLANNER))
 
 
 def wait_for_interrupt() -> None:

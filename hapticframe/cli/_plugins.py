@@ -22,6 +22,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="machine-readable output (each plugin with its knobs)")
     p.add_argument("--knobs", action="store_true",
                    help="list each plugin's speed/accuracy knobs (field, values, trade) instead")
+    p.add_argument("--channels", action="store_true",
+                   help="list what each plugin produces and consumes (channel, shape, unit, "
+                   "use) instead")
     add_plugin_module_option(p)
     p.set_defaults(func=cmd_plugins)
 
@@ -46,7 +49,9 @@ def cmd_plugins(args: argparse.Namespace) -> int:
         data = {
             "plugins": [
                 dict(zip(("kind", "name", "distribution", "version", "status", "summary"), r,
-                         strict=True), knobs=[knob_record(k) for k in reg.spec.knobs])
+                         strict=True), knobs=[knob_record(k) for k in reg.spec.knobs],
+                     produces=_channel_records(reg.spec.produces),
+                     consumes=_channel_records(reg.spec.reads))
                 for r, reg in zip(rows, regs, strict=True)
             ],
             "run_knobs": [knob_record(k) for k in RUN_KNOBS],
@@ -59,6 +64,8 @@ def cmd_plugins(args: argparse.Namespace) -> int:
         return 0
     if args.knobs:
         return _print_knobs(registry)
+    if args.channels:
+        return _print_channels(registry)
     header = ("KIND", "NAME", "DISTRIBUTION", "VERSION", "STATUS", "SUMMARY")
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(5)]
     for row in [header, *rows]:
@@ -90,3 +97,29 @@ def _print_knobs(registry: Any) -> int:
         out(f"no knobs: {', '.join(without)}")
     return 0
 
+
+
+def _channel_records(channels: Any) -> list[dict[str, Any]]:
+    return [{"channel": name, "shape": list(c.shape), "unit": c.unit,
+             "description": c.description} for name, c in channels.items()]
+
+
+def _print_channels(registry: Any) -> int:
+    """``hapticframe plugins --channels``: each plugin's channel contract, one line per
+    channel it produces (``->``) or consumes (``<-``); ``validate`` holds wiring to them."""
+    from hapticframe._contracts import describe_channel
+
+    undeclared = []
+    for reg in registry:
+        spec = reg.spec
+        lines = [f"  <- {describe_channel(n, c)}" for n, c in spec.reads.items()]
+        lines += [f"  -> {describe_channel(n, c)}" for n, c in spec.produces.items()]
+        if not lines:
+            undeclared.append(f"{spec.kind}/{spec.name}")
+            continue
+        out(f"{spec.kind}/{spec.name}")
+        for line in lines:
+            out(line)
+    if undeclared:
+        out("declared when built (channels from a file or a topic): " + ", ".join(undeclared))
+    return 0

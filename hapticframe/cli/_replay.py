@@ -11,6 +11,7 @@ from hapticframe.cli._common import (
     min_free,
     out,
     progress_line,
+    searches,
     summary_line,
     validate_experiment,
 )
@@ -43,6 +44,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     metrics = replay_run(args.target, experiment, args.out, overwrite=args.overwrite,
                          echo=echo, progress=not args.quiet, min_free_bytes=min_free(args))
     out(f"replay results in {args.out} (all metrics in metrics.json): "
-         + summary_line(metrics, experiment.model.run.label_channel))
+         + summary_line(metrics, experiment.model.run.label_channel,
+                        searched=searches(experiment)))
     return 0
 

@@ -17,6 +17,7 @@ from hapticframe.cli._common import (
     port_arg,
     port_of,
     progress_line,
+    searches,
     summary_line,
     validate_experiment,
     wait_for_interrupt,
@@ -110,11 +111,11 @@ def _run(args: argparse.Namespace, experiment: Any) -> int:
     except RunInconclusive as exc:
         # The run wrote its files: say where, what they show, and why they are no result.
         out(f"results in {args.out} (all metrics in metrics.json): "
-            + summary_line(exc.metrics, label_channel))
+            + summary_line(exc.metrics, label_channel, searched=searches(experiment)))
         err(f"error: {exc} (run.json: status failed)")
         return exc.exit_code
     out(f"results in {args.out} (all metrics in metrics.json): "
-         + summary_line(metrics, label_channel))
+         + summary_line(metrics, label_channel, searched=searches(experiment)))
     return 0
 
 
@@ -137,7 +138,7 @@ def _run_live(args: argparse.Namespace, experiment: Any) -> int:
                                progress=not args.quiet, min_free_bytes=min_free(args)),
         port=port_of(args), say=out, wait=wait_for_interrupt,
         finished=lambda m: out(f"results in {args.out} (all metrics in metrics.json): "
-                                + summary_line(m, label)),
+                                + summary_line(m, label, searched=searches(experiment))),
     )
     return 0
 

@@ -13,6 +13,7 @@ from hapticframe.kinds._base import (
     InputAlignment,
     RunOutcome,
 )
+from hapticframe.kinds._clock import RunClock
 from hapticframe.kinds._records import (
     ChannelInfo,
     ClassProbabilities,
@@ -70,6 +71,7 @@ __all__ = [
     "Robot",
     "RobotFollower",
     "RobotState",
+    "RunClock",
     "RunOutcome",
     "SampleBatch",
     "Sensor",

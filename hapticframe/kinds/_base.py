@@ -13,6 +13,7 @@ import numpy as np
 
 from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._kind import Kind
+from hapticframe.kinds._clock import RunClock
 from hapticframe.kinds._records import ChannelInfo, MovementResult, Region
 
 if TYPE_CHECKING:
@@ -43,6 +44,12 @@ class BuildContext:
     progress : bool
         Whether the user wants progress output (False under ``hapticframe run --quiet``).
         A component that draws a progress bar while it fits draws none when False.
+    clock : RunClock
+        The run's clock and control period (:class:`~hapticframe.kinds.RunClock`), the same
+        for every component of a run: a simulated or synthetic sensor stamps its samples
+        with ``clock.due_times(rate_hz, after_s=last)``, so that it keeps step with the
+        robot. Default: a clock of its own at 100 Hz that only :meth:`RunClock.advance`
+        moves (a component built by hand, in a test).
     """
 
     id: str
@@ -50,6 +57,7 @@ class BuildContext:
     inputs: Mapping[str, Component] = field(default_factory=dict)
     scene: Scene | None = None
     progress: bool = True
+    clock: RunClock = field(default_factory=RunClock)
 
     def map_region(self, configured: RegionConfig | None = None) -> Region:
         """The region a map covers: ``configured`` (the map's own ``region`` setting), else
@@ -100,6 +108,10 @@ class RunOutcome:
     outline_level : float
         The occupancy level of an estimated outline (``run.outline_level``, thesis: 0.6);
         a figure that draws a map's outline draws it at this level.
+    verdict : str
+        Empty, or what every figure of the run says about its outcome when the run found
+        nothing ("object not found: ..."); draw it with
+        :func:`hapticframe.plotting.draw_verdict`.
     """
 
     out_dir: Path
@@ -109,6 +121,7 @@ class RunOutcome:
     wall_time_s: float
     figures: bool = True
     outline_level: float = OUTLINE_LEVEL
+    verdict: str = ""
 
 
 #: The ways a consumer's inputs can be aligned (see :class:`InputAlignment`).

@@ -95,11 +95,17 @@ class ChannelInfo:
         dimensionless values.
     rate_hz : float
         Nominal sample rate of the channel.
+    latency_s : float
+        How long after its time stamp a sample may arrive (a device's buffering, a bus's
+        delay); 0 for a stream stamped on the run's clock. A closed loop ends the run as no
+        result when a stream's latest sample lies further than this plus one control period
+        and one sample period from the robot's time (issue 34).
     """
 
     shape: tuple[int, ...]
     unit: str
     rate_hz: float
+    latency_s: float = 0.0
 
 
 @dataclass(frozen=True)

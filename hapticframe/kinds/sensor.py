@@ -11,6 +11,11 @@ Contract
 - Every channel declared in :attr:`Sensor.channels` is present in every batch with shape
   ``(n, *info.shape)`` and float64 dtype, in the unit the :class:`ChannelInfo` states.
 - A simulated sensor that needs the robot's state names that robot in ``inputs``.
+- Time stamps keep step with the run's clock (``context.clock``, the robot's time): a
+  software sensor stamps its samples with ``context.clock.due_times(rate_hz, after_s=last)``
+  and delivers exactly those; a closed loop ends as no result when a stream lies further
+  from the robot's time than its ``ChannelInfo.latency_s`` plus one control period and one
+  sample (the kit's ``check_sensor_keeps_time``).
 """
 
 from __future__ import annotations

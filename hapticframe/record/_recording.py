@@ -51,6 +51,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
+from pydantic_core import to_json
 
 from hapticframe._atomic import output_error
 from hapticframe._errors import UsageError
@@ -390,7 +391,10 @@ class RunRecording:
         self._seen(block, t, t)
         if self.snapshot_rate_hz > 0 and t >= self._next_pose_s.get(robot_id, -math.inf) - _EPS_S:
             self._next_pose_s[robot_id] = t + 1.0 / self.snapshot_rate_hz
-            self.event(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
+            # Deferred, not an event: an event writes every open block first, and poses at
+            # the snapshot rate would cut a long run's blocks into tens of thousands of
+            # small messages (+50 % CPU on a 10 x 10 m search).
+            self.later(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
                        _foxglove.pose_message(t, position, float(state.heading_rad),
                                               float(state.depth_m)), t)
 
@@ -558,7 +562,10 @@ class RunRecording:
                 topic=topic, message_encoding=table.encoding, schema_id=schema_id), schema)
         channel = known[0]
         stamp = round(max(t_s, 0.0) * 1e9)
-        payload = json.dumps(data, separators=(",", ":"), allow_nan=False).encode()
+        # pydantic-core's serializer (pydantic's own, already a dependency): the same JSON as
+        # json.dumps, about 8x faster on the float lists that make up most of a recording.
+        # Non-finite floats are None before they get here (_plain, _nan_to_none).
+        payload = to_json(data, inf_nan_mode="null")
         self._sequence += 1
         self._guard(lambda: self._writer.add_message(
             channel_id=channel, log_time=stamp, publish_time=stamp, data=payload,

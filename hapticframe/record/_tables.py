@@ -21,6 +21,9 @@ import csv
 import io
 import math
 import re
+import stat
+import zipfile
+import zlib
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,10 +33,23 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from hapticframe._config._load import load_file
-from hapticframe._errors import ExperimentError, HapticframeError, Issue
+from hapticframe._errors import ExperimentError, HapticframeError, Issue, bound_text
+from hapticframe.bounded_io import (
+    BoundedReadError,
+    format_bytes,
+    hdf5_child,
+    hdf5_members,
+    open_hdf5,
+    open_regular,
+    read_hdf5_dataset,
+)
 
 __all__ = [
+    "MAX_CELLS",
+    "MAX_TABLE_BYTES",
     "MAX_TABLE_ISSUES",
+    "MIN_RATE_HZ",
+    "RESERVED_NAMES",
     "ChannelLayout",
     "LabelLayout",
     "PositionLayout",
@@ -49,8 +65,21 @@ __all__ = [
 MAX_TABLE_ISSUES = 20
 #: Cells one import may read (about 100 MB of float64): a bound on what a file can cost.
 MAX_CELLS = 12_000_000
+#: Bytes of one CSV file, and of a workbook's XML once decompressed, read at most.
+MAX_TABLE_BYTES = 1024**3
+#: Names a layout may not give a channel or label: the recording's own arrays.
+RESERVED_NAMES = ("timestamps_s", "position_m", "movement_index")
+#: Slowest rate a layout may declare: one step per 1000 s (the step's length stays finite).
+MIN_RATE_HZ = 1e-3
+#: Longest channel or label name.
+MAX_NAME_CHARS = 64
 
 _NAME = r"^[a-z][a-z0-9_]*$"
+# A number as a layout's tables write it: ASCII decimal digits with an optional sign,
+# point and exponent (no '_' separators, no other scripts' digits, no hex); 'nan' and
+# 'inf' are read so that they can be refused as not finite.
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
+                      r"|[+-]?(?:nan|inf|infinity)", re.ASCII | re.IGNORECASE)
 
 
 class TableError(HapticframeError):
@@ -87,6 +116,10 @@ class ChannelLayout(_Strict):
             raise ValueError("lines are 1-based: the first row (or column) is 1")
         if len(set(self.lines)) != len(self.lines):
             raise ValueError(f"lines repeat: {list(self.lines)}")
+        if self.shape is not None and any(n < 2 for n in self.shape):
+            raise ValueError(f"shape {list(self.shape)}: every entry is a whole number of at "
+                             "least 2 (an entry of 1 only pads the shape: leave it out; a "
+                             "single line is a scalar channel without a shape)")
         if self.shape is not None and math.prod(self.shape) != len(self.lines):
             raise ValueError(f"shape {list(self.shape)} holds {math.prod(self.shape)} values, "
                              f"but {len(self.lines)} lines are given")
@@ -105,6 +138,17 @@ class LabelLayout(_Strict):
     unit: str = Field("1", min_length=1)
     classes: tuple[str, ...] | None = Field(
         None, min_length=2, description="Class names; the cells hold indices 0..k-1.")
+
+    @model_validator(mode="after")
+    def _distinct_classes(self) -> LabelLayout:
+        if self.classes is not None:
+            seen: set[str] = set()
+            for name in self.classes:
+                if name in seen:
+                    raise ValueError(f"class {bound_text(name)!r} is named twice: each index "
+                                     "needs its own name")
+                seen.add(name)
+        return self
 
 
 class PositionLayout(_Strict):
@@ -126,7 +170,8 @@ class TableLayout(_Strict):
     time_along: Literal["columns", "rows"] = Field(
         "columns", description="'columns': one step per column, channels in rows.")
     first_step: int = Field(1, ge=1, description="1-based column (or row) of the first step.")
-    rate_hz: float = Field(gt=0, le=1e6, allow_inf_nan=False)
+    rate_hz: float = Field(ge=MIN_RATE_HZ, le=1e6, allow_inf_nan=False,
+                           description="Nominal sample rate (1e-3..1e6 Hz).")
     rate_note: str = Field("", description="Where the rate comes from (or the assumption).")
     channels: dict[str, ChannelLayout] = Field(min_length=1)
     labels: dict[str, LabelLayout] = Field(default_factory=dict)
@@ -138,27 +183,43 @@ class TableLayout(_Strict):
     def _names(self) -> TableLayout:
         names = list(self.channels) + list(self.labels)
         for name in names:
+            if len(name) > MAX_NAME_CHARS:
+                raise ValueError(f"a name of {len(name)} characters ({name[:40]!r}…"
+                                 f"); names are at most {MAX_NAME_CHARS} characters")
             if not re.match(_NAME, name):
                 raise ValueError(f"{name!r} is not a channel name (lowercase letters, digits "
                                  "and '_', starting with a letter)")
+            if name in RESERVED_NAMES:
+                raise ValueError(f"{name!r} is a name the recording uses for its own arrays "
+                                 f"({', '.join(RESERVED_NAMES)}); rename the channel or label")
         if len(set(names)) != len(names):
             raise ValueError("a label has the name of a channel")
-        if self.position is not None and "position_m" in names:
-            raise ValueError("'position_m' is the position's channel; rename the other one")
+        self._lines_once()
         return self
+
+    def _lines_once(self) -> None:
+        """Every line is read as one thing only (a channel element, a label or an axis)."""
+        seen: dict[int, str] = {}
+        for line, what in self._line_uses():
+            if line in seen:
+                raise ValueError(f"line {line} is read as both {seen[line]} and {what}; "
+                                 "each row (or column) holds one thing")
+            seen[line] = what
+
+    def _line_uses(self) -> list[tuple[int, str]]:
+        uses: list[tuple[int, str]] = []
+        for name, channel in self.channels.items():
+            uses += [(line, f"{name}[{i}]" if len(channel.lines) > 1 else name)
+                     for i, line in enumerate(channel.lines)]
+        uses += [(label.line, name) for name, label in self.labels.items()]
+        if self.position is not None:
+            uses += [(line, f"position {axis}")
+                     for axis, line in zip("xyz", self.position.lines, strict=True)]
+        return uses
 
     def used_lines(self) -> dict[int, str]:
         """Every line the layout reads and what it is (for messages)."""
-        used: dict[int, str] = {}
-        for name, channel in self.channels.items():
-            for i, line in enumerate(channel.lines):
-                used[line] = f"{name}[{i}]" if len(channel.lines) > 1 else name
-        for name, label in self.labels.items():
-            used[label.line] = name
-        if self.position is not None:
-            for axis, line in zip("xyz", self.position.lines, strict=True):
-                used[line] = f"position {axis}"
-        return used
+        return dict(self._line_uses())
 
 
 def load_layout(path: str | Path) -> TableLayout:
@@ -208,7 +269,13 @@ _Cells = list[list[Any]]
 
 def _tables(path: Path, layout: TableLayout) -> Iterator[tuple[str, str, _Cells]]:
     """(kind of table, its name, its cells as rows) for each trial in ``path``."""
-    if path.is_dir():
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise TableError([f"{path}: no such file or directory"]) from None
+    except OSError as exc:
+        raise TableError([f"{path}: cannot be read ({exc.strerror or exc})"]) from None
+    if stat.S_ISDIR(mode):
         files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".csv")
         if not files:
             raise TableError([f"{path}: a directory of trials must hold .csv files; it has "
@@ -216,8 +283,6 @@ def _tables(path: Path, layout: TableLayout) -> Iterator[tuple[str, str, _Cells]
         for file in files:
             yield "file", file.name, _read_csv(file)
         return
-    if not path.is_file():
-        raise TableError([f"{path}: no such file or directory"])
     suffix = path.suffix.lower()
     if suffix == ".xlsx":
         yield from _read_xlsx(path)
@@ -230,12 +295,101 @@ def _tables(path: Path, layout: TableLayout) -> Iterator[tuple[str, str, _Cells]
                           "a directory of them), .h5 or .hdf5"])
 
 
-def _read_csv(path: Path) -> _Cells:
+def _read_bounded(path: Path) -> bytes:
+    """The bytes of a regular file of at most :data:`MAX_TABLE_BYTES` (never blocks)."""
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+        with open_regular(path) as stream:
+            raw = stream.read(MAX_TABLE_BYTES + 1)
+    except FileNotFoundError:
+        raise TableError([f"{path}: no such file"]) from None
+    except (BoundedReadError, OSError) as exc:
+        raise TableError([f"{path}: {exc}"]) from None
+    if len(raw) > MAX_TABLE_BYTES:
+        raise TableError([f"{path}: larger than {format_bytes(MAX_TABLE_BYTES)}; split the "
+                          "trials into several files"])
+    return raw
+
+
+def _read_csv(path: Path) -> _Cells:
+    raw = _read_bounded(path)
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
         raise TableError([f"{path}: cannot be read as UTF-8 text ({exc})"]) from None
-    return [list(row) for row in csv.reader(io.StringIO(text))]
+    reader = csv.reader(io.StringIO(text))
+    rows: _Cells = []
+    try:
+        for row in reader:
+            rows.append(list(row))
+    except csv.Error as exc:
+        row_number = len(rows) + 1
+        lines = text.splitlines()
+        column = _long_field_column(lines[reader.line_num - 1]) if 0 < reader.line_num <= len(
+            lines) else None
+        where = f"{path}, file {path.name!r}, row {row_number}"
+        if column is not None:
+            where += f", column {column} ({column_letters(column)})"
+        reason = (f"a cell longer than {csv.field_size_limit()} characters"
+                  if "field larger" in str(exc) else str(exc))
+        raise TableError([f"{where}: {reason}; the file is not a table of numbers"]) from None
+    return rows
+
+
+def _long_field_column(line: str) -> int | None:
+    """The 1-based column of the first cell of ``line`` past csv's field limit, if any."""
+    limit = csv.field_size_limit()
+    column, length, quoted = 1, 0, False
+    for char in line:
+        if char == '"':
+            quoted = not quoted
+        elif char == "," and not quoted:
+            column, length = column + 1, 0
+            continue
+        length += 1
+        if length > limit:
+            return column
+    return None
+
+
+def _check_xlsx_xml(path: Path) -> None:
+    """Refuse a workbook whose XML declares a DTD (entities, external references, entity
+    bombs) or decompresses to more than :data:`MAX_TABLE_BYTES`, before openpyxl parses it."""
+    try:
+        with open_regular(path) as stream, zipfile.ZipFile(stream) as archive:
+            members = archive.infolist()
+            total = sum(info.file_size for info in members)
+            if total > MAX_TABLE_BYTES:
+                raise TableError([f"{path}: the workbook's parts decompress to "
+                                  f"{format_bytes(total)}, more than "
+                                  f"{format_bytes(MAX_TABLE_BYTES)}; split the trials"])
+            for info in members:  # every part, whatever its name: a sheet's may be any
+                _scan_xml(path, archive, info)
+    except FileNotFoundError:
+        raise TableError([f"{path}: no such file"]) from None
+    except (BoundedReadError, OSError, zipfile.BadZipFile, zlib.error, EOFError) as exc:
+        raise TableError([f"{path}: not a readable .xlsx workbook ({exc})"]) from None
+
+
+def _scan_xml(path: Path, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+    keep = b""
+    with archive.open(info) as member:
+        first = True
+        while chunk := member.read(1 << 20):
+            if first:
+                if chunk[:2] in (b"\xff\xfe", b"\xfe\xff") or (
+                        chunk[:1] == b"<" and b"\x00" in chunk[:4]):
+                    raise TableError([f"{path}, part {info.filename}: XML that is not UTF-8; "
+                                      "save the workbook again from a spreadsheet program"])
+                if not chunk.removeprefix(b"\xef\xbb\xbf").lstrip().startswith(b"<"):
+                    return  # not XML (an image, a binary part): openpyxl does not parse it
+            first = False
+            window = (keep + chunk).upper()
+            if b"<!DOCTYPE" in window or b"<!ENTITY" in window:
+                raise TableError([
+                    f"{path}, part {info.filename}: the XML declares a DOCTYPE (entities "
+                    "or external references); workbooks are read without them: save it "
+                    "again from a spreadsheet program"])
+            keep = chunk[-16:]
 
 
 def _read_xlsx(path: Path) -> Iterator[tuple[str, str, _Cells]]:
@@ -244,43 +398,88 @@ def _read_xlsx(path: Path) -> Iterator[tuple[str, str, _Cells]]:
     except ImportError as exc:
         raise TableError([f"{path}: reading .xlsx needs openpyxl: "
                           "pip install 'hapticframe[tables]'"]) from exc
+    _check_xlsx_xml(path)
     try:
         book = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except Exception as exc:  # openpyxl raises many kinds for a damaged workbook
         raise TableError([f"{path}: not a readable .xlsx workbook ({type(exc).__name__}: "
-                          f"{exc})"]) from None
+                          f"{bound_text(str(exc))})"]) from None
     try:
         if not book.sheetnames:
             raise TableError([f"{path}: the workbook has no sheets"])
         for name in book.sheetnames:
-            yield "sheet", name, [list(row) for row in book[name].iter_rows(values_only=True)]
+            yield "sheet", name, _sheet_cells(path, name, book[name])
     finally:
         book.close()
 
 
+def _sheet_cells(path: Path, name: str, sheet: Any) -> _Cells:
+    """A sheet's rows, each as long as its last cell, its grid checked as it grows."""
+    where = f"{path}, sheet {name!r}"
+    rows_declared, columns_declared = sheet.max_row, sheet.max_column
+    if rows_declared and columns_declared and rows_declared * columns_declared > MAX_CELLS:
+        raise TableError([f"{where}: its dimension record ({sheet.calculate_dimension()}) "
+                          f"declares {rows_declared} rows x {columns_declared} columns, more "
+                          f"than the {MAX_CELLS} cells an import reads; delete the cells far "
+                          "from the data"])
+    # Without a dimension record, each row is as long as its last cell: a stray cell far
+    # away is caught here, when the grid it spans grows past MAX_CELLS.
+    sheet.reset_dimensions()
+    rows: _Cells = []
+    width = 0
+    read = 0  # rows read, empty ones included (those after the last cell are dropped)
+    try:
+        for row in sheet.iter_rows(values_only=True):
+            read += 1
+            cells = len(row)
+            while cells and row[cells - 1] is None:
+                cells -= 1
+            if not cells:
+                continue
+            width = max(width, cells)
+            if read * width > MAX_CELLS:
+                raise TableError([
+                    f"{where}: the cell at row {read}, column {cells} "
+                    f"({column_letters(cells)}) makes the sheet's grid {read} rows x {width} "
+                    f"columns, more than the {MAX_CELLS} cells an import reads; delete the "
+                    "cells far from the data"])
+            rows.extend([] for _ in range(read - 1 - len(rows)))
+            rows.append(list(row[:cells]))
+    except TableError:
+        raise
+    except Exception as exc:  # openpyxl: a damaged sheet raises many kinds
+        raise TableError([f"{where}, row {len(rows) + 1}: the sheet cannot be read "
+                          f"({type(exc).__name__}: {bound_text(str(exc))})"]) from None
+    return rows
+
+
 def _read_hdf5(path: Path, dataset: str) -> Iterator[tuple[str, str, _Cells]]:
     try:
-        import h5py
-    except ImportError as exc:
-        raise TableError([f"{path}: reading HDF5 needs h5py: pip install 'hapticframe[tables]'"]
-                         ) from exc
-    try:
-        handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise TableError([f"{path}: not a readable HDF5 file ({exc})"]) from None
+        handle = open_hdf5(path)
+    except FileNotFoundError:
+        raise TableError([f"{path}: no such file"]) from None
+    except BoundedReadError as exc:
+        raise TableError([f"{path}: {exc}"]) from None
+    import h5py
+
     with handle:
-        groups = sorted(k for k in handle if isinstance(handle[k], h5py.Group))
+        try:
+            groups = [(n, g) for n, g in hdf5_members(handle) if isinstance(g, h5py.Group)]
+        except BoundedReadError as exc:
+            raise TableError([f"{path}: {exc}"]) from None
         if not groups:
             raise TableError([f"{path}: no groups (one group per trial)"])
-        for name in groups:
-            node = handle[name].get(dataset)
-            if not isinstance(node, h5py.Dataset) or node.ndim != 2:
-                raise TableError([f"{path}, group {name!r}: no 2-D dataset {dataset!r} "
-                                  "(set hdf5_dataset in the layout)"])
-            if node.dtype.kind not in "biuf":
-                raise TableError([f"{path}, group {name!r}, dataset {dataset!r}: "
-                                  f"{node.dtype} is not numeric"])
-            yield "group", name, np.asarray(node, dtype=np.float64).tolist()
+        for name, group in groups:
+            where = f"{path}, group {name!r}"
+            try:
+                node = hdf5_child(group, dataset)
+                if not isinstance(node, h5py.Dataset) or node.ndim != 2:
+                    raise TableError([f"{where}: no 2-D dataset {dataset!r} (set "
+                                      "hdf5_dataset in the layout)"])
+                values = read_hdf5_dataset(node, MAX_CELLS)
+            except BoundedReadError as exc:
+                raise TableError([f"{where}, dataset {dataset!r}: {exc}"]) from None
+            yield "group", name, values.astype(np.float64).tolist()
 
 
 def _blank(value: Any) -> bool:
@@ -347,10 +546,10 @@ def _number(value: Any) -> float | None:
     if isinstance(value, (int, float, np.integer, np.floating)):
         return float(value)
     if isinstance(value, str):
-        try:
-            return float(value.strip())
-        except ValueError:
+        text = value.strip(" \t\r\n")
+        if not _DECIMAL.fullmatch(text):
             return None
+        return float(text)
     return None
 
 

@@ -13,17 +13,29 @@ deactivates and cleans up the devices in reverse order before any component is c
 from __future__ import annotations
 
 import logging
+import math
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from hapticframe._config import ComponentEntry, Experiment
+from hapticframe._config import ComponentEntry, Experiment, contract_mismatch
+from hapticframe._contracts import ChannelSpec
 from hapticframe._errors import ExperimentError, HapticframeError, Issue, RunError
-from hapticframe.kinds import BuildContext, Component, Device
+from hapticframe._kind import Kind
+from hapticframe.kinds import (
+    BuildContext,
+    ChannelInfo,
+    Component,
+    Device,
+    FeatureExtractor,
+    Robot,
+    RunClock,
+    Sensor,
+)
 from hapticframe.run._components import Components
 
 __all__ = ["LEAVE_OUT", "Substitute", "activate_devices", "build_components", "component_rng"]
@@ -106,7 +118,10 @@ def build_components(
         When an implementation cannot be imported.
     """
     scene = experiment.model.scene
-    built = Components()
+    # One clock for the run, handed to every component: its period is the first robot's
+    # control period (from its config, before anything is built), else the open loop's tick.
+    clock = RunClock(_control_period_s(experiment))
+    built = Components(clock)
     for entry in experiment.components:
         chosen = choose(entry) if choose is not None else None
         if chosen == LEAVE_OUT:
@@ -122,6 +137,7 @@ def build_components(
             inputs={name: built[name] for name in entry.inputs if name in built},
             scene=scene,
             progress=progress,
+            clock=clock,
         )
         try:
             component = factory(config, context)
@@ -137,6 +153,11 @@ def build_components(
         if isinstance(component, Component):
             stack.callback(_closer(component, on_close_error))
         built.add(entry.id, entry.kind, component, plugin=plugin)
+    _check_built_channels(experiment, built)
+    if built.robots:
+        # The robots' time: the latest state of any (in a team, the one that moves now).
+        robots = tuple(built.robots.values())
+        clock.follow(lambda: _latest_time_s(robots), 1.0 / float(robots[0].control_rate_hz))
     if activate:
         names = {e.id: _named(e) for e in experiment.components}
         activate_devices(built, stack, on_close_error, names)
@@ -187,6 +208,57 @@ def activate_devices(
                 raise RunError(f"cannot {doing} {what}: {type(exc).__name__}: {exc}") from exc
         activated.append(cid)
     return activated
+
+
+def _check_built_channels(experiment: Experiment, built: Components) -> None:
+    """Each consumer's declared channels against what its built inputs report
+    (``Sensor.channels``, ``FeatureExtractor.output_channels``): a producer whose spec
+    declares nothing (its channels come from a file, a lab plugin written before
+    contracts) is held to the contract here, before the run starts (exit 2, located)."""
+    issues = []
+    types = {e.id: e.type for e in experiment.components}
+    for entry in experiment.components:
+        if entry.id not in built or not entry.registered.spec.consumes:
+            continue
+        for input_id in entry.inputs:
+            if input_id not in built:
+                continue
+            source = built[input_id]
+            declared = getattr(source, "channels", None) if isinstance(source, Sensor) else (
+                getattr(source, "output_channels", None)
+                if isinstance(source, FeatureExtractor) else None
+            )
+            if not isinstance(declared, Mapping):
+                continue
+            produced = {
+                name: ChannelSpec(tuple(info.shape), str(info.unit))
+                for name, info in declared.items() if isinstance(info, ChannelInfo)
+            }
+            for message in contract_mismatch(
+                entry, input_id, types.get(input_id, "?"), produced,
+                what_input="delivers (as built)",
+            ):
+                issues.append(Issue(f"{entry.path}.inputs", message))
+    if issues:
+        raise ExperimentError(experiment.file, issues)
+
+
+def _latest_time_s(robots: tuple[Robot, ...]) -> float:
+    """The time of the robots' latest state (NaN before any has one: the clock holds)."""
+    times = [float(r.state.timestamp_s) for r in robots if r.state is not None]
+    return max(times) if times else math.nan
+
+
+def _control_period_s(experiment: Experiment) -> float:
+    """The run's control period: the first robot's ``control_rate_hz`` where its config
+    says it, else ``run.live_tick_s`` (an open loop advances its clock by it per read)."""
+    for entry in experiment.components:
+        if entry.kind is Kind.ROBOT:
+            rate = getattr(entry.config, "control_rate_hz", None)
+            if isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0:
+                return 1.0 / float(rate)
+            break
+    return float(experiment.model.run.live_tick_s)
 
 
 def _named(entry: ComponentEntry) -> str:

@@ -13,6 +13,7 @@ from hapticframe.kinds import (
     Map,
     Planner,
     Robot,
+    RunClock,
     Sensor,
     SensorModel,
 )
@@ -43,6 +44,7 @@ class Components(Mapping[str, Component]):
     __slots__ = (
         "_all",
         "classifiers",
+        "clock",
         "feature_extractors",
         "maps",
         "planners",
@@ -51,7 +53,9 @@ class Components(Mapping[str, Component]):
         "sensors",
     )
 
-    def __init__(self) -> None:
+    def __init__(self, clock: RunClock | None = None) -> None:
+        #: The run's clock, handed to every component it built (``BuildContext.clock``).
+        self.clock = clock if clock is not None else RunClock()
         self._all: dict[str, Component] = {}
         self.sensors: dict[str, Sensor] = {}
         self.feature_extractors: dict[str, FeatureExtractor] = {}

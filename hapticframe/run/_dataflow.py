@@ -27,10 +27,15 @@ from hapticframe.kinds import (
     Sensor,
 )
 from hapticframe.run._channels import LOOP, MapSnapshot, RecordingWriter
+from hapticframe.run._clock_check import StepCheck
 from hapticframe.run._components import Components
 from hapticframe.run._streams import InputAligner, PoseHistory, TraceRecorder, _merge_exact
 
 __all__ = ["Dataflow"]
+
+#: The key of the clock check's state in a :meth:`Dataflow.checkpoint` (no component id:
+#: ids start with a letter).
+_STEP_CHECK = "#step-check"
 
 
 class Dataflow:
@@ -50,6 +55,8 @@ class Dataflow:
     _last_snapshot_cpu_s = 0.0
     _snapshot_cpu_share = 1.0
     _cpu_start_s = 0.0
+    #: A closed loop's check of every stream against the robot's time (None: unchecked).
+    step_check: StepCheck | None = None
 
     def __init__(
         self,
@@ -91,6 +98,8 @@ class Dataflow:
         # stall check watches it grow).
         self.force_limit_n: float | None = None
         self.force_violation: tuple[float, float] | None = None
+        #: The ``sensor/channel`` of :attr:`force_violation` (what the halt line names).
+        self.force_violation_stream = ""
         self.valid_force_samples = 0
         self._robot_keys: dict[str, tuple[str, ...]] = {}
         #: Committed sensor samples and robot states so far (``sensor/ID``, ``robot/ID``):
@@ -253,8 +262,11 @@ class Dataflow:
         """
         outputs: dict[str, SampleBatch] = {}
         sensors = self.components.sensors
+        step_check = self.step_check
         for sensor_id in self.sensors:
-            outputs[sensor_id] = sensors[sensor_id].read()
+            outputs[sensor_id] = batch = sensors[sensor_id].read()
+            if step_check is not None:
+                step_check.check(sensor_id, batch)
         extractors = self.components.feature_extractors
         for fe_id in self.extractors:
             outputs[fe_id] = extractors[fe_id].update(self._inputs(fe_id, outputs))
@@ -312,12 +324,21 @@ class Dataflow:
 
     def checkpoint(self) -> dict[str, Any]:
         """The aligners' kept samples, taken with the rewindable components' snapshots."""
-        return {cid: aligner.checkpoint() for cid, aligner in self.aligners.items()}
+        state: dict[str, Any] = {
+            cid: aligner.checkpoint() for cid, aligner in self.aligners.items()
+        }
+        if self.step_check is not None:
+            state[_STEP_CHECK] = self.step_check.checkpoint()
+        return state
 
     def rewind(self, checkpoint: Mapping[str, Any]) -> None:
-        """Return the aligners to a :meth:`checkpoint`."""
+        """Return the aligners (and the clock check) to a :meth:`checkpoint`."""
         for cid, state in checkpoint.items():
-            self.aligners[cid].rewind(state)
+            if cid == _STEP_CHECK:
+                if self.step_check is not None:
+                    self.step_check.rewind(state)
+            else:
+                self.aligners[cid].rewind(state)
 
     @property
     def rewindable(self) -> list[str]:
@@ -446,7 +467,8 @@ class Dataflow:
                         if valid is None or bool(valid[0]):
                             self.valid_force_samples += 1
                             if limit is not None and norm > limit:
-                                self._note_violation(float(batch.timestamps_s[0]), norm)
+                                self._note_violation(float(batch.timestamps_s[0]), norm,
+                                                     f"{sensor.id}/{name}")
                     continue
                 values = values.reshape(n, -1)
                 norms = np.linalg.norm(values, axis=1)
@@ -461,12 +483,14 @@ class Dataflow:
                     over = np.flatnonzero(usable & (norms > limit))
                     if over.size:
                         first = int(over[0])
-                        self._note_violation(float(batch.timestamps_s[first]), float(norms[first]))
+                        self._note_violation(float(batch.timestamps_s[first]),
+                                             float(norms[first]), f"{sensor.id}/{name}")
 
-    def _note_violation(self, timestamp_s: float, force_n: float) -> None:
+    def _note_violation(self, timestamp_s: float, force_n: float, stream: str) -> None:
         # The earliest violating sample of a commit (sensors are committed one by one).
         if self.force_violation is None or timestamp_s < self.force_violation[0]:
             self.force_violation = (timestamp_s, force_n)
+            self.force_violation_stream = stream
 
     def take_force_violation(self) -> tuple[float, float] | None:
         """The first valid force sample above the limit committed since the last call (or

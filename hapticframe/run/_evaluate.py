@@ -10,7 +10,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -230,6 +230,22 @@ def evaluate_objects(
                                float(r["estimated_centroid_m"][1])) for r in found))
 
 
+def not_found_verdict(metrics: Mapping[str, Any], level: float, map_id: str) -> str:
+    """What every figure of a run that found nothing says (empty when it found its
+    object, or every object of a scene with several)."""
+    if metrics.get("object_found"):
+        return ""
+    total = metrics.get("objects_total")
+    if total is not None:
+        return (f"{metrics.get('objects_found', 0)} of {total} objects found "
+                f"(map {map_id!r} at p = {level:g})")
+    error = metrics.get("centroid_error_m")
+    if error is None:
+        return f"object not found: map {map_id!r} never reached p = {level:g}"
+    return (f"object not found: the estimate is {100 * float(error):.1f} cm from the true "
+            f"centroid (at most {100 * float(metrics['found_within_m']):.1f} cm counts)")
+
+
 def save_outline_figure(
     path: Path,
     region: Region,
@@ -239,6 +255,8 @@ def save_outline_figure(
     centroids: Sequence[Sequence[float]],
     level: float,
     path_m: ArrayLike | None = None,
+    *,
+    verdict: str = "",
 ) -> bool:
     """Draw the estimated outline over the true one with the movement paths (Figs. 3.5, 3.7),
     or, for an open-loop run, with the fingertip path ``path_m``.
@@ -247,7 +265,7 @@ def save_outline_figure(
     """
     try:
         figure = draw_outline_figure(region, scene, movements, outline, centroids, level,
-                                     path_m)
+                                     path_m, verdict=verdict)
     except ImportError:
         return False
     plotting.save_figure(figure, path)
@@ -265,12 +283,15 @@ def draw_outline_figure(
     centroids: Sequence[Sequence[float]],
     level: float,
     path_m: ArrayLike | None = None,
+    *,
+    verdict: str = "",
 ) -> Figure:
     """The Figure of :func:`save_outline_figure`: movements as arrows coloured by phase
     (start to where the fingertip stopped), crosses where one halted on an interaction; an
     open-loop run, which has no movements, draws the fingertip path ``path_m`` instead.
     ``outline`` is one estimated outline or a sequence of them (a scene with several
-    objects)."""
+    objects). ``verdict`` (a run that found nothing) is written in the corner; with no
+    estimated outline the title says so."""
     figure, ax, _ = plotting.map_figure(colorbar=False)
     ax.add_patch(_rectangle(region))
     plotting.draw_outlines(ax, [obj.outline(256) for obj in scene.objects],
@@ -306,8 +327,10 @@ def draw_outline_figure(
         points = np.asarray(centroids, dtype=float).reshape(-1, 2)
         ax.plot(points[:, 0], points[:, 1], "k+", ms=12, mew=2, linestyle="none",
                 label="estimated centroid" + ("s" if len(points) > 1 else ""))
-    title = (f"{len(movements)} exploratory movements and the estimated outline" if movements
-             else "The fingertip path and the estimated outline")
+    what = "the estimated outline" if rings else f"no estimated outline (p = {level:g})"
+    title = (f"{len(movements)} exploratory movements and {what}" if movements
+             else f"The fingertip path and {what}")
+    plotting.draw_verdict(ax, verdict)
     ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
     margin = 0.02
     plotting.layout_map(figure, ax, None, (region.x_min_m - margin, region.x_max_m + margin,
@@ -477,6 +500,7 @@ def score_run(session: Session) -> dict[str, Any]:
     out: dict[str, Any] = {"movements": len(session.movements)}
     scene = session.experiment.model.scene
     map_id = _evaluation_map(session)
+    verdict = ""
     if scene is not None and scene.objects and map_id is not None:
         # The robot knows where it met the object: the estimate is the blob nearest there.
         met = [r.final_state.position_m for r in session.movements
@@ -500,18 +524,19 @@ def score_run(session: Session) -> dict[str, Any]:
             )
         out.update(score.metrics)
         out["evaluated_map"] = map_id
+        verdict = not_found_verdict(score.metrics, settings.outline_level, map_id)
         if settings.figures:
             save_outline_figure(
                 session.out_dir / "outline.png", the_map.region, scene, session.movements,
                 score.outlines, score.centroids, settings.outline_level,
-                None if session.movements else _streamed_path(session),
+                None if session.movements else _streamed_path(session), verdict=verdict,
             )
     out.update(_label_metrics(session))
     out["max_measured_force_n"] = session.max_measured_force_n
     outcome = RunOutcome(
         session.out_dir, scene, tuple(session.movements), session.components,
         time.perf_counter() - session.started, figures=settings.figures,
-        outline_level=settings.outline_level,
+        outline_level=settings.outline_level, verdict=verdict,
     )
     for cid, component in session.components.items():
         own = dict(component.finalize(outcome))

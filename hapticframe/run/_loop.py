@@ -23,9 +23,15 @@ from hapticframe.kinds import (
     RobotState,
 )
 from hapticframe.run._channels import SAFETY_HALT
+from hapticframe.run._clock_check import STREAM_OUT_OF_STEP, StepCheck
 from hapticframe.run._dataflow import Dataflow
 from hapticframe.run._robots import WORKSPACE_LIMIT, RobotTeam, workspace_of
-from hapticframe.run._safety import FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE, SafetyMonitor
+from hapticframe.run._safety import (
+    FORCE_LIMIT,
+    FORCE_STREAM_STALLED,
+    OUTSIDE_WORKSPACE,
+    SafetyMonitor,
+)
 from hapticframe.run._session import Session
 
 __all__ = ["device_faults", "devices_of", "run_loop"]
@@ -117,6 +123,10 @@ def _closed_loop(
         lookahead = 1
     safety = SafetyMonitor(settings, flow, session.safety_halts,
                            live=any(bool(d.live) for d in devices.values()))
+    # Every streamed sensor is held to the robot's time (the run's clock).
+    flow.step_check = StepCheck(
+        session.components.clock, {sid: session.components.sensors[sid] for sid in flow.sensors}
+    )
     try:
         _movements(session, flow, planner, team, robots, limit, rewindable, lookahead,
                    devices, pacers, safety)
@@ -133,6 +143,7 @@ def _movements(
     for index in range(limit):
         movement = planner.propose()
         if movement is None:
+            session.details["ended_by"] = "the planner proposed no further movement"
             return
         # The movement's parts: one robot's, or several when one robot's workspace ends.
         robot = team.pick(movement.start_m, movement.end_m)
@@ -204,7 +215,24 @@ def _movements(
         _progress(session, result, steps, devices, team.path_label(used))
         for component in session.components.values():
             component.on_movement_end(result)
+        if reason == STREAM_OUT_OF_STEP:
+            _end_out_of_step(session, flow)
+            return
+    session.details["ended_by"] = (
+        f"run.max_movements ({limit})" if limit == settings.max_movements
+        else f"the planner's max_movements ({limit})"
+    )
     session.echo(f"stopped after {limit} movements (the movement limit)")
+
+
+def _end_out_of_step(session: Session, flow: Dataflow) -> None:
+    """A stream ran out of step with the robot: the search ends here, as no result."""
+    fault = flow.step_check.fault if flow.step_check is not None else None
+    if fault is None:
+        return
+    session.details["out_of_step"] = dict(fault)
+    session.safety_halts.append(dict(fault))
+    session.echo(f"stopped: {fault['detail']}")
 
 
 def _refuse_outside_workspace(
@@ -286,6 +314,15 @@ def _movement(
             if not states:
                 break
             outputs, classified = flow.read_and_classify()
+            if flow.step_check is not None and flow.step_check.fault is not None:
+                # A stream out of step: what it read is kept (the files show it), the
+                # movement halts here and the run ends as no result.
+                for state in states:
+                    flow.record_robot_state(robot_id, state, index)
+                flow.commit(outputs, classified)
+                steps += len(states)
+                robot.halt(STREAM_OUT_OF_STEP)
+                return steps, STREAM_OUT_OF_STEP
             if (halt_on_interaction and flow.holds_interaction(classified)) or (
                 safety is not None and safety.batch_needs_replay(states, outputs)
             ):
@@ -309,6 +346,9 @@ def _movement(
             steps += 1
             flow.record_robot_state(robot_id, state, index)
             flow.tick()
+            if flow.step_check is not None and flow.step_check.fault is not None:
+                robot.halt(STREAM_OUT_OF_STEP)
+                return steps, STREAM_OUT_OF_STEP
             if safety is not None and not halted_by_loop:
                 halted_by_loop = safety.after_commit()
             if halt_on_interaction and not halted_by_loop:
@@ -326,19 +366,46 @@ def _open_loop(session: Session, flow: Dataflow) -> None:
     sensors = [s for sid, s in session.components.sensors.items() if sid not in training]
     if not sensors:
         raise RunError("nothing to run: the experiment has no sensors and no robot")
-    max_reads = session.settings.max_reads
+    settings = session.settings
+    max_reads = settings.max_reads
     devices = devices_of(session.components)
-    pacer = _pacer(devices, session.settings.live_tick_s)
+    pacer = _pacer(devices, settings.live_tick_s)
+    clock = session.components.clock
+    # The stated length (run.duration_s) in reads of one control period each.
+    planned = (
+        None if settings.duration_s is None
+        else max(1, math.ceil(settings.duration_s / clock.period_s - 1e-9))
+    )
     reads = 0
-    while reads < max_reads:
-        reads += 1
+    ended_by = ""
+    while True:
         if all(s.exhausted for s in sensors):
+            ended_by = "the sensors ended"
             break
+        if planned is not None and reads >= planned:
+            ended_by = f"run.duration_s ({settings.duration_s:g} s, {planned} reads)"
+            break
+        if reads >= max_reads:
+            session.details["limit"] = {
+                "setting": "run.max_reads", "value": max_reads, "reads": reads,
+                "clock_s": clock.now_s(),
+                "reason": (
+                    f"stopped at run.max_reads ({max_reads:,} reads, {clock.now_s():.6g} s "
+                    "of the run's clock) before its sensors ended"
+                    + ("" if planned is None else " or its run.duration_s was reached")
+                    + ": a limit, not the run's end (state its length with run.duration_s)"
+                ),
+            }
+            session.echo(f"stopped: {session.details['limit']['reason']}")
+            break
+        reads += 1
         pacer.wait()
+        if not clock.follows:
+            clock.advance()  # the open loop's control period: one per read
         flow.tick()
         flow.flush_maps()
-    else:
-        session.echo(f"stopped after {max_reads} reads (run.max_reads)")
+    if ended_by:
+        session.details["ended_by"] = ended_by
     session.details["sensor_reads"] = reads
     _note_force(session, flow.force_max_n)
     faults = device_faults(devices)
@@ -384,5 +451,18 @@ def _progress(
     session.echo(
         f"EM {result.index + 1:>3} {m.phase or '':<7} "
         f"{result.halt_reason or 'completed':<12} state {state:<8} "
-        f"{steps:>5d} steps{force:<27}{robots}{label}{device_faults(devices)}"
+        f"{steps:>5d} steps{force:<27}{robots}{label}{_limit_hit(session, result)}"
+        f"{device_faults(devices)}"
     )
+
+
+def _limit_hit(session: Session, result: MovementResult) -> str:
+    """``  force limit: wrist/force_n 85.2 N > 80 N`` for a movement the force limit
+    halted (the stream and sample that crossed it), else empty."""
+    for halt in reversed(session.safety_halts):
+        if halt.get("movement") != result.index:
+            continue
+        if halt.get("reason") == FORCE_LIMIT:
+            return (f"  force limit: {halt.get('stream') or 'a force'} "
+                    f"{float(halt['force_n']):.1f} N > {float(halt['limit_n']):g} N")
+    return ""

@@ -115,12 +115,13 @@ class SafetyMonitor:
         if robot is None:
             return ""
         if flow.force_violation is not None:
+            stream = flow.force_violation_stream
             sample_t, force_n = flow.take_force_violation() or (math.nan, math.nan)
             now = float(robot.state.timestamp_s)
             latency = max(0, round((now - sample_t) * self._rate_hz))
             robot.halt(FORCE_LIMIT)
             self._record(FORCE_LIMIT, now, latency_samples=latency, sample_time_s=sample_t,
-                         force_n=force_n, limit_n=self.limit_n)
+                         force_n=force_n, limit_n=self.limit_n, stream=stream)
             return FORCE_LIMIT
         stall_s = self.stall_s
         if stall_s is not None:

@@ -1,5 +1,6 @@
 """Whether a finished run's figures are a result: a run whose sensors delivered (almost)
-nothing, or whose every movement a safety check halted, ran to its end but found nothing
+nothing, one with a stream out of step with the robot's time, or whose every movement a
+safety check halted, ran to its end but found nothing
 worth reading. Its files are kept for inspection, ``run.json`` says ``status: failed`` with
 the reason, and the command exits 1 (:class:`RunInconclusive`).
 """
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from hapticframe._errors import RunError
+from hapticframe.run._clock_check import STREAM_OUT_OF_STEP
 from hapticframe.run._safety import FORCE_LIMIT, FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE
 from hapticframe.run._session import Session
 
@@ -25,7 +27,8 @@ MIN_DELIVERED_FRACTION = 0.1
 _MIN_EXPECTED = 20
 #: The halts of the run loop's safety checks (a planner's own stop, such as an
 #: ``interaction``, is the search working, not a halt of this kind).
-SAFETY_HALTS = frozenset({FORCE_LIMIT, FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE})
+SAFETY_HALTS = frozenset({FORCE_LIMIT, FORCE_STREAM_STALLED, OUTSIDE_WORKSPACE,
+                          STREAM_OUT_OF_STEP})
 
 
 class RunInconclusive(RunError):
@@ -95,4 +98,15 @@ def _halts(session: Session) -> list[str]:
 def inconclusive_reasons(session: Session) -> list[str]:
     """Why the finished run's figures are no result (empty: they are one)."""
     arrays = session.recorder.arrays()
-    return _delivery(session, arrays) + _halts(session)
+    return (_out_of_step(session) + _limit(session) + _delivery(session, arrays)
+            + _halts(session))
+
+
+def _limit(session: Session) -> list[str]:
+    limit = session.details.get("limit")
+    return [str(limit["reason"])] if limit else []
+
+
+def _out_of_step(session: Session) -> list[str]:
+    fault = session.details.get("out_of_step")
+    return [str(fault["detail"])] if fault else []

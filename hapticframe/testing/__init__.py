@@ -19,11 +19,16 @@ What each kind is held to, beyond the checks every plugin gets (``check_spec_rec
 (each declared knob names a config field and its values validate),
 ``check_declared_sizes`` (each field the validator declares with a ``hapticframe.Size`` is
 refused at the extremes of its range, or built and driven there within the memory limit),
+``check_run_range_ends`` (each end of an acceleration's, a depth's or a filter cutoff's
+range is refused or driven cleanly, without an error or NaN, and no thread count above the
+machine's CPUs is accepted),
 ``check_deterministic``):
 
 - sensors: ``check_sensor_contract`` (declared channels, float64, strictly increasing
   times; every sensor is read until it ends, bounded by reads and by seconds of its own
   clock, and one that ends without declaring ``finite`` is told to declare it),
+  ``check_sensor_keeps_time`` (driven for 100 control periods of the run's clock, its time
+  advances by 100 periods within one sample; the message gives the fix),
   ``check_sensor_valid_samples_finite`` (no NaN or
   infinity in a sample the batch marks valid), ``check_sensor_read_all_matches_reads``
   (the ``read_all()`` and joined ``iter_recordings()`` of a sensor that ends equal what
@@ -88,7 +93,7 @@ from hapticframe.testing._runner import (
     parametrize_with_checks,
     run_checks,
 )
-from hapticframe.testing._sizes import check_declared_sizes
+from hapticframe.testing._sizes import check_declared_sizes, check_run_range_ends
 from hapticframe.testing._spatial import (
     check_deterministic,
     check_map_contract,
@@ -115,6 +120,7 @@ from hapticframe.testing._streams import (
     check_aligned_inputs_stream_as_batch,
     check_numerical_extremes,
     check_sensor_contract,
+    check_sensor_keeps_time,
     check_sensor_read_all_matches_reads,
     check_sensor_valid_samples_finite,
     check_stream_contract,
@@ -133,6 +139,7 @@ __all__ = [
     "check_builds",
     "check_config_round_trip",
     "check_declared_sizes",
+    "check_run_range_ends",
     "check_deterministic",
     "check_knobs",
     "check_lazy_import",
@@ -152,6 +159,7 @@ __all__ = [
     "check_robot_refuses_outside_workspace",
     "check_robot_stops_at_once",
     "check_sensor_contract",
+    "check_sensor_keeps_time",
     "check_sensor_model_contract",
     "check_sensor_model_extremes",
     "check_sensor_model_streaming",

@@ -25,6 +25,7 @@ from hapticframe.kinds import (
     Observations,
     Region,
     Robot,
+    RunClock,
     SampleBatch,
 )
 
@@ -175,7 +176,8 @@ def make_component(
                     inputs[key] = planner_map
     factory = spec.load_factory()
     context = BuildContext(
-        id=f"kit-{spec.name}", rng=np.random.default_rng(seed), inputs=inputs, scene=scene
+        id=f"kit-{spec.name}", rng=np.random.default_rng(seed), inputs=inputs, scene=scene,
+        clock=_kit_clock(inputs),
     )
     own_inputs = [c for c in inputs.values() if c is not planner_map]
     try:
@@ -204,6 +206,17 @@ def make_component(
                 f"{type(exc).__name__}: {exc}"
             ) from exc
     return built
+
+
+def _kit_clock(inputs: Mapping[str, Component]) -> RunClock:
+    """The clock the kit hands a component, as a run does: its first robot input's time and
+    control period, else a clock at 100 Hz that the kit advances one period per read."""
+    clock = RunClock()
+    robots = [c for c in inputs.values() if isinstance(c, Robot)]
+    if robots:
+        robot = robots[0]
+        clock.follow(lambda: float(robot.state.timestamp_s), 1.0 / float(robot.control_rate_hz))
+    return clock
 
 
 #: The inputs the kit built for a component (by ``id``), released with it.
@@ -261,8 +274,8 @@ def synthetic_batch(
     dt = 1.0 / spec.sample_rate_hz
     t = np.asarray(t0 + dt * (1 + np.arange(n)), dtype=np.float64)
     channels = {}
-    for name, shape in spec.consumes.items():
-        size = (n, *shape)
+    for name, channel in spec.reads.items():
+        size = (n, *channel.kit_shape)
         if fill == "zero":
             values = np.zeros(size)
         elif fill == "constant":

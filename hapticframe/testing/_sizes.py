@@ -18,6 +18,7 @@ from collections.abc import Iterator, Mapping
 from typing import Any, get_args
 
 import annotated_types as at
+import numpy as np
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
@@ -28,13 +29,16 @@ from hapticframe._config._checks import (
 )
 from hapticframe._config._model import RunSettings
 from hapticframe._config._sizes import MEMORY_LIMIT_BYTES, format_bytes
+from hapticframe._kind import Kind
 from hapticframe._registry import Registry
 from hapticframe._specs import PluginSpec
 from hapticframe.testing._common import check
 from hapticframe.testing._harness import DEFAULT_SCENE, CheckFailure
 from hapticframe.testing._spatial import _exercise
+from hapticframe.threads import machine_cpus
 
-__all__ = ["check_declared_sizes", "kit_context", "range_extremes"]
+__all__ = ["RUN_RANGE_FIELDS", "check_declared_sizes", "check_run_range_ends", "kit_context",
+           "range_extremes"]
 
 #: What the kit tries for an integer or a float whose range is open above.
 _UNBOUNDED_INT = 2**62
@@ -187,3 +191,84 @@ def check_declared_sizes(spec: PluginSpec, *, registry: Registry | None = None) 
             "the field in its config model"
         )
 
+
+
+#: Fields whose low range end a run meets (issue 36 §2), by the end of their name: a ramp
+#: (``acceleration_m_per_s2``: too small and a movement never ends), a filter cutoff
+#: (``cutoff_hz``: too small and the filter's coefficients are NaN) and a planner's depth
+#: (``depth_m``: the robot refuses 0; a robot's own depths are probed by
+#: ``check_robot_refuses_bad_depth``); and thread counts (a name holding ``threads``),
+#: which must not exceed the machine's CPUs.
+RUN_RANGE_FIELDS = ("acceleration_m_per_s2", "cutoff_hz", "depth_m")
+
+
+def _run_fields(spec: PluginSpec) -> Iterator[tuple[str, FieldInfo]]:
+    for name, info in spec.config.model_fields.items():
+        if "threads" in name or name.endswith(RUN_RANGE_FIELDS[:2]) or (
+                spec.kind is Kind.PLANNER and name.endswith("depth_m")):
+            yield name, info
+
+
+def _nan_in(outputs: Any) -> bool:
+    if isinstance(outputs, np.ndarray):
+        return outputs.dtype.kind == "f" and bool(np.isnan(outputs).any())
+    if isinstance(outputs, list | tuple):
+        return any(_nan_in(o) for o in outputs)
+    if isinstance(outputs, Mapping):
+        return any(_nan_in(o) for o in outputs.values())
+    probabilities = getattr(outputs, "probabilities", None)
+    return probabilities is not None and _nan_in(np.asarray(probabilities, dtype=float))
+
+
+@check()
+def check_run_range_ends(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """The low end of each field a run meets (:data:`RUN_RANGE_FIELDS`: accelerations, filter
+    cutoffs, planner depths) is refused by validation or built and driven cleanly (no error,
+    no NaN output); a thread count larger than the machine's CPUs is refused. ``validate``
+    must see what the run will meet."""
+    validator = spec.load_validator() if spec.validator else None
+    base = dict(spec.check_config or {})
+    problems: list[str] = []
+    for name, info in _run_fields(spec):
+        if "threads" in name:
+            for value in {*range_extremes(info), machine_cpus() + 1}:
+                if value > machine_cpus() and _accepted(spec, validator, base, name, value):
+                    problems.append(f"{name} = {value!r} is accepted, more threads than the "
+                                    f"machine's {machine_cpus()} CPUs")
+            continue
+        for value in range_extremes(info)[:1]:
+            if not _accepted(spec, validator, base, name, value):
+                continue
+            if name.endswith("depth_m") and value <= 0:
+                problems.append(f"{name} = {value!r} is accepted; robots refuse a depth that "
+                                "is not positive (bound it with gt=0)")
+                continue
+            try:
+                outputs = _exercise(spec, registry, config=_with(base, name, value))
+            except CheckFailure as exc:
+                problems.append(f"{name} = {value!r} is accepted but fails when driven: {exc}")
+                continue
+            except (ValueError, RuntimeError, ArithmeticError) as exc:
+                problems.append(f"{name} = {value!r} is accepted by validate but raised "
+                                f"{type(exc).__name__} when driven: {exc}")
+                continue
+            if _nan_in(outputs):
+                problems.append(f"{name} = {value!r} is accepted by validate but gives NaN "
+                                "when driven")
+    if problems:
+        raise CheckFailure(
+            f"{spec.kind} plugin {spec.name!r}: " + "; ".join(problems) + " — bound the field "
+            "in its config model (or refuse the value in its validator) at what the run can do"
+        )
+
+
+def _accepted(spec: PluginSpec, validator: Any, base: Mapping[str, Any], name: str,
+              value: Any) -> bool:
+    data = _with(base, name, value)
+    if validator is None:
+        try:
+            spec.config.model_validate(data)
+        except ValidationError:
+            return False
+        return True
+    return _refused(spec, validator, data, name) is None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,9 @@ __all__ = [
     "LIVE_READS",
     "MAX_FINITE_DURATION_S",
     "MAX_FINITE_READS",
+    "CLOCK_PERIODS",
     "check_aligned_inputs_stream_as_batch",
+    "check_sensor_keeps_time",
     "check_sensor_read_all_matches_reads",
     "check_sensor_valid_samples_finite",
     "drive_sensor",
@@ -75,10 +78,13 @@ def drive_sensor(
     limit = reads if reads is not None else (MAX_FINITE_READS if finite else LIVE_READS)
     batches: list[SampleBatch] = []
     first_t: float | None = None
+    clock = sensor.context.clock
     for _ in range(limit):
         if robot is not None and robot.step() is None:
             robot.begin(crossing_movement(sensor.context.scene))
             robot.step()
+        elif robot is None and not clock.follows:
+            clock.advance()  # one control period per read, as an open loop's
         if sensor.exhausted:
             return batches
         batch = sensor.read()
@@ -184,6 +190,73 @@ def check_sensor_contract(spec: PluginSpec, *, registry: Registry | None = None)
         advice = undeclared_end(spec, sensor, batches)
         if advice:
             raise CheckFailure(advice)
+    finally:
+        release_component(sensor)
+
+
+#: Control periods the kit drives a sensor for in :func:`check_sensor_keeps_time`.
+CLOCK_PERIODS = 100
+
+
+@check(Kind.SENSOR)
+def check_sensor_keeps_time(spec: PluginSpec, *, registry: Registry | None = None) -> None:
+    """Driven for :data:`CLOCK_PERIODS` control periods of the run's clock, a sensor's time
+    advances by as many periods, within one sample of its slowest channel.
+
+    The kit advances the clock one period per read (or steps the robot the sensor is mounted
+    on, whose time the clock is) and compares how far the sensor's latest sample moved with
+    how far the clock moved. A sensor on a time counter of its own (a fixed number of
+    samples per read) runs ahead or behind the robot in a run, which ends such a run as no
+    result. Sources that replay their own time (``finite``) and live devices (the wall
+    clock paces them) are not held to it.
+    """
+    if "finite" in spec.capabilities:
+        return
+    sensor = make_component(spec, registry=registry, interface=Sensor)
+    try:
+        if bool(getattr(sensor, "live", False)):
+            return
+        clock = sensor.context.clock
+        rates = [float(c.rate_hz) for c in sensor.channels.values() if c.rate_hz > 0]
+        sample_s = 1.0 / min(rates) if rates else 0.0
+        robots = [c for c in sensor.context.inputs.values() if isinstance(c, Robot)]
+        robot = robots[0] if robots else None
+        if robot is not None:
+            robot.begin(crossing_movement(sensor.context.scene))
+        marks: list[tuple[float, float]] = []  # (clock time, sensor's latest sample) per read
+        for _ in range(CLOCK_PERIODS):
+            if robot is not None:
+                if robot.step() is None:
+                    robot.begin(crossing_movement(sensor.context.scene))
+                    robot.step()
+            elif not clock.follows:
+                clock.advance()
+            if sensor.exhausted:
+                break
+            batch = sensor.read()
+            if len(batch):
+                marks.append((clock.now_s(), float(batch.timestamps_s[-1])))
+        if len(marks) < 2:
+            raise CheckFailure(
+                f"sensor {spec.name!r} delivered samples in {len(marks)} of {CLOCK_PERIODS} "
+                "reads, one control period apart: too few to tell whether it keeps the "
+                "run's time"
+            )
+        (clock_0, sensor_0), (clock_n, sensor_n) = marks[0], marks[-1]
+        moved_clock, moved_sensor = clock_n - clock_0, sensor_n - sensor_0
+        if abs(moved_sensor - moved_clock) > sample_s + 1e-9:
+            periods = moved_clock / clock.period_s
+            ratio = moved_sensor / moved_clock if moved_clock > 0 else math.inf
+            raise CheckFailure(
+                f"sensor {spec.name!r}: over {periods:.0f} control periods of the run's clock "
+                f"({moved_clock:.4g} s, period {clock.period_s:g} s) its time advanced "
+                f"{moved_sensor:.4g} s ({ratio:.3g}x the robot's; allowed: one sample, "
+                f"{sample_s:.4g} s). In a run it would end as no result, out of step with the "
+                "robot. Fix: stamp samples with the run's clock, "
+                "`times = self.context.clock.due_times(rate_hz, after_s=self.last_t)`, and "
+                "deliver those samples (none when none is due) instead of a fixed number "
+                "per read (docs/plugin-authoring.md, 'A software sensor')"
+            )
     finally:
         release_component(sensor)
 

@@ -21,7 +21,11 @@ refusal belongs to ``validate``), and so does a time-out.
 Issue 26 adds five families (:mod:`hapticframe_bench._fuzz_families`): damaged recordings
 through ``recover``, ``report``, ``replay`` and the ``recording`` sensor; two writers into
 one output directory; fault schedules per device; damaged ROS bags through ``import-bag``;
-and a hostile client of the live server. Each case is refused (exit 2, located), ends
+and a hostile client of the live server. Issue 36 adds three
+(:mod:`hapticframe_bench._fuzz_doors`): hostile tables and layouts through ``import``,
+hostile HDF5 files through the BOLT and Keras readers, and hostile ``.npz`` artifacts (the
+response library, the raking estimator's weights); there a hang and a hostile file
+accepted are findings too. Each case is refused (exit 2, located), ends
 cleanly, or is a finding: an internal error, an exit 0 with a null or NaN result, or a lost
 or mixed output (:mod:`hapticframe_bench._fuzz_common`). The report counts the three per
 family.
@@ -311,7 +315,8 @@ def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
              check: Callable[..., Outcome] = check_mutant,
              families: tuple[str, ...] = FAMILIES) -> dict[str, Any]:
     """``hapticframe bench fuzz``: the examples' mutants (see the module docstring) and the
-    families of issue 26 (``recordings``, ``writers``, ``faults``, ``bags``, ``live``: see
+    families of issues 26 and 36 (``recordings``, ``writers``, ``faults``, ``bags``,
+    ``live``, ``tables``, ``hdf5``, ``artifacts``: see
     :mod:`hapticframe_bench._fuzz_families`). ``--trials`` cases per family (default 320
     mutants and 100 cases of each other family; 60 and 20 with ``--quick``), ``--seed``;
     writes ``fuzz.json`` and ``fuzz.md`` into ``--out`` and returns the summary."""
@@ -353,6 +358,8 @@ def run_fuzz(options: BenchOptions, *, examples_dir: str | Path | None = None,
         "internal_errors": sum(r["internal_errors"] for r in report.values()),
         "exit0_null": sum(r["exit0_null"] for r in report.values()),
         "lost_or_mixed": sum(r["lost_or_mixed"] for r in report.values()),
+        "hangs": sum(r["hangs"] for r in report.values()),
+        "silently_accepted": sum(r["silently_accepted"] for r in report.values()),
         "other_findings": sum(r["other_findings"] for r in report.values()),
         "live_token_feature": notes.get("live_token_feature"),
         "fault_runs_cap": notes.get("fault_runs_cap"),
@@ -376,13 +383,14 @@ def _markdown(summary: dict[str, Any]) -> str:
              f"{summary['cases']} cases, seed {summary['seed']}, "
              f"{summary['wall_time_s']:.0f} s on {machine['cpu_count']} CPUs (load average "
              f"{load['start']:.2f} at the start, {load['end']:.2f} at the end).", "",
-             "| family | cases | internal errors | exit 0 with null | lost or mixed | "
-             "other findings | time (s) | outcomes |",
-             "|---|---:|---:|---:|---:|---:|---:|---|"]
+             "| family | cases | internal errors | exit 0 with null | lost or mixed | hangs | "
+             "silently accepted | other findings | time (s) | outcomes |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for family, row in summary["families"].items():
         statuses = ", ".join(f"{k} {v}" for k, v in row["by_status"].items())
         lines.append(f"| {family} | {row['cases']} | {row['internal_errors']} | "
-                     f"{row['exit0_null']} | {row['lost_or_mixed']} | {row['other_findings']} "
+                     f"{row['exit0_null']} | {row['lost_or_mixed']} | {row['hangs']} | "
+                     f"{row['silently_accepted']} | {row['other_findings']} "
                      f"| {row['seconds']:.0f} | {statuses} |")
     feature = summary.get("live_token_feature")
     lines += ["", "The live server's token, Host and Origin checks were "

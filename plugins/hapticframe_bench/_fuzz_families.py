@@ -1,10 +1,12 @@
-"""The families of ``hapticframe bench fuzz`` beyond the examples' mutants (issue 26):
-``recordings``, ``writers``, ``faults``, ``bags`` and ``live``, each a generator of seeded
+"""The families of ``hapticframe bench fuzz`` beyond the examples' mutants: ``recordings``,
+``writers``, ``faults``, ``bags`` and ``live`` (issue 26), and ``tables``, ``hdf5`` and
+``artifacts`` (issue 36: :mod:`hapticframe_bench._fuzz_doors`), each a generator of seeded
 cases and a checker; this module makes their fixtures once and runs them in turn."""
 
 from __future__ import annotations
 
 import importlib.util
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -14,7 +16,7 @@ from hapticframe_bench._fuzz_common import Case, Outcome
 
 __all__ = ["FAMILIES", "run_families", "tally"]
 
-FAMILIES = ("recordings", "writers", "faults", "bags", "live")
+FAMILIES = ("recordings", "writers", "faults", "bags", "live", "tables", "hdf5", "artifacts")
 #: The share of fault cases whose accepted schedules are also run (each run takes seconds).
 FAULT_RUNS_PER_CASE = 0.1
 
@@ -23,6 +25,8 @@ COUNTED = {
     "internal_errors": ("internal_error",),
     "exit0_null": ("null_result", "null_metrics", "no_metrics"),
     "lost_or_mixed": ("lost_or_mixed",),
+    "hangs": ("timeout",),
+    "silently_accepted": ("accepted_invalid",),
 }
 
 
@@ -126,4 +130,15 @@ def _family(family: str, count: int, seed: int, workdir: Path, examples: Path,
         notes["live_token_feature"] = token_feature_present(target)
         return (generate_live_cases(count, seed),
                 lambda case, where: check_live_case(case, target), target.stop)
+    if family in ("tables", "hdf5", "artifacts"):
+        needs = {"tables": ("openpyxl", "h5py"), "hdf5": ("h5py",), "artifacts": ()}[family]
+        missing = [m for m in needs if importlib.util.find_spec(m) is None]
+        if missing or not hasattr(os, "fork"):
+            notes["skipped"][family] = (f"{', '.join(missing)} not installed: pip install "
+                                        "'hapticframe[tables]'" if missing else
+                                        "needs os.fork (each case runs in a forked child)")
+            return [], lambda case, where: Outcome(case, "skipped", True), _nothing
+        from hapticframe_bench._fuzz_doors import check_door_case, generate_door_cases
+
+        return generate_door_cases(family, count, seed), check_door_case, _nothing
     raise ValueError(f"no fuzz family {family!r}")

@@ -123,6 +123,14 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         install_hint="pip install 'hapticframe[plots]'  (the figure)",
     )
     yield BenchSpec(
+        name="jamming-detection",
+        summary="Jamming detection relative to the movement's own drag beside the absolute "
+        "force/force-rate rule: per-sample ROC and the distance at the first flag at 1 false "
+        "alarm per metre, in the sandbox, mpm-sand and the real raking trials.",
+        factory="hapticframe_bench._jamming_detection:run_jamming_detection",
+        install_hint="pip install 'hapticframe[plots]'  (the figure)",
+    )
+    yield BenchSpec(
         name="raking-map",
         summary="Where the 20 real raking test trials place the object: the distance-estimate "
         "sensor model against the fixed distance of the failure zone's rule.",

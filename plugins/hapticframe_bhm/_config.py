@@ -8,6 +8,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
+from hapticframe.threads import ThreadCount
 
 __all__ = ["BayesianHilbertMapConfig", "length_scale_from_bandwidth_per_cm2"]
 
@@ -156,10 +157,8 @@ class BayesianHilbertMapConfig(PluginConfig):
         "Default: the core is as wide as both halos together (60 cm with 5 cm hinges and "
         "the 3.3 cm length scale), which minimises the dense matrices held per square metre.",
     )
-    blas_threads: int | None = Field(
+    blas_threads: ThreadCount | None = Field(
         1,
-        ge=1,
-        le=1024,
         description="BLAS threads used inside map updates and queries (via threadpoolctl when "
         "installed). The matrices are small (D ~ 235), where one thread is fastest and "
         "avoids oversubscription stalls; null leaves the BLAS setting alone.",

@@ -333,6 +333,11 @@ class GaussianWeights:
         )
         return np.einsum("ij,ij->j", inverse_factor, inverse_factor)
 
+    @property
+    def has_covariance(self) -> bool:
+        """True when :meth:`covariance` is already computed (it costs nothing then)."""
+        return "covariance" in self._cache
+
     def covariance(self) -> FloatArray:
         """The full covariance ``S`` from the Cholesky factor (LAPACK ``potri``), cached.
 

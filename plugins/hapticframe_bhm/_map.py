@@ -288,6 +288,7 @@ class BayesianHilbertMap(Map):
             movements=outcome.movements,
             interaction_hinges=hinges[interaction],
             outline_level=outcome.outline_level,
+            verdict=outcome.verdict,
         )
         if self.config.automorphing_kernels:
             from ._plots import save_kernel_figure

@@ -39,6 +39,7 @@ def draw_map(
     movements: Sequence[MovementResult] = (),
     interaction_hinges: FloatArray | None = None,
     outline_level: float | None = None,
+    verdict: str = "",
 ) -> Figure:
     """One map ``values`` (``(len(ys), len(xs))``) with truth, path and, optionally, the
     ``outline_level`` curve and the interaction hinges; returns the laid-out Figure."""
@@ -50,7 +51,7 @@ def draw_map(
 
     return plotting.draw_occupancy_map(
         region, xs, ys, values, title=title, label=label, vmax=vmax, outlines=outlines,
-        movements=movements, outline_level=outline_level, extra=hinges)
+        movements=movements, outline_level=outline_level, extra=hinges, verdict=verdict)
 
 
 def save_map_figures(
@@ -65,9 +66,11 @@ def save_map_figures(
     movements: Sequence[MovementResult] = (),
     interaction_hinges: FloatArray | None = None,
     outline_level: float = OUTLINE_LEVEL,
+    verdict: str = "",
 ) -> list[Path]:
-    """Write ``bhm_mean.png`` and ``bhm_std.png``; return the paths."""
-    common: dict[str, Any] = {"outlines": outlines, "movements": movements}
+    """Write ``bhm_mean.png`` and ``bhm_std.png`` (each saying ``verdict``); return the
+    paths."""
+    common: dict[str, Any] = {"outlines": outlines, "movements": movements, "verdict": verdict}
     mean_figure = draw_map(region, xs, ys, mean, title="BHM occupancy mean",
                            label="p(occupied)", vmax=1.0, interaction_hinges=interaction_hinges,
                            outline_level=outline_level, **common)

@@ -31,6 +31,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hapticframe.bounded_io import (
+    MAX_RECORDING_BYTES,
+    BoundedReadError,
+    hdf5_child,
+    hdf5_members,
+    open_hdf5,
+    read_hdf5_dataset,
+)
+
 from ._frame import BioTacFrames, layout_for
 from ._replay import Recording, ReplayFormatError
 
@@ -45,6 +54,9 @@ __all__ = [
 
 #: The BioTac's frame rate, which the rebuilt clock assumes.
 BOLT_FRAME_RATE_HZ = 100.0
+#: Values one BOLT file may hold in all its datasets (each is read once and converted to
+#: float64: 16 bytes a value at the peak, :data:`MAX_RECORDING_BYTES` in all).
+MAX_BOLT_CELLS = MAX_RECORDING_BYTES // 16
 FINGERS = ("finger_0", "finger_1")
 _CHANNELS = {"pac": 2, "pdc": 1, "tac": 1, "tdc": 1, "electrodes": 2}
 
@@ -106,17 +118,22 @@ def rebuild_frame_clock(
     return offsets, start, mismatched
 
 
-def _dataset(path: Path, group: Any, name: str, ndim: int, n: int | None) -> NDArray[np.float64]:
+def _dataset(path: Path, group: Any, name: str, ndim: int, n: int | None,
+             budget: list[int]) -> NDArray[np.float64]:
     import h5py
 
-    item = group.get(name)
     where = f"{group.name}/{name}"
-    if not isinstance(item, h5py.Dataset):
-        raise ReplayFormatError(path, f"{where}: missing (a BOLT trial holds timestamps and "
-                                "finger_0/finger_1 with pac, pdc, tac, tdc and electrodes)")
-    if item.dtype.kind not in "iuf":
-        raise ReplayFormatError(path, f"{where}: dtype {item.dtype} is not numeric")
-    values = np.asarray(item[()], dtype=np.float64)
+    try:
+        item = hdf5_child(group, name)
+        if not isinstance(item, h5py.Dataset):
+            raise ReplayFormatError(path, f"{where}: missing (a BOLT trial holds timestamps "
+                                    "and finger_0/finger_1 with pac, pdc, tac, tdc and "
+                                    "electrodes)")
+        raw = read_hdf5_dataset(item, budget[0], kinds="iuf")
+    except BoundedReadError as exc:
+        raise ReplayFormatError(path, str(exc)) from None
+    budget[0] -= raw.size
+    values = np.asarray(raw, dtype=np.float64)
     if values.ndim != ndim or (n is not None and values.shape[0] != n):
         want = f"{n if n is not None else 'n'} rows, {ndim}-D"
         raise ReplayFormatError(path, f"{where}: shape {values.shape}, expected {want}")
@@ -127,8 +144,10 @@ def _dataset(path: Path, group: Any, name: str, ndim: int, n: int | None) -> NDA
     return values
 
 
-def _trial(path: Path, name: str, group: Any) -> list[BoltTrial]:
-    stamps = _dataset(path, group, "timestamps", 1, None)
+def _trial(path: Path, name: str, group: Any, budget: list[int]) -> list[BoltTrial]:
+    import h5py
+
+    stamps = _dataset(path, group, "timestamps", 1, None, budget)
     n = stamps.size
     if n == 0:
         raise ReplayFormatError(path, f"{group.name}/timestamps: the trial holds no frames")
@@ -139,10 +158,15 @@ def _trial(path: Path, name: str, group: Any) -> list[BoltTrial]:
     layout = layout_for("biotac")
     out = []
     for finger, finger_name in enumerate(FINGERS):
-        if finger_name not in group:
+        try:
+            finger_group = hdf5_child(group, finger_name)
+        except BoundedReadError as exc:
+            raise ReplayFormatError(path, str(exc)) from None
+        if not isinstance(finger_group, h5py.Group):
             raise ReplayFormatError(path, f"{group.name}/{finger_name}: missing (BOLT trials "
                                     "hold finger_0 and finger_1)")
-        channels = {c: _dataset(path, group[finger_name], c, d, n) for c, d in _CHANNELS.items()}
+        channels = {c: _dataset(path, finger_group, c, d, n, budget)
+                    for c, d in _CHANNELS.items()}
         try:
             frames = BioTacFrames.from_channels(layout, times, channels)
         except ValueError as exc:
@@ -175,14 +199,17 @@ def load_bolt(path: str | Path, trials: Sequence[str] | None = None) -> list[Bol
         raise ReplayFormatError(path, "reading BOLT HDF5 files needs h5py: pip install "
                                 "'hapticframe[hdf5]'") from exc
     path = Path(path)
-    if not path.is_file():
-        raise ReplayFormatError(path, "no such file")
     try:
-        handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise ReplayFormatError(path, f"not an HDF5 file ({exc})") from None
+        handle = open_hdf5(path)
+    except FileNotFoundError:
+        raise ReplayFormatError(path, "no such file") from None
+    except BoundedReadError as exc:
+        raise ReplayFormatError(path, str(exc)) from None
     with handle:
-        names = [k for k in handle if isinstance(handle[k], h5py.Group)]
+        try:
+            names = [k for k, node in hdf5_members(handle) if isinstance(node, h5py.Group)]
+        except BoundedReadError as exc:
+            raise ReplayFormatError(path, str(exc)) from None
         if trials is not None:
             unknown = [t for t in trials if t not in names]
             if unknown:
@@ -191,7 +218,9 @@ def load_bolt(path: str | Path, trials: Sequence[str] | None = None) -> list[Bol
             names = [t for t in names if t in set(trials)]
         if not names:
             raise ReplayFormatError(path, "holds no trial groups (not a BOLT file)")
-        return [t for name in names for t in _trial(path, name, handle[name])]
+        budget = [MAX_BOLT_CELLS]  # values every dataset of the file may hold in all
+        return [t for name in names
+                for t in _trial(path, name, hdf5_child(handle, name), budget)]
 
 
 def load_bolt_dir(directory: str | Path) -> list[BoltTrial]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import SensorSpec, hookimpl
+from hapticframe import ChannelSpec, SensorSpec, hookimpl
 
 from ._config import BioTacSensorConfig
 
@@ -14,6 +14,13 @@ __all__ = ["SPECS", "hapticframe_sensors"]
 SPECS = (
     SensorSpec(
         name="biotac",
+        produces={
+            "pac": ChannelSpec((22,), "count", "AC pressure, 22 samples per frame"),
+            "pdc": ChannelSpec((), "count", "DC pressure"),
+            "tac": ChannelSpec((), "count", "AC temperature"),
+            "tdc": ChannelSpec((), "count", "DC temperature"),
+            "electrodes": ChannelSpec((None,), "count", "impedance electrodes (19; 24 on the SP)"),
+        },
         summary=(
             "SynTouch BioTac / BioTac SP frames from synthetic trials, recordings or the SPI "
             "word stream."

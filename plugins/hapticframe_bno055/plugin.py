@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, Knob, SensorSpec, hookimpl
+from hapticframe import ChannelSpec, Kind, Knob, SensorSpec, hookimpl
 
 from ._config import Bno055SensorConfig
 
@@ -14,6 +14,14 @@ __all__ = ["SPECS", "hapticframe_sensors"]
 SPECS = (
     SensorSpec(
         name="bno055",
+        produces={
+            "acceleration_m_per_s2": ChannelSpec((3,), "m/s^2", "accelerometer, gravity included"),
+            "linear_acceleration_m_per_s2": ChannelSpec((3,), "m/s^2", "gravity removed"),
+            "gravity_m_per_s2": ChannelSpec((3,), "m/s^2"),
+            "angular_velocity_rad_per_s": ChannelSpec((3,), "rad/s"),
+            "orientation_wxyz": ChannelSpec((4,), "1", "unit quaternion"),
+            "calibration": ChannelSpec((4,), "1", "system, gyro, accel, mag: 0-3"),
+        },
         summary=(
             "Bosch BNO055 IMU over UART: acceleration, gravity, linear acceleration, angular "
             "rate, orientation and calibration; port 'emulated' runs its emulator on a pty."

@@ -121,6 +121,7 @@ class LinePlanner(Planner):
             outcome.scene,
             self._regions,
             self.is_interaction,
+            outcome.verdict,
         )
         return self.phase_metrics()
 
@@ -132,10 +133,11 @@ def plot_paths(
     scene: Scene | None,
     regions: list[Bounds],
     is_interaction: Any,
+    verdict: str = "",
 ) -> bool:
     """Draw :func:`draw_paths` and save it; returns False when matplotlib is missing."""
     try:
-        figure = draw_paths(search_bounds, results, scene, regions, is_interaction)
+        figure = draw_paths(search_bounds, results, scene, regions, is_interaction, verdict)
     except ImportError:  # plotting is an optional extra
         return False
     plotting.save_figure(figure, path)
@@ -148,8 +150,10 @@ def draw_paths(
     scene: Scene | None,
     regions: list[Bounds],
     is_interaction: Any,
+    verdict: str = "",
 ) -> Any:
-    """The movements over the search region, as a matplotlib Figure.
+    """The movements over the search region, as a matplotlib Figure (saying ``verdict``,
+    :func:`hapticframe.plotting.draw_verdict`).
 
     Planned lines are dashed, the part actually raked solid (to where the fingertip stopped),
     interactions are crosses, true objects green. Of the phase-2 search regions (one per
@@ -183,6 +187,7 @@ def draw_paths(
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{len(results)} exploratory movements")
+    plotting.draw_verdict(ax, verdict)
     margin = 0.03 * max(x1 - x0, y1 - y0)
     plotting.layout_map(figure, ax, None, (x0 - margin, x1 + margin, y0 - margin, y1 + margin),
                         legend_columns=3)

@@ -34,7 +34,8 @@ class CoverageConfig(PluginConfig):
         description="Commanded fingertip speed (5 cm/s).",
     )
     depth_m: float | None = Field(
-        None, ge=0, le=0.3, description="Commanded raking depth; None lets the robot keep its own."
+        None, gt=0, le=0.3,
+        description="Commanded raking depth (positive); None lets the robot keep its own.",
     )
     free_class_names: tuple[str, ...] = Field(
         ("free",),

@@ -7,6 +7,7 @@ import math
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.filters import MIN_CUTOFF_RATIO
 
 __all__ = ["ForceObserverConfig"]
 
@@ -72,6 +73,14 @@ class ForceObserverConfig(PluginConfig):
             raise ValueError(
                 f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
                 f"({self.sample_rate_hz / 2} Hz)"
+            )
+        # The filter at the rate it is designed for (the input's, or 100 Hz by default).
+        rate = self.sample_rate_hz if self.sample_rate_hz is not None else 100.0
+        if self.cutoff_hz < MIN_CUTOFF_RATIO * rate:
+            raise ValueError(
+                f"cutoff_hz ({self.cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
+                f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
+                "the low-pass filter's coefficients lose their precision (NaN forces)"
             )
         inline = [
             name for name in ("mass_kg", "imu_rotation_wxyz", "bias_n")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import FeatureExtractorSpec, Knob, hookimpl
+from hapticframe import ChannelSpec, FeatureExtractorSpec, Knob, hookimpl
 
 from ._config import ForceObserverConfig
 
@@ -20,7 +20,12 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         validator="hapticframe_force_observer._checks:check",
         capabilities=frozenset({"trainable"}),
         requires=("scipy",),
-        consumes={"force_n": (3,), "acceleration_m_per_s2": (3,)},
+        consumes={
+            "force_n": ChannelSpec((3,), "N", "the wrist wrench's force, all three axes"),
+            "acceleration_m_per_s2": ChannelSpec((3,), "m/s^2", "the IMU's, gravity included"),
+        },
+        produces={"force_n": ChannelSpec(
+            (3,), "N", "the environment's force on the tool (Eq. 3.10), world frame")},
         sample_rate_hz=100.0,
         # A real load (0.8 kg, IMU turned 45° about y, an offset), so the kit's checks run
         # the whole of Eq. 3.10 rather than the pass-through defaults.

@@ -9,6 +9,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig, RegionConfig
+from hapticframe.threads import ThreadCount
 
 __all__ = ["GPOccupancyConfig", "prior_latent_mean"]
 
@@ -94,8 +95,8 @@ class GPOccupancyConfig(PluginConfig):
         description="Most inducing points (the DTC posterior is a dense M x M matrix); a "
         "region and spacing giving more are refused.",
     )
-    blas_threads: int | None = Field(
-        1, ge=1, le=1024,
+    blas_threads: ThreadCount | None = Field(
+        1,
         description="BLAS threads used in updates and queries (via threadpoolctl when "
         "installed); null leaves the BLAS setting alone.",
     )

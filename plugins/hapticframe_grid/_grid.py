@@ -169,5 +169,6 @@ class OccupancyGrid(Map):
                        f"{f' at the end of {phase}' if phase else ''}"),
                 outlines=outlines,
                 movements=shown,
+                verdict=outcome.verdict,
             )
         return {}

@@ -27,11 +27,12 @@ def draw_log_odds(
     title: str,
     outlines: Sequence[NDArray[np.float64]] = (),
     movements: Sequence[MovementResult] = (),
+    verdict: str = "",
 ) -> Figure:
     """``log_odds`` (``(nx, ny)``, x-major) with the true outlines and the fingertip's
-    movements; returns the laid-out Figure."""
-    from matplotlib.colors import TwoSlopeNorm
-
+    movements, on a linear colour scale symmetric about 0 (white: unknown), with a note of
+    what the map is and ``verdict`` (:func:`hapticframe.plotting.draw_verdict`); returns the
+    laid-out Figure."""
     figure, axes, colorbar_axes = plotting.map_figure()
     nx, ny = log_odds.shape
     extent = (
@@ -44,8 +45,10 @@ def draw_log_odds(
         log_odds.T,
         origin="lower",
         extent=extent,
-        # White is "unknown" (log odds 0) whatever the asymmetric clamping bounds.
-        norm=TwoSlopeNorm(vmin=min(limits[0], -1e-9), vcenter=0.0, vmax=max(limits[1], 1e-9)),
+        # One linear scale symmetric about 0, so white is "unknown" and equal distances
+        # from white are equal evidence, whatever the asymmetric clamping bounds.
+        vmin=-_symmetric_limit(limits),
+        vmax=_symmetric_limit(limits),
         cmap="RdBu_r",
         interpolation="nearest",
     )
@@ -55,9 +58,24 @@ def draw_log_odds(
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_title(title)
+    plotting.draw_verdict(axes, verdict)
     bounds = (region.x_min_m, region.x_max_m, region.y_min_m, region.y_max_m)
-    plotting.layout_map(figure, axes, colorbar_axes, bounds)
+    plotting.layout_map(figure, axes, colorbar_axes, bounds,
+                        note=_NOTE.format(cell_cm=100 * cell_size_m))
     return figure
+
+
+# What a reader of the figure needs and cannot see in it.
+_NOTE = ("The occupancy grid: the thesis's OctoMap-style baseline map, {cell_cm:g} cm cells "
+         "(red occupied, blue free, white unknown),\nfed the same observations as the "
+         "planner's map. The darker squares spaced along a path: cells where a free-space\n"
+         "sector of the sensor model starts (one every few cm of travel); its points crowd "
+         "there, so those cells gather the most evidence.")
+
+
+def _symmetric_limit(limits: tuple[float, float]) -> float:
+    """The larger clamping bound in magnitude (at least 1e-9)."""
+    return max(abs(float(limits[0])), abs(float(limits[1])), 1e-9)
 
 
 def save_log_odds_figure(
@@ -70,8 +88,9 @@ def save_log_odds_figure(
     title: str,
     outlines: Sequence[NDArray[np.float64]] = (),
     movements: Sequence[MovementResult] = (),
+    verdict: str = "",
 ) -> Path:
     """Draw :func:`draw_log_odds` and save it as PNG at ``path``."""
     figure = draw_log_odds(region, cell_size_m, log_odds, limits, title=title,
-                           outlines=outlines, movements=movements)
+                           outlines=outlines, movements=movements, verdict=verdict)
     return plotting.save_figure(figure, path)

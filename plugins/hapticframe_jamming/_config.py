@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.filters import MIN_CUTOFF_RATIO
 
 __all__ = ["ForceRateJammingConfig"]
 
@@ -22,7 +23,14 @@ class ForceRateJammingConfig(PluginConfig):
     scale with speed: recalibrate (``fit``) for other speeds or real sensors.
     """
 
-    force_channel: str = Field("force_n", description="Input channel holding the force (N).")
+    force_channel: str = Field(
+        "force_n",
+        description="Input channel holding the force (N), of any number of components: the "
+        "classifier uses its magnitude |F|, the Euclidean norm over all of them (the "
+        "sandbox's 2 in-plane components; a wrist sensor's or the force observer's 3, the "
+        "vertical one included). Its thresholds are calibrated on the sandbox's in-plane "
+        "force: recalibrate (fit) for a 3-axis force.",
+    )
     sample_rate_hz: float | None = Field(
         None,
         gt=0,
@@ -95,5 +103,15 @@ class ForceRateJammingConfig(PluginConfig):
             raise ValueError(
                 f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
                 f"({self.sample_rate_hz / 2} Hz)"
+            )
+        # The classifier's filter at the rate it is designed for (the sensor's, or 100 Hz
+        # by default): a cutoff below MIN_CUTOFF_RATIO of it gives NaN probabilities.
+        rate = self.sample_rate_hz if self.sample_rate_hz is not None else 100.0
+        if self.cutoff_hz < MIN_CUTOFF_RATIO * rate:
+            raise ValueError(
+                f"cutoff_hz ({self.cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
+                f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
+                "the low-pass filter's coefficients lose their precision and the classifier "
+                "returns NaN probabilities"
             )
         return self

@@ -22,9 +22,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe.bounded_io import BoundedReadError, open_regular, read_npz
+
 __all__ = ["ResponseLibrary", "fit_power_law", "load_library", "material_parameters",
            "save_library"]
 
+#: Bytes of arrays a library file may declare (ours hold a few hundred kB).
+MAX_LIBRARY_BYTES = 256 * 1024**2
 #: The arrays a library file holds, with their dimensions (names of the axes).
 _ARRAYS = {
     "depths_m": ("depth",),
@@ -171,15 +175,30 @@ def save_library(path: Path, library: ResponseLibrary) -> None:
 
 
 def load_library(path: Path) -> ResponseLibrary:
-    """Read a library written by :func:`save_library` (no pickles); a located ValueError if bad."""
+    """Read a library written by :func:`save_library` (no pickles); a located ValueError if bad.
+
+    The file must be a regular file; each array's declared shape and dtype are read from its
+    header before anything is decompressed (at most :data:`MAX_LIBRARY_BYTES` in all), and
+    every array must hold real numbers.
+    """
     try:
-        with np.load(path, allow_pickle=False) as data:
-            missing = sorted(set(_ARRAYS) - set(data.files))
-            if missing:
-                raise ValueError(f"{path}: library lacks array(s) {', '.join(missing)}")
-            arrays = {name: np.asarray(data[name], dtype=np.float64) for name in _ARRAYS}
-    except (OSError, EOFError) as error:
-        raise ValueError(f"{path}: cannot read the response library ({error})") from error
+        with open_regular(path) as stream:
+            data = read_npz(stream, keep=lambda name: name in _ARRAYS,
+                            max_bytes=MAX_LIBRARY_BYTES)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no response library there (build one with "
+                         "python -m hapticframe_mpm_sand.build_library)") from None
+    except BoundedReadError as error:
+        raise ValueError(f"{path}: cannot read the response library ({error})") from None
+    missing = sorted(set(_ARRAYS) - set(data))
+    if missing:
+        raise ValueError(f"{path}: library lacks array(s) {', '.join(missing)}")
+    arrays = {}
+    for name in _ARRAYS:
+        if data[name].dtype.kind not in "iuf":
+            raise ValueError(f"{path}: library array {name!r} holds {data[name].dtype} values, "
+                             "not numbers")
+        arrays[name] = np.asarray(data[name], dtype=np.float64)
     try:
         return ResponseLibrary(**arrays)
     except ValueError as error:

@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.threads import ThreadCount
 
 __all__ = ["DistanceEstimateConfig", "RakingEstimatorConfig"]
 
@@ -44,7 +45,7 @@ class RakingEstimatorConfig(PluginConfig):
     restart_after_gap_s: float = Field(
         0.5, gt=0, le=1e6, allow_inf_nan=False, description="A pause in the samples longer "
         "than this starts a new window (a new trial; imported trials are 1 s apart).")
-    train_threads: int = Field(1, ge=1, le=256, description="torch threads while training.")
+    train_threads: ThreadCount = Field(1, description="torch threads while training.")
     near_mm: float = Field(30.0, gt=0, le=10_000, allow_inf_nan=False,
                            description="Distance below which the class is 'near'.")
     model_dir: str | None = Field(None, description="A directory hapticframe train wrote "

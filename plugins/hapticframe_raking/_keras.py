@@ -20,9 +20,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe.bounded_io import BoundedReadError, hdf5_child, open_hdf5, read_hdf5_dataset
+
 from ._lstm import DenseLayer, LSTMLayer
 
-__all__ = ["KerasModelError", "KerasSequential", "load_keras_model", "strip_keras_model"]
+__all__ = ["MAX_WEIGHT_VALUES", "KerasModelError", "KerasSequential", "load_keras_model",
+           "strip_keras_model"]
+
+#: Weights one model file may hold in all (the authors' models hold about 10^4).
+MAX_WEIGHT_VALUES = 16_000_000
 
 
 class KerasModelError(ValueError):
@@ -66,14 +72,25 @@ def _text(value: Any) -> str:
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
 
 
-def _weights(group: Any, source: str, name: str) -> list[NDArray[np.float64]]:
+def _weights(group: Any, source: str, name: str, budget: list[int]
+             ) -> list[NDArray[np.float64]]:
+    import h5py
+
     names = [_text(n) for n in group.attrs.get("weight_names", [])]
     if not names:
         raise KerasModelError(f"{source}: layer {name!r} lists no weights")
-    try:
-        return [np.asarray(group[n], dtype=np.float64) for n in names]
-    except KeyError as exc:
-        raise KerasModelError(f"{source}: layer {name!r} lacks weight {exc}") from None
+    out = []
+    for weight in names:
+        node = hdf5_child(group, weight)
+        if not isinstance(node, h5py.Dataset):
+            raise KerasModelError(f"{source}: layer {name!r} lacks weight {weight!r}")
+        values = read_hdf5_dataset(node, budget[0], kinds="f")
+        budget[0] -= values.size
+        array = np.asarray(values, dtype=np.float64)
+        if not np.all(np.isfinite(array)):
+            raise KerasModelError(f"{source}: {node.name} holds NaN or infinite weights")
+        out.append(array)
+    return out
 
 
 def _check(source: str, name: str, config: dict[str, Any], expected: dict[str, Any]) -> None:
@@ -84,55 +101,83 @@ def _check(source: str, name: str, config: dict[str, Any], expected: dict[str, A
 
 
 def load_keras_model(path: str | Path) -> KerasSequential:
-    """Read a Keras 2 HDF5 Sequential of LSTM and Dense layers (see the module docstring)."""
-    import h5py
+    """Read a Keras 2 HDF5 Sequential of LSTM and Dense layers (see the module docstring).
 
+    Raises
+    ------
+    KerasModelError
+        Naming the file: missing, not a regular HDF5 file, damaged (a link outside the
+        file, a dangling one, raw data stored outside it, more than
+        :data:`MAX_WEIGHT_VALUES` weights), or a model the numpy forward cannot run.
+    """
     source = str(path)
     try:
-        handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise KerasModelError(f"{source}: not a readable HDF5 file ({exc})") from None
+        handle = open_hdf5(path)
+    except FileNotFoundError:
+        raise KerasModelError(f"{source}: no such file") from None
+    except BoundedReadError as exc:
+        raise KerasModelError(f"{source}: {exc}") from None
     with handle:
-        if "model_config" not in handle.attrs or "model_weights" not in handle:
-            raise KerasModelError(f"{source}: not a Keras model file (no model_config or "
-                                  "model_weights)")
         try:
-            config = json.loads(_text(handle.attrs["model_config"]))
-        except json.JSONDecodeError as exc:
-            raise KerasModelError(f"{source}: model_config is not JSON ({exc})") from None
-        if config.get("class_name") != "Sequential":
-            raise KerasModelError(f"{source}: a {config.get('class_name')!r} model; only "
-                                  "Sequential is read")
-        layers: list[LSTMLayer | DenseLayer] = []
-        input_shape: tuple[int | None, int] | None = None
-        weights = handle["model_weights"]
-        for entry in config["config"]["layers"]:
-            kind, cfg = entry["class_name"], entry["config"]
-            name = cfg.get("name", "?")
-            shape = cfg.get("batch_input_shape")
-            if shape is not None and input_shape is None:
-                input_shape = (shape[1], int(shape[2]))
-            if kind == "InputLayer":
-                continue
-            if name not in weights:
-                raise KerasModelError(f"{source}: no weights for layer {name!r}")
-            w = _weights(weights[name], source, name)
-            if kind == "LSTM":
-                _check(source, name, cfg, {
-                    "activation": "tanh", "recurrent_activation": "sigmoid", "use_bias": True,
-                    "go_backwards": False, "stateful": False, "time_major": False,
-                    "return_sequences": True})
-                layers.append(LSTMLayer(*w))
-            elif kind == "Dense":
-                _check(source, name, cfg, {"use_bias": True})
-                layers.append(DenseLayer(w[0], w[1], cfg.get("activation", "linear")))
-            else:
-                raise KerasModelError(f"{source}: layer {name!r} is a {kind}; only LSTM and "
-                                      "Dense are read")
-        if input_shape is None or not layers:
-            raise KerasModelError(f"{source}: no input shape or no layers")
-        _chain(layers, input_shape[1], source)
-        return KerasSequential(tuple(layers), input_shape, source)
+            return _read_model(handle, source)
+        except BoundedReadError as exc:
+            raise KerasModelError(f"{source}: {exc}") from None
+        except (KeyError, TypeError, IndexError, AttributeError, ValueError, RecursionError,
+                OSError, RuntimeError) as exc:
+            if isinstance(exc, KerasModelError):
+                raise
+            # A model_config of another structure, or h5py on a damaged attribute.
+            raise KerasModelError(f"{source}: not a Keras model this reader understands "
+                                  f"({type(exc).__name__}: {str(exc)[:200]})") from None
+
+
+def _read_model(handle: Any, source: str) -> KerasSequential:
+    import h5py
+
+    if "model_config" not in handle.attrs:
+        raise KerasModelError(f"{source}: not a Keras model file (no model_config or "
+                              "model_weights)")
+    try:
+        config = json.loads(_text(handle.attrs["model_config"]))
+    except json.JSONDecodeError as exc:
+        raise KerasModelError(f"{source}: model_config is not JSON ({exc})") from None
+    if config.get("class_name") != "Sequential":
+        raise KerasModelError(f"{source}: a {config.get('class_name')!r} model; only "
+                              "Sequential is read")
+    layers: list[LSTMLayer | DenseLayer] = []
+    input_shape: tuple[int | None, int] | None = None
+    weights = hdf5_child(handle, "model_weights")
+    if not isinstance(weights, h5py.Group):
+        raise KerasModelError(f"{source}: not a Keras model file (no model_weights group)")
+    budget = [MAX_WEIGHT_VALUES]
+    for entry in config["config"]["layers"]:
+        kind, cfg = entry["class_name"], entry["config"]
+        name = cfg.get("name", "?")
+        shape = cfg.get("batch_input_shape")
+        if shape is not None and input_shape is None:
+            input_shape = (shape[1], int(shape[2]))
+        if kind == "InputLayer":
+            continue
+        group = hdf5_child(weights, str(name))
+        if not isinstance(group, h5py.Group):
+            raise KerasModelError(f"{source}: no weights for layer {name!r}")
+        w = _weights(group, source, name, budget)
+        if kind == "LSTM":
+            _check(source, name, cfg, {
+                "activation": "tanh", "recurrent_activation": "sigmoid", "use_bias": True,
+                "go_backwards": False, "stateful": False, "time_major": False,
+                "return_sequences": True})
+            layers.append(LSTMLayer(*w))
+        elif kind == "Dense":
+            _check(source, name, cfg, {"use_bias": True})
+            layers.append(DenseLayer(w[0], w[1], cfg.get("activation", "linear")))
+        else:
+            raise KerasModelError(f"{source}: layer {name!r} is a {kind}; only LSTM and "
+                                  "Dense are read")
+    if input_shape is None or not layers:
+        raise KerasModelError(f"{source}: no input shape or no layers")
+    _chain(layers, input_shape[1], source)
+    return KerasSequential(tuple(layers), input_shape, source)
 
 
 def _chain(layers: Sequence[LSTMLayer | DenseLayer], features: int, source: str) -> None:

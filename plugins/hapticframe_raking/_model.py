@@ -25,6 +25,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe.artifacts import read_json_object
+from hapticframe.bounded_io import open_regular, read_npz
+
 from ._data import INPUT_SETS, windows
 from ._lstm import DenseLayer, LSTMLayer, softmax
 
@@ -35,6 +38,8 @@ FloatArray = NDArray[np.float64]
 DISTANCE_SCALE_MM = 100.0
 #: Bounds on the log of the Laplace scale (in DISTANCE_SCALE_MM units): 0.25 mm .. 2 m.
 _LOG_SCALE_MIN, _LOG_SCALE_MAX = math.log(0.0025), math.log(20.0)
+#: Bytes of weights a saved estimator may declare (ours hold well under 1 MB).
+_MAX_WEIGHT_BYTES = 64 * 1024**2
 _HEADS = 1 + 1 + 3 + 2  # location, log scale, direction logits, depth logits
 
 
@@ -123,12 +128,17 @@ class RakingModel:
     def load(cls, directory: str | Path) -> RakingModel:
         d = Path(directory)
         try:
-            meta = json.loads((d / "model.json").read_text())
-            with np.load(d / "weights.npz", allow_pickle=False) as w:
-                arrays = {k: np.asarray(w[k], dtype=np.float64) for k in w.files}
-        except (OSError, ValueError) as exc:
+            meta = read_json_object(d / "model.json")
+            with open_regular(d / "weights.npz") as stream:
+                raw = read_npz(stream, max_bytes=_MAX_WEIGHT_BYTES)
+        except (OSError, ValueError) as exc:  # BoundedReadError is a ValueError
             raise ValueError(f"{d}: no saved raking estimator ({exc}); run hapticframe "
                              "train first") from None
+        arrays = {}
+        for key, value in raw.items():
+            if value.dtype.kind not in "iuf" or not np.all(np.isfinite(value)):
+                raise ValueError(f"{d}/weights.npz: {key!r} does not hold finite numbers")
+            arrays[key] = np.asarray(value, dtype=np.float64)
         if meta.get("format") != "hapticframe-raking-estimator":
             raise ValueError(f"{d}/model.json is not a raking estimator's")
         try:
@@ -136,11 +146,13 @@ class RakingModel:
             model = cls(settings, arrays["mean"], arrays["std"],
                         LSTMLayer(arrays["kernel"], arrays["recurrent"], arrays["bias"]),
                         DenseLayer(arrays["head_kernel"], arrays["head_bias"]))
-        except (KeyError, TypeError) as exc:
-            raise ValueError(f"{d}: incomplete raking estimator ({exc})") from None
-        width = len(INPUT_SETS[settings.input_set])
-        if model.lstm.input_size != width or model.mean.shape != (width,) or (
-                model.head.kernel.shape != (settings.hidden_units, _HEADS)):
+            width = len(INPUT_SETS[settings.input_set])
+            fits = model.lstm.input_size == width and model.mean.shape == (width,) and (
+                model.head.kernel.shape == (settings.hidden_units, _HEADS))
+        except (KeyError, TypeError, IndexError, AttributeError, ValueError) as exc:
+            raise ValueError(f"{d}: incomplete raking estimator ({type(exc).__name__}: "
+                             f"{str(exc)[:200]})") from None
+        if not fits:
             raise ValueError(f"{d}: weights do not fit input set {settings.input_set}")
         return model
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, Knob, SensorModelSpec, hookimpl
+from hapticframe import ChannelSpec, ClassifierSpec, Knob, SensorModelSpec, hookimpl
 
 from ._config import DistanceEstimateConfig, RakingEstimatorConfig
 
@@ -19,7 +19,8 @@ SPECS = (
         factory="hapticframe_raking._estimator:RakingEstimator",
         capabilities=frozenset({"trainable"}),
         requires=("torch",),
-        consumes={"taxel_force": (4, 3)},
+        consumes={"taxel_force": ChannelSpec(
+            (4, 3), "", "every component: 4 taxels x (x, y, z), flattened to 12 features")},
         sample_rate_hz=10.0,
         check_config={"pretrained": True},
         knobs=(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, SensorSpec, hookimpl
+from hapticframe import ChannelSpec, Kind, SensorSpec, hookimpl
 
 from ._config import Ft300Config
 
@@ -14,6 +14,10 @@ __all__ = ["SPECS", "hapticframe_sensors"]
 SPECS = (
     SensorSpec(
         name="robotiq-ft300",
+        produces={
+            "force_n": ChannelSpec((3,), "N", "the wrench's force in the sensor frame"),
+            "torque_nm": ChannelSpec((3,), "N·m", "the wrench's torque in the sensor frame"),
+        },
         summary=(
             "Robotiq FT 300 wrist force/torque sensor: Modbus RTU handshake and the 100 Hz "
             "stream over a serial port, or its emulator behind a pseudo-terminal."

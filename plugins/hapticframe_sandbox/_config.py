@@ -114,10 +114,12 @@ class SandboxRobotConfig(PluginConfig):
     )
     acceleration_m_per_s2: float | None = Field(
         None,
-        gt=0,
+        ge=1e-3,
         le=100,
         description="Acceleration at the start and deceleration at the end of each movement "
-        "(a trapezoidal speed profile); None starts and stops at once (constant speed).",
+        "(a trapezoidal speed profile; at least 1 mm/s², a ramp of 50 s to 5 cm/s); None "
+        "starts and stops at once (constant speed). validate also checks that the longest "
+        "line ends within run.max_steps_per_movement.",
     )
     sensor_height_m: float = Field(
         0.1,

@@ -408,9 +408,13 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         )
         movements = world.movement_truths()
         if outcome.figures:
-            from ._plots import plot_movement_forces
+            from ._plots import classifier_force_thresholds, plot_movement_forces
 
-            plot_movement_forces(truth, movements, Path(outcome.out_dir) / "forces.png")
+            plot_movement_forces(
+                truth, movements, Path(outcome.out_dir) / "forces.png",
+                thresholds=classifier_force_thresholds(outcome.components),
+                verdict=outcome.verdict,
+            )
         return {
             "max_force_n": float(max(r._max_force for r in world.robots)),
             "object_interactions": int(world.interactions),

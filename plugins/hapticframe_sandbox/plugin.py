@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import Kind, Knob, RobotSpec, SensorSpec, hookimpl
+from hapticframe import ChannelSpec, Kind, Knob, RobotSpec, SensorSpec, hookimpl
 
 from ._config import SandboxForceSensorConfig, SandboxRobotConfig, SandboxTaxelSensorConfig
 
@@ -35,6 +35,8 @@ def hapticframe_robots() -> Iterator[RobotSpec]:
 def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec(
         name="sandbox-force",
+        produces={"force_n": ChannelSpec(
+            (2,), "N", "the resistive force on the plate in the plane, world x and y")},
         summary="2-D fingertip force of the simulated sandbox robot, with sensor noise.",
         config=SandboxForceSensorConfig,
         factory="hapticframe_sandbox._sensor:SandboxForceSensor",
@@ -44,6 +46,12 @@ def hapticframe_sensors() -> Iterator[SensorSpec]:
     )
     yield SensorSpec(
         name="sandbox-taxels",
+        produces={
+            "taxel_force": ChannelSpec((4, 3), "1", "4 taxels x (x, y, z), normalised"),
+            "distance_mm": ChannelSpec((), "mm", "label: distance to the object"),
+            "direction_class": ChannelSpec((), "1", "label: direction class"),
+            "depth_class": ChannelSpec((), "1", "label: depth class"),
+        },
         summary="The sandbox plate's force as a real rake's 4-taxel 3-axis normalized "
         "channels (a measurement model fitted to Chen et al. 2024), with distance, "
         "direction and depth labels; approach_trials makes it a training source.",

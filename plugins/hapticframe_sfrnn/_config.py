@@ -14,6 +14,7 @@ from typing import Literal, TypeVar
 from pydantic import Field, field_validator
 
 from hapticframe import PluginConfig
+from hapticframe.threads import ThreadCount
 
 __all__ = [
     "AMPLITUDE_SIZE",
@@ -158,10 +159,8 @@ class RecurrentConfig(PluginConfig):
         True, description="Show a progress bar while training (tqdm, else one line per epoch); "
         "`hapticframe run --quiet` turns it off.",
     )
-    threads: int = Field(
+    threads: ThreadCount = Field(
         1,
-        ge=1,
-        le=1024,
         description="torch intra-op threads while training (restored afterwards): these small "
         "GRUs train fastest on one, and several threads on shared cores slow them ~10×.",
     )

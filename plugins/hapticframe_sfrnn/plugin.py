@@ -8,12 +8,16 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import ClassifierSpec, Knob, hookimpl
+from hapticframe import ChannelSpec, ClassifierSpec, Knob, hookimpl
 
 from ._config import DEFAULT_CODE_SIZES, FusionRNNConfig, LinearSVMConfig, SFRNNConfig
 
 #: What the default configs read: the three sparse codes of ``sparse-coding``.
-_CODES: dict[str, tuple[int, ...]] = {f"{m}_code": (n,) for m, n in DEFAULT_CODE_SIZES.items()}
+#: Codes of any size (the coder's atoms); the kit feeds the default sizes.
+_CODES: dict[str, ChannelSpec] = {
+    f"{m}_code": ChannelSpec((None,), "1", "a sparse code of the modality", example=(n,))
+    for m, n in DEFAULT_CODE_SIZES.items()
+}
 _LEARN_HINT = "pip install 'hapticframe[learn]'"
 # Small networks keep the kit's few thousand single-frame steps quick; same code paths.
 _CHECK_SFRNN = {"fusion_units": 16, "gru_layers": 2, "gru_units": 8, "progress": False}

@@ -9,12 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from hapticframe import FeatureExtractorSpec, Knob, hookimpl
+from hapticframe import ChannelSpec, FeatureExtractorSpec, Knob, hookimpl
 
 from ._config import EMDFeaturesConfig, SparseCodingConfig
 
 # What the default configs need (all three modalities): the kit feeds exactly these.
-_SENSOR_CHANNELS: dict[str, tuple[int, ...]] = {"pac": (22,), "pdc": (), "electrodes": (19,)}
 _FEATURE_TENSORS: dict[str, tuple[int, ...]] = {
     "pac_imfs": (8, 22),
     "pdc_imfs": (5, 5),
@@ -35,7 +34,15 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         # numba is optional: without it the numpy EMD runs (same numbers, ~15x slower,
         # too slow for the 10 ms streaming budget).
         install_hint="pip install 'hapticframe[learn]' (numba for the compiled EMD kernel)",
-        consumes=dict(_SENSOR_CHANNELS),
+        consumes={
+            "pac": ChannelSpec((22,), "count"),
+            "pdc": ChannelSpec((), "count"),
+            "electrodes": ChannelSpec((None,), "count", example=(19,)),
+        },
+        produces={
+            name: ChannelSpec((None, None), "count", "IMFs or window per frame")
+            for name in _FEATURE_TENSORS
+        },
         sample_rate_hz=100.0,
         # The defaults already use the smallest windows allowed (512 and 64 samples); a
         # short delay and a lower sifting cap keep the kit's ~2,000 frames quick.
@@ -62,7 +69,14 @@ def hapticframe_feature_extractors() -> Iterator[FeatureExtractorSpec]:
         capabilities=frozenset({"trainable"}),
         requires=("sklearn",),
         install_hint="pip install 'hapticframe[learn]'",
-        consumes=dict(_FEATURE_TENSORS),
+        consumes={
+            name: ChannelSpec((None, None), "count", example=shape)
+            for name, shape in _FEATURE_TENSORS.items()
+        },
+        produces={
+            f"{m}_code": ChannelSpec((None,), "1", "sparse code (size: the atoms)")
+            for m in ("pac", "pdc", "electrodes")
+        },
         sample_rate_hz=100.0,
         check_config={"pac_atoms": 40, "pdc_atoms": 20, "electrodes_atoms": 20},
         # The atoms change the code sizes a classifier reads (an sf-rnn or fusion-rnn takes

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -231,6 +232,20 @@ def test_a_run_without_a_search_prints_no_movement_count():
     assert "movements" not in summary_line(perception)
     assert "contact_balanced_accuracy=0.93" in summary_line(perception)
     assert summary_line(search).startswith("movements=0, object_found=no")
+    # The perception example scores its belief map against a scene (object_found), yet
+    # plans no movement: its line counts none.
+    scored = {"movements": 0, "object_found": True, "contact_balanced_accuracy": 0.9}
+    assert "movements" not in summary_line(scored, searched=False)
+
+
+def test_only_an_experiment_with_a_planner_counts_movements():
+    from hapticframe import validate_file
+    from hapticframe.cli._common import searches
+
+    examples = Path(__file__).resolve().parents[2] / "examples"
+    assert searches(validate_file(examples / "search-ellipse.yaml"))
+    assert not searches(validate_file(examples / "perception-belief-map.yaml"))
+    assert not searches(validate_file(examples / "raking-real.yaml"))
 
 
 def test_check_says_what_it_checks_before_each_result(capsys):

@@ -39,6 +39,7 @@ def test_declared_expected_failures_are_xfail_and_xpass_is_reported():
 
 @parametrize_with_checks([GOOD[0], BROKEN[4][0]], expected_failed_checks=lambda spec: (
     {"check_sensor_contract": "its clock restarts", "check_deterministic": "its clock restarts",
+     "check_sensor_keeps_time": "its clock restarts",
      "check_sensor_read_all_matches_reads": "it ends, and its reads restart the clock"}
     if spec.name == "restarting-clock" else {}))
 def test_parametrize_with_checks_gives_one_test_per_check(spec, check):

@@ -75,6 +75,7 @@ def test_the_example_experiment_validates(installed_example, tmp_path):
     (tmp_path / "e.yaml").write_text(
         "schema_version: 1\nname: load-cell\nseed: 1\nsensors:\n"
         "  - {id: wrist, type: lab-load-cell, config: {port: emulated, rate_hz: 200}}\n"
+        "run: {duration_s: 5}\n"
     )
     proc = _hapticframe(installed_example, "validate", "e.yaml", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
@@ -111,7 +112,7 @@ EMULATED_SESSION = """
 import json
 import numpy as np
 from hapticframe.devices import LifecycleState
-from hapticframe.kinds import BuildContext
+from hapticframe.kinds import BuildContext, RunClock
 from hf_loadcell.config import LoadCellConfig
 from hf_loadcell.sensor import LoadCellSensor
 
@@ -119,11 +120,15 @@ faults = [{"kind": "garbage", "at_s": 0.2, "params": {"count": 40}},
           {"kind": "fragment", "at_s": 0.0, "duration_s": 1.0},
           {"kind": "stall", "at_s": 1.2, "duration_s": 0.3, "params": {"drop": 1}},
           {"kind": "disconnect", "at_s": 2.0, "duration_s": 0.2}]
-config = LoadCellConfig(faults=faults, samples_per_read=2)
-sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(3)))
+config = LoadCellConfig(faults=faults)
+clock = RunClock(0.02)  # a control period of two samples
+sensor = LoadCellSensor(config, BuildContext("cell", np.random.default_rng(3), clock=clock))
 sensor.configure()
 sensor.activate()
-batches = [sensor.read() for _ in range(200)]  # 4 s of device time
+batches = []
+for _ in range(200):  # 4 s of the run's clock
+    clock.advance()
+    batches.append(sensor.read())
 model = sensor.emulator.model
 counts = np.concatenate([b.channels["force_n"][:, 0] for b in batches]) / 0.01 + 2048
 times = np.concatenate([b.timestamps_s for b in batches])
@@ -168,8 +173,9 @@ def test_the_driver_runs_against_its_pty_emulator_with_faults(installed_example)
     assert health["dropped_samples"] >= 25  # the stall's gap in the sequence numbers
     assert health["reconnects"] == 1 and health["recoveries"] == 1
     start, end, now = report["time_span"]
-    # 200 reads of 20 ms, plus the backoff delays that recovery slept on the fake clock.
-    assert 0 <= start < 0.1 and 3.8 < end <= now and 4.0 < now <= 4.0 + 0.05 + 0.1 + 0.2
+    # 200 reads of 20 ms of the run's clock, which the emulator follows: recovery's backoff
+    # (slept on the fake clock) is caught up with, not added.
+    assert 0 <= start < 0.1 and 3.8 < end <= now and 4.0 <= now <= 4.0 + 0.05 + 0.1 + 0.2
 
 
 LIVE_SESSION = """

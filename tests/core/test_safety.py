@@ -155,6 +155,18 @@ def test_the_sandbox_halts_within_one_sample_with_and_without_lookahead(lab_dir)
     assert halts[1] == halts[64]  # the same step, however far the loop looks ahead
 
 
+def test_the_halt_line_names_the_stream_and_force_that_hit_the_limit(lab_dir, capsys):
+    path = lab_dir / "line.yaml"
+    path.write_text(sandbox_experiment(1))
+    main(["run", *PLUGIN, str(path), "--out", str(lab_dir / "line")])
+    halt_line = next(line for line in capsys.readouterr().out.splitlines()
+                     if line.startswith("EM ") and "force_limit" in line)
+    record = read(lab_dir / "line", "run.json")
+    [halt] = record["details"]["safety_halts"]
+    assert halt["stream"] == "wrist/force_n"
+    assert f"force limit: wrist/force_n {halt['force_n']:.1f} N > 30 N" in halt_line
+
+
 # --- a stalled force stream ----------------------------------------------------------------
 
 
@@ -291,6 +303,7 @@ def test_the_sandbox_stops_at_once_and_refuses_to_leave_its_workspace():
 
 class _ForceSensor:
     def __init__(self) -> None:
+        self.id = "tip"
         self.channels = {"f": ChannelInfo((2,), "N", 100.0), "p": ChannelInfo((), "Pa", 100.0)}
 
 
@@ -307,6 +320,7 @@ def test_only_valid_samples_count_and_the_first_over_the_limit_is_kept(per_sampl
     for part in parts:
         flow._track_force(_ForceSensor(), part)  # type: ignore[arg-type]
     assert flow.valid_force_samples == 4
+    assert flow.force_violation_stream == "tip/f"
     assert flow.take_force_violation() == (0.02, 90.0)
     assert flow.take_force_violation() is None  # taken
     assert flow.force_max_n == 200.0  # the console's figure counts every finite sample

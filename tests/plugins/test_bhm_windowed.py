@@ -150,3 +150,36 @@ def test_observations_far_away_change_no_hinge_weight() -> None:
     bhm.update(Observations(far, np.ones(1200)))
     np.testing.assert_allclose(bhm.query([[0.3, 0.2]]).mean, before, atol=1e-9)
     np.testing.assert_allclose(bhm.belief.mean, 0.0, atol=1e-9)
+
+
+
+def test_a_coarse_grid_is_queried_point_by_point_with_the_separable_paths_values(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # A large map's snapshot asks a tile for a few cells: a triangular solve per cell costs
+    # less than the full covariance the separable path needs, and gives the same values.
+    from hapticframe_bhm import _dense
+
+    scene = two_object_scene()
+    bhm = BayesianHilbertMap(
+        BayesianHilbertMapConfig(), BuildContext("c", np.random.default_rng(0), scene=scene)
+    )
+    bhm.fit(labelled_points(scene, 1500, np.random.default_rng(4)))
+    belief = bhm.belief
+    # An update that stops at its iteration cap leaves no covariance behind: as if so.
+    belief._cache.pop("covariance", None)
+    assert not belief.has_covariance
+    _, _, grid = sample_grid((0.0, 0.75, 0.0, 0.5), 0.075)  # 10 x 7 cells
+    assert _grid_axes(grid) is not None and 3 * grid.shape[0] < belief.dimension
+
+    def no_separable(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the separable path was taken")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(_dense, "grid_predictive_moments", no_separable)
+        coarse = bhm.query(grid)
+    assert not belief.has_covariance  # nothing O(D^3) was computed
+    belief.covariance()
+    assert belief.has_covariance  # now the separable path costs the least: it is taken
+    separable = bhm.query(grid)
+    np.testing.assert_allclose(coarse.mean, separable.mean, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(coarse.std, separable.std, rtol=1e-7, atol=1e-10)

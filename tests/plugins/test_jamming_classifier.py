@@ -61,8 +61,9 @@ def stream(clf: ForceRateJammingClassifier, batch: SampleBatch, cuts) -> np.ndar
 
 
 def test_registration_spec():
-    (spec,) = jamming_plugin.hapticframe_classifiers()
+    spec, drag_ratio = jamming_plugin.hapticframe_classifiers()
     assert isinstance(spec, ClassifierSpec) and spec.name == "force-rate-jamming"
+    assert drag_ratio.name == "drag-ratio-jamming"
     assert spec.capabilities == {"trainable"}
     assert spec.load_factory() is ForceRateJammingClassifier
 

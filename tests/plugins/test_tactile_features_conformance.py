@@ -32,8 +32,9 @@ def registry() -> hapticframe.Registry:
 def test_specs_declare_what_the_default_configs_consume(registry: hapticframe.Registry) -> None:
     plugins = registry.plugins[Kind.FEATURE_EXTRACTOR]
     emd_spec, code_spec = plugins["emd-features"].spec, plugins["sparse-coding"].spec
-    assert emd_spec.consumes == {"pac": (22,), "pdc": (), "electrodes": (19,)}
-    assert code_spec.consumes == {
+    emd_reads = {k: v.kit_shape for k, v in emd_spec.consumes.items()}
+    assert emd_reads == {"pac": (22,), "pdc": (), "electrodes": (19,)}
+    assert {k: v.kit_shape for k, v in code_spec.consumes.items()} == {
         "pac_imfs": (8, 22),
         "pdc_imfs": (5, 5),
         "electrodes_window": (19, 5),
@@ -41,7 +42,8 @@ def test_specs_declare_what_the_default_configs_consume(registry: hapticframe.Re
     assert code_spec.requires == ("sklearn",) and "hapticframe[learn]" in code_spec.install_hint
     # What emd-features emits is exactly what sparse-coding consumes.
     fx = EMDFeatureExtractor(EMDFeaturesConfig(), BuildContext("fx", np.random.default_rng(0)))
-    assert {k: v.shape for k, v in fx.output_channels.items()} == code_spec.consumes
+    code_reads = {k: v.kit_shape for k, v in code_spec.consumes.items()}
+    assert {k: v.shape for k, v in fx.output_channels.items()} == code_reads
 
 
 def test_chain_from_biotac_frames_to_codes() -> None:

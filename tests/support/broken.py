@@ -38,6 +38,7 @@ from hapticframe.kinds import (
 
 from .heavy_config import HeavyConfig
 from .lab_devices import DeviceSensorConfig, MixConfig
+from .lab_newcomer import FakeFtConfig
 from .labplugin import (
     CellConfig,
     CellMap,
@@ -275,6 +276,12 @@ class LinePlannerConfig(PluginConfig):
     max_lines: int = 12
 
 
+class ZeroDepthPlannerConfig(LinePlannerConfig):
+    """A commanded depth that may be 0, which every robot refuses at run time."""
+
+    depth_m: float | None = Field(None, ge=0, le=0.3)
+
+
 class InsetLinesPlanner(Planner):
     """Horizontal lines, each inset half a spacing from the left and right edges.
 
@@ -476,6 +483,9 @@ BROKEN = [
      "check_sensor_contract", "go back"),
     (SensorSpec("wrong-shape", "x", SweepConfig, f"{M}:WrongShapeSensor"),
      "check_sensor_contract", "declared (3,)"),
+    # Issue 34's newcomer: five samples a read at 100 Hz on a time counter of its own.
+    (SensorSpec("own-time-counter", "x", FakeFtConfig, "tests.support.lab_newcomer:FakeFt"),
+     "check_sensor_keeps_time", "context.clock.due_times"),
     (FeatureExtractorSpec("undeclared-feature", "x", ScaleConfig, f"{M}:UndeclaredFeature",
                           consumes=_FORCE),
      "check_stream_contract", "output_channels"),
@@ -551,6 +561,8 @@ BROKEN = [
      "check_declared_sizes", "buffer_samples = 4611686018427387904 is accepted by validate"),
     (PlannerSpec("inset-lines", "x", LinePlannerConfig, f"{M}:InsetLinesPlanner"),
      "check_planner_extremes", "smaller than one line spacing): movement"),
+    (PlannerSpec("zero-depth", "x", ZeroDepthPlannerConfig, f"{M}:InsetLinesPlanner"),
+     "check_run_range_ends", "depth_m = 0 is accepted; robots refuse"),
     (PlannerSpec("free-space-centroid", "x", LinePlannerConfig, f"{M}:FreeSpaceCentroidPlanner"),
      "check_planner_extremes", "invalid output on an all-occupied map"),
     (PlannerSpec("until-sure", "x", LinePlannerConfig, f"{M}:UntilSurePlanner"),

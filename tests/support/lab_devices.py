@@ -281,8 +281,9 @@ class MixExtractor(FeatureExtractor):
 
 @hookimpl
 def hapticframe_sensors() -> Iterator[SensorSpec]:
+    # It ends after `reads` reads when no robot carries it (an open loop's source).
     yield SensorSpec("lab-device", "A hand-made device sensor.", DeviceSensorConfig,
-                     f"{__name__}:DeviceSensor")
+                     f"{__name__}:DeviceSensor", capabilities=frozenset({"finite"}))
     yield SensorSpec("lab-clock", "A recording on its own clock.", ClockConfig,
                      f"{__name__}:ClockSensor", capabilities=frozenset({"finite"}))
 

@@ -29,4 +29,4 @@ class FaultyConfig(PluginConfig):
 @hookimpl
 def hapticframe_sensors() -> Iterator[SensorSpec]:
     yield SensorSpec("lab-faulty", "A sensor that fails on purpose.", FaultyConfig,
-                     "lab_faults_impl:FaultySensor")
+                     "lab_faults_impl:FaultySensor", capabilities=frozenset({"finite"}))

@@ -157,7 +157,8 @@ class ScriptedForceSensor(Sensor):
 
     @property
     def channels(self) -> Mapping[str, ChannelInfo]:
-        return {"force_n": ChannelInfo((2,), "N", 1.0 / DT)}
+        # Its samples arrive delay_steps late: declared, so the run's clock check allows it.
+        return {"force_n": ChannelInfo((2,), "N", 1.0 / DT, latency_s=self.config.delay_steps * DT)}
 
     def read(self) -> SampleBatch:
         self._reads += 1
