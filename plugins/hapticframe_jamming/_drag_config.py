@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
+from hapticframe.filters import MIN_CUTOFF_RATIO
 
 __all__ = ["DragRatioJammingConfig"]
 
@@ -129,6 +130,15 @@ class DragRatioJammingConfig(PluginConfig):
             raise ValueError(
                 f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
                 f"({self.sample_rate_hz / 2} Hz)"
+            )
+        # As force-rate-jamming: below MIN_CUTOFF_RATIO of the rate the filter's
+        # coefficients lose their precision (NaN probabilities).
+        rate = self.sample_rate_hz if self.sample_rate_hz is not None else 100.0
+        if self.cutoff_hz < MIN_CUTOFF_RATIO * rate:
+            raise ValueError(
+                f"cutoff_hz ({self.cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
+                f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
+                "the low-pass filter's coefficients lose their precision"
             )
         if self.warmup_min_s > self.warmup_max_s:
             raise ValueError(
