@@ -190,3 +190,30 @@ def test_a_grid_query_leaves_the_cache_of_whole_beliefs_as_it_was(data, monkeypa
     reference.update(more)
     np.testing.assert_allclose(bhm.query(test.points_m[300:900]).mean,
                                reference.query(test.points_m[300:900]).mean, atol=1e-8)
+
+
+def test_two_grids_asked_in_turn_are_both_kept(data, monkeypatch) -> None:
+    """A recorded run's snapshot grid and its planner's grid alternate: neither recomputes
+    the tiles that did not fuse (issue 36 §3)."""
+    from hapticframe_bhm._dense import DenseBelief
+
+    train, _ = data
+    region = RegionConfig(x_min_m=0.0, x_max_m=3.0, y_min_m=0.0, y_max_m=2.0)
+    bhm = build(region=region)
+    bhm.update(train)
+    first, second = bhm.probability_grid(0.02), bhm.probability_grid(0.03)
+    calls: list[int] = []
+    original = DenseBelief.grid_moments
+    monkeypatch.setattr(DenseBelief, "grid_moments",
+                        lambda self, qx, qy: calls.append(1) or original(self, qx, qy))
+    for a, b in zip(first, bhm.probability_grid(0.02), strict=True):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(second, bhm.probability_grid(0.03), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not calls
+    bhm.probability_grid(0.05)  # a third grid pushes out the oldest
+    calls.clear()
+    bhm.probability_grid(0.03)
+    assert not calls
+    bhm.probability_grid(0.02)
+    assert calls
