@@ -459,7 +459,7 @@ class RunRecording:
         their place in the file. ``plain``: ``data`` holds finite Python values only (a
         pose message), taken as it is."""
         self._deferred.append((topic, schema, max(float(t_s), 0.0),
-                               data if plain else _nan_to_none(dict(data))))
+                               dict(data) if plain else _nan_to_none(dict(data))))
 
     def health(self, counters: Mapping[str, Mapping[str, int]]) -> None:
         for cid, values in counters.items():
