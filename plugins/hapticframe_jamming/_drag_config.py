@@ -7,7 +7,8 @@ from typing import Literal
 from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
-from hapticframe.filters import MIN_CUTOFF_RATIO
+
+from ._config import check_filter
 
 __all__ = ["DragRatioJammingConfig"]
 
@@ -126,20 +127,7 @@ class DragRatioJammingConfig(PluginConfig):
 
     @model_validator(mode="after")
     def _consistent(self) -> DragRatioJammingConfig:
-        if self.sample_rate_hz is not None and self.cutoff_hz >= self.sample_rate_hz / 2:
-            raise ValueError(
-                f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
-                f"({self.sample_rate_hz / 2} Hz)"
-            )
-        # As force-rate-jamming: below MIN_CUTOFF_RATIO of the rate the filter's
-        # coefficients lose their precision (NaN probabilities).
-        rate = self.sample_rate_hz if self.sample_rate_hz is not None else 100.0
-        if self.cutoff_hz < MIN_CUTOFF_RATIO * rate:
-            raise ValueError(
-                f"cutoff_hz ({self.cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
-                f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
-                "the low-pass filter's coefficients lose their precision"
-            )
+        check_filter(self.cutoff_hz, self.sample_rate_hz)
         if self.warmup_min_s > self.warmup_max_s:
             raise ValueError(
                 f"warmup_min_s ({self.warmup_min_s}) must not exceed warmup_max_s "
