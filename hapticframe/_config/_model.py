@@ -168,7 +168,7 @@ class RunSettings(BaseModel):
         "at 1 cm, a 3 x 2 m region at 1.9 cm, 10 x 10 m at 7.9 cm).",
     )
     snapshot_cpu_share: float = Field(
-        0.1, gt=0, le=1.0,
+        0.04, gt=0, le=1.0,
         description="Largest share of the run's CPU time that map snapshots may take: a "
         "snapshot that is due is skipped while the snapshots so far took more (the maps' "
         "last state is always written). Small maps stay at snapshot_rate_hz; a large map's "

@@ -9,7 +9,7 @@ reports the first stream out of step; the run loop then halts the robot and ends
 the run as no result (``run.json``: ``details.out_of_step``, exit 1, every file kept).
 
 A stream is ahead when its latest sample lies beyond the clock's time at the read, behind
-when its earliest sample was due before the stream's previous read (it arrived late); a
+when even its latest sample was due before the stream's previous read (it runs late); a
 stream that stops delivering is a stall (the safety monitor's ``force_stream_stalled``).
 The tolerance of a stream is its declared latency (the largest ``ChannelInfo.latency_s``
 of its channels) plus one control period plus one sample period of its slowest channel (a
@@ -89,15 +89,15 @@ class StepCheck:
         if not len(batch):
             return
         tolerance = self.tolerance_s(sensor_id)
-        # Ahead: its latest sample lies beyond the clock's time now. Behind: its earliest
-        # sample was due before the previous read (a stream that only stops is a stall,
-        # which the safety monitor watches, not a clock out of step).
+        # Ahead: its latest sample lies beyond the clock's time now. Behind: even its
+        # latest sample was due before the previous read. A device that delivers the
+        # backlog of a dropout catches up in that batch and keeps step; a stream that only
+        # stops is a stall, which the safety monitor watches, not a clock out of step.
         last = float(batch.timestamps_s[-1])
-        first = float(batch.timestamps_s[0])
         if last - now > tolerance + 1e-9:
             offset, at = last - now, last
-        elif previous is not None and previous - first > tolerance + 1e-9:
-            offset, at, now = first - previous, first, previous
+        elif previous is not None and previous - last > tolerance + 1e-9:
+            offset, at, now = last - previous, last, previous
         else:
             return
         stream = self._streams[sensor_id]

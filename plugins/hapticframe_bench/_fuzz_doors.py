@@ -127,7 +127,7 @@ def run_forked(call: Callable[[], tuple[int, str]], timeout_s: float = CASE_TIME
 
 def _cli(args: list[str]) -> Callable[[], tuple[int, str]]:
     def call() -> tuple[int, str]:
-        from hapticframe.cli._cli import main
+        from hapticframe.cli import main
 
         err = io.StringIO()
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -579,7 +579,7 @@ def _prepare_artifact(case: Case, inputs: Path) -> tuple[
         save_library(path, bundled_library())
         member, located = ("ratio_x", "free_drag_n", "depths_m", "settings")[variant], path
     else:
-        from hapticframe_raking._estimator import pretrained_model_dir
+        from hapticframe_raking import pretrained_model_dir
 
         located = inputs / "estimator"
         shutil.copytree(pretrained_model_dir(), located)

@@ -159,7 +159,7 @@ def _interaction_logits(m_j: FloatArray, m_c: FloatArray) -> FloatArray:
 
 def force_rate_scores(clf: ForceRateJammingClassifier, batch: SampleBatch) -> FloatArray:
     """Per sample: the log-odds of not free of ``force-rate-jamming``."""
-    from hapticframe_jamming._functional import and_rule_margin
+    from hapticframe_jamming import and_rule_margin
 
     cfg = clf.config
     force, rate = clf.force_and_rate(batch)

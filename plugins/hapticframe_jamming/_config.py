@@ -99,19 +99,24 @@ class ForceRateJammingConfig(PluginConfig):
 
     @model_validator(mode="after")
     def _finite_nyquist(self) -> ForceRateJammingConfig:
-        if self.sample_rate_hz is not None and self.cutoff_hz >= self.sample_rate_hz / 2:
-            raise ValueError(
-                f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
-                f"({self.sample_rate_hz / 2} Hz)"
-            )
-        # The classifier's filter at the rate it is designed for (the sensor's, or 100 Hz
-        # by default): a cutoff below MIN_CUTOFF_RATIO of it gives NaN probabilities.
-        rate = self.sample_rate_hz if self.sample_rate_hz is not None else 100.0
-        if self.cutoff_hz < MIN_CUTOFF_RATIO * rate:
-            raise ValueError(
-                f"cutoff_hz ({self.cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
-                f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
-                "the low-pass filter's coefficients lose their precision and the classifier "
-                "returns NaN probabilities"
-            )
+        check_filter(self.cutoff_hz, self.sample_rate_hz)
         return self
+
+
+def check_filter(cutoff_hz: float, sample_rate_hz: float | None) -> None:
+    """Refuse a low-pass cutoff at or above Nyquist, or below ``MIN_CUTOFF_RATIO`` of the
+    rate the filter is designed for (the sensor's, or 100 Hz by default), where its
+    coefficients lose their precision and the classifier returns NaN probabilities."""
+    if sample_rate_hz is not None and cutoff_hz >= sample_rate_hz / 2:
+        raise ValueError(
+            f"cutoff_hz ({cutoff_hz}) must be below the Nyquist frequency "
+            f"({sample_rate_hz / 2} Hz)"
+        )
+    rate = sample_rate_hz if sample_rate_hz is not None else 100.0
+    if cutoff_hz < MIN_CUTOFF_RATIO * rate:
+        raise ValueError(
+            f"cutoff_hz ({cutoff_hz:.4g}) must be at least {MIN_CUTOFF_RATIO:g} of "
+            f"the sample rate ({MIN_CUTOFF_RATIO * rate:.4g} Hz at {rate:g} Hz): below, "
+            "the low-pass filter's coefficients lose their precision and the classifier "
+            "returns NaN probabilities"
+        )

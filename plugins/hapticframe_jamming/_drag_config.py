@@ -8,6 +8,8 @@ from pydantic import Field, model_validator
 
 from hapticframe import PluginConfig
 
+from ._config import check_filter
+
 __all__ = ["DragRatioJammingConfig"]
 
 
@@ -125,11 +127,7 @@ class DragRatioJammingConfig(PluginConfig):
 
     @model_validator(mode="after")
     def _consistent(self) -> DragRatioJammingConfig:
-        if self.sample_rate_hz is not None and self.cutoff_hz >= self.sample_rate_hz / 2:
-            raise ValueError(
-                f"cutoff_hz ({self.cutoff_hz}) must be below the Nyquist frequency "
-                f"({self.sample_rate_hz / 2} Hz)"
-            )
+        check_filter(self.cutoff_hz, self.sample_rate_hz)
         if self.warmup_min_s > self.warmup_max_s:
             raise ValueError(
                 f"warmup_min_s ({self.warmup_min_s}) must not exceed warmup_max_s "

@@ -48,8 +48,10 @@ def short_search(tmp_path_factory: pytest.TempPathFactory) -> Path:
     experiment.write_text(yaml.safe_dump(model))
     out = folder / "out"
     # Blocks every 0.1 s of model time, as a real-time run writes them (not paced by the
-    # wall clock): the recovery tests cut and damage a recording of several chunks.
-    with mock.patch.object(_recording, "EMIT_WALL_S", 0.0):
+    # wall clock), in small chunks: the recovery tests cut and damage a recording of
+    # several chunks.
+    with mock.patch.object(_recording, "EMIT_WALL_S", 0.0), \
+            mock.patch.object(_recording, "CHUNK_BYTES", 64 * 1024):
         assert main(["run", str(experiment), "--out", str(out), "--quiet"]) == 0
     return out
 

@@ -166,3 +166,54 @@ def test_a_repeated_grid_query_recomputes_only_the_tiles_that_fused_since(data, 
     assert 0 < len(calls) < len(bhm.tiled.tiles)  # only the tiles the point reached
     for a, b in zip(fused, reference.probability_grid(0.02), strict=True):
         np.testing.assert_array_equal(a, b)  # the same as a map that never cached
+
+
+def test_a_grid_query_leaves_the_cache_of_whole_beliefs_as_it_was(data, monkeypatch) -> None:
+    """A snapshot reads every tile; it must not pack the tiles the run is fusing into (their
+    covariances would be rebuilt on the next fuse: issue 36 §3)."""
+    train, test = data
+    monkeypatch.setattr("hapticframe_bhm._tiled._COVARIANCE_CACHE_TILES", 2)
+    bhm = build(dense_weights_max=50, tile_size_m=0.1)
+    bhm.update(train)
+    tiled = bhm.tiled
+    assert tiled is not None and len(tiled._packed) == len(tiled.tiles) - 2
+    whole_before, packed_before = list(tiled._covariances), set(tiled._packed)
+    grid = bhm.probability_grid(0.02)
+    assert list(tiled._covariances) == whole_before and set(tiled._packed) == packed_before
+    assert all(not hasattr(tiled.tiles[tile], "posterior") for tile in packed_before)
+    reference = build(dense_weights_max=50, tile_size_m=0.1)
+    reference.update(train)
+    for a, b in zip(grid, reference.probability_grid(0.02), strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-9)
+    more = Observations(test.points_m[:300], test.targets[:300])
+    bhm.update(more)
+    reference.update(more)
+    np.testing.assert_allclose(bhm.query(test.points_m[300:900]).mean,
+                               reference.query(test.points_m[300:900]).mean, atol=1e-8)
+
+
+def test_two_grids_asked_in_turn_are_both_kept(data, monkeypatch) -> None:
+    """A recorded run's snapshot grid and its planner's grid alternate: neither recomputes
+    the tiles that did not fuse (issue 36 §3)."""
+    from hapticframe_bhm._dense import DenseBelief
+
+    train, _ = data
+    region = RegionConfig(x_min_m=0.0, x_max_m=3.0, y_min_m=0.0, y_max_m=2.0)
+    bhm = build(region=region)
+    bhm.update(train)
+    first, second = bhm.probability_grid(0.02), bhm.probability_grid(0.03)
+    calls: list[int] = []
+    original = DenseBelief.grid_moments
+    monkeypatch.setattr(DenseBelief, "grid_moments",
+                        lambda self, qx, qy: calls.append(1) or original(self, qx, qy))
+    for a, b in zip(first, bhm.probability_grid(0.02), strict=True):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(second, bhm.probability_grid(0.03), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not calls
+    bhm.probability_grid(0.05)  # a third grid pushes out the oldest
+    calls.clear()
+    bhm.probability_grid(0.03)
+    assert not calls
+    bhm.probability_grid(0.02)
+    assert calls

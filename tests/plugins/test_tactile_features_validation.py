@@ -52,6 +52,7 @@ def test_emd_features_on_a_force_sensor_are_refused() -> None:
     data["sensors"].append({"id": "wrist", "type": "robotiq-ft300",
                             "config": {"port": "emulated"}})
     data["feature_extractors"][0]["inputs"] = ["wrist"]
+    data.setdefault("run", {})["duration_s"] = 10.0  # the wrench sensor never ends
     assert "wire it to a BioTac" in _issues(data)["feature_extractors[0].config.modalities"]
 
 
