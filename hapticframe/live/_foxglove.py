@@ -87,16 +87,24 @@ class FoxgloveBridge:
         """What Foxglove's "Open connection" → "Foxglove WebSocket" takes."""
         return f"ws://{self.host}:{self.port}"
 
-    def __call__(self, topic: str, t_s: float, data: Mapping[str, Any]) -> None:
-        """The recording listener: log ``data`` on ``topic``'s channel (advertised on first
-        use) when a client subscribes to it; else return at once."""
+    #: The recording hands this listener each message's bytes as written (no second
+    #: encoding; :meth:`~hapticframe.record._recording.RunRecording.add_listener`).
+    wants_payload = True
+
+    def __call__(self, topic: str, t_s: float, data: Mapping[str, Any],
+                 payload: bytes | None = None) -> None:
+        """The recording listener: log the message (``payload``, the bytes ``run.mcap``
+        holds, else ``data`` encoded as the recording encodes it) on ``topic``'s channel,
+        advertised on first use, when a client subscribes to it; else return at once."""
         channel = self._channels.get(topic)
         if channel is None:
             channel = self.advertise(topic)
         if not channel.has_sinks():
             return  # nobody subscribes: no encoding, no cost
-        # The recording has already made every float finite or None, so this cannot fail.
-        payload = json.dumps(data, separators=(",", ":"), allow_nan=False).encode()
+        if payload is None:
+            from hapticframe.record._recording import encode_message
+
+            payload = encode_message(data)
         channel.log(payload, log_time=round(max(t_s, 0.0) * 1e9))
         self.messages_sent += 1
 

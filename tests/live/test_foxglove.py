@@ -153,13 +153,15 @@ def test_a_subscribed_client_gets_every_message_of_run_mcap(tmp_path: Path) -> N
         assert client.server_info is not None and client.server_info["name"] == "hapticframe"
         assert client.server_info["capabilities"] == []  # the client reads, nothing more
 
-        def subscribed_first(topic: str, t_s: float, data: Mapping[str, Any]) -> None:
+        def subscribed_first(topic: str, t_s: float, data: Mapping[str, Any],
+                             payload: bytes) -> None:
             # Only here does the loop wait: until the client has subscribed to a new topic,
             # so that it gets the topic's first message too and the test can ask for all.
             channel = bridge.advertise(topic)
             _until(channel.has_sinks, f"subscription to {topic}")
-            bridge(topic, t_s, data)
+            bridge(topic, t_s, data, payload)
 
+        subscribed_first.wants_payload = True  # type: ignore[attr-defined]
         with listening(subscribed_first):
             metrics = run_experiment(experiment, tmp_path / "out", echo=lambda _t: None,
                                      progress=False)
