@@ -212,3 +212,18 @@ def test_an_emulated_rig_follows_the_lab_world(lab: Path) -> None:
     assert np.median(np.abs(in_plane - 4.0)) < 0.05
     np.testing.assert_allclose(ft[moving, 2], 0.8 * 9.80665, atol=0.02)
     assert np.hypot(ft[:, 0], ft[:, 1]).max() > 15.0  # the jamming step, 16 N
+
+
+def test_the_architecture_pages_world_runs() -> None:
+    page = (Path(__file__).resolve().parents[1] / "docs" / "architecture.md").read_text()
+    section = page[page.index("### Worlds: the sand behind a simulated robot"):]
+    block = section[section.index("```python\n") + 10:section.index("```\n", 10)]
+    namespace: dict[str, object] = {"__name__": "architecture_world"}
+    exec(compile(block, "docs/architecture.md", "exec"), namespace)
+    robot_type = namespace["ConstantDragRobot"]
+    assert isinstance(robot_type, type) and issubclass(robot_type, SandboxRobot)
+    robot = _robot(robot_type, SandboxRobotConfig())
+    robot.execute(TOWARDS_CIRCLE)  # through the circle: this world has no objects
+    truth = robot.ground_truth
+    assert len(truth) > 500 and not truth.states.any()
+    np.testing.assert_allclose(truth.forces_n, np.tile([-4.0, 0.0], (len(truth), 1)))
