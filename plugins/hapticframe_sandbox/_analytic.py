@@ -71,10 +71,6 @@ class AnalyticSandWorld(World):
             else side_crescent_angle(interactions // 2)
         )
 
-    def rupture_distance_m(self, depth_m: float) -> float:
-        """How far ahead of the plate the failure zone reaches at ``depth_m`` (Eq. 3.2)."""
-        return rupture_distance(depth_m, self._rake_rad, self.shear_band_angle_rad)
-
     def begin(self, movement: PlateMovement) -> None:
         cfg = self.config
         self._movement = movement
@@ -84,7 +80,10 @@ class AnalyticSandWorld(World):
         self._decay = math.exp(-movement.control_period_s / cfg.drag_fluctuation_time_s)
         self._innovation = math.sqrt(1 - self._decay * self._decay)
         self._sector_geometry: tuple[NDArray[np.float64], ...] | None = None
-        self._rupture = self.rupture_distance_m(movement.depth_m)
+        # How far ahead of the plate the failure zone reaches (Eq. 3.2).
+        self._rupture = rupture_distance(
+            movement.depth_m, self._rake_rad, self.shear_band_angle_rad
+        )
         # An object matters once the fingertip is within its bounding radius plus the
         # failure zone's reach and the plate: (x, y, that distance squared) per object.
         reach = self._rupture + movement.plate_width_m
