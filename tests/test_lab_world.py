@@ -227,3 +227,28 @@ def test_the_architecture_pages_world_runs() -> None:
     truth = robot.ground_truth
     assert len(truth) > 500 and not truth.states.any()
     np.testing.assert_allclose(truth.forces_n, np.tile([-4.0, 0.0], (len(truth), 1)))
+
+
+@pytest.mark.parametrize(("cls", "config", "world"), WORLDS)
+def test_any_world_follows_a_robot_as_it_moves_its_own_plate(cls, config, world) -> None:
+    """A world behind a follower meets the same physics at a robot that moves exactly as
+    the sandbox's own plate would (the analytic world's case is tests/test_follow_world.py)."""
+    from tests.test_follow_world import LineRobot
+
+    own = _robot(cls, config, seed=4)
+    own.execute(TOWARDS_CIRCLE)
+    line = LineRobot()
+    sand = cls(config.model_copy(update={"follows": "line"}),
+               BuildContext(id="sand", rng=np.random.default_rng(4), inputs={"line": line},
+                            scene=SCENE))
+    assert type(sand.world) is world
+    movement = sand.follow_begin(TOWARDS_CIRCLE)
+    line.begin(movement)
+    while (state := line.step()) is not None:
+        sand.follow_step(state)
+    a, b = own.ground_truth, sand.ground_truth
+    n = len(a)
+    assert len(b) >= n > 400
+    assert a.states.max() == TruthState.CONTACT
+    np.testing.assert_array_equal(a.states, b.states[:n])
+    np.testing.assert_allclose(b.forces_n[:n], a.forces_n, rtol=1e-9, atol=1e-9)
