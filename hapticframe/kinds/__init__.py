@@ -3,7 +3,8 @@
 One module per kind states its contract; the data records are shared. Data flows one way:
 sensor → feature extractor → classifier → sensor model → map → planner → robot.
 What only some components can do (train, persist, evaluate on a grid) is declared in
-:mod:`hapticframe.kinds.capabilities`.
+:mod:`hapticframe.kinds.capabilities`. :mod:`hapticframe.kinds.world` is the interface of the
+simulated worlds a simulated robot consults for the sand's force (not a kind of its own).
 """
 
 from hapticframe.kinds._base import (
@@ -44,6 +45,7 @@ from hapticframe.kinds.planner import Planner
 from hapticframe.kinds.robot import Robot
 from hapticframe.kinds.sensor import Sensor
 from hapticframe.kinds.sensor_model import SensorModel
+from hapticframe.kinds.world import PlateMovement, PlateSample, TruthState, World, WorldResponse
 
 __all__ = [
     "BuildContext",
@@ -67,6 +69,8 @@ __all__ = [
     "PhysicalTruth",
     "PhysicalTruthSource",
     "Planner",
+    "PlateMovement",
+    "PlateSample",
     "Region",
     "Robot",
     "RobotFollower",
@@ -77,6 +81,9 @@ __all__ = [
     "Sensor",
     "SensorModel",
     "Trainable",
+    "TruthState",
+    "World",
+    "WorldResponse",
     "concatenate_batches",
     "query_points",
 ]

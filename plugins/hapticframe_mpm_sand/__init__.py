@@ -1,7 +1,8 @@
 """A world whose sand is simulated by an independent engine: NVIDIA Newton's implicit
 material-point solver (issue 29).
 
-Registers the robot ``mpm-sand`` (read by the ``sandbox-force`` sensor) and the benchmark
+Registers the robot ``mpm-sand`` (the sandbox robot holding an :class:`MpmSandWorld`, read by
+the ``sandbox-force`` sensor) and the benchmark
 ``physics-checks``. The world runs from a response library of engine runs stored in
 ``data/`` (plain arrays): running it needs numpy only; building a library or running the
 checks needs the ``physics`` extra (``newton``). See docs/physics-world.md.
@@ -17,6 +18,7 @@ from ._library import ResponseLibrary, fit_power_law, load_library, save_library
 __all__ = [
     "MpmSandRobot",
     "MpmSandRobotConfig",
+    "MpmSandWorld",
     "ResponseLibrary",
     "bundled_library",
     "engine_available",
@@ -27,6 +29,7 @@ __all__ = [
 
 _LAZY = {
     "MpmSandRobot": "._world",
+    "MpmSandWorld": "._world",
     "bundled_library": "._world",
     "engine_available": "._engine",
 }

@@ -1,9 +1,10 @@
-"""The ``mpm-sand`` world: the sandbox's plumbing, the forces from an engine's response library.
+"""The ``mpm-sand`` world: forces from an engine's response library, behind the sandbox's plumbing.
 
-:class:`MpmSandRobot` is a :class:`hapticframe_sandbox.SandboxRobot` (movements, depth
-schedule, ground truth, ``follows``, the ``sandbox-force`` sensor) whose per-step force comes
-from a :class:`~hapticframe_mpm_sand._library.ResponseLibrary` instead of the failure-zone
-mechanics:
+:class:`MpmSandWorld` is a :class:`hapticframe.kinds.World` whose per-step force comes from a
+:class:`~hapticframe_mpm_sand.ResponseLibrary` instead of the failure-zone mechanics;
+:class:`MpmSandRobot` is the :class:`hapticframe_sandbox.SandboxRobot` (movements, depth
+schedule, ground truth, ``follows``, the ``sandbox-force`` sensor) that holds it, chosen by
+its public :meth:`~hapticframe_sandbox.SandboxRobot.build_world`:
 
 - free drag: the library's engine drag at the movement's depth and the plate's travel
   (start-up included), times a slow random fluctuation;
@@ -29,16 +30,23 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from hapticframe.kinds import BuildContext
+from hapticframe import Scene
+from hapticframe.kinds import (
+    BuildContext,
+    PlateMovement,
+    PlateSample,
+    TruthState,
+    World,
+    WorldResponse,
+)
 from hapticframe_sandbox import SandboxRobot
 
 from ._config import BUNDLED_LIBRARIES, MpmSandRobotConfig
 from ._library import ResponseLibrary, load_library, material_parameters
 
-__all__ = ["MpmSandRobot", "bundled_library"]
+__all__ = ["MpmSandRobot", "MpmSandWorld", "bundled_library"]
 
-#: Ground-truth states, as the sandbox numbers them.
-FREE, JAMMING, CONTACT = 0, 1, 2
+FREE, JAMMING, CONTACT = int(TruthState.FREE), int(TruthState.JAMMING), int(TruthState.CONTACT)
 _LIBRARIES: dict[str, ResponseLibrary] = {}
 
 
@@ -79,73 +87,72 @@ def check_material(
         )
 
 
-class MpmSandRobot(SandboxRobot):
-    """A plate raked through sand, its force from the engine's response library.
+class MpmSandWorld(World):
+    """The plate's force from the engine's response library, the contact spring added.
 
     Parameters
     ----------
     config : MpmSandRobotConfig
-    context : BuildContext
-        Needs ``context.scene``; randomness (the drag fluctuation) from ``context.rng``.
+        ``drag_fluctuation_*``, ``offset_taper_u``, ``jamming_label_ratio`` and
+        ``contact_stiffness_n_per_m`` are used.
+    scene : Scene
+        The buried objects (their outlines) and the sand (checked against the library's).
+    rng : numpy.random.Generator
+        Source of the drag fluctuation.
+    library : ResponseLibrary
+        The engine runs the forces are interpolated from.
+    world_id : str
+        Named in errors (the robot's id).
     """
 
-    config: MpmSandRobotConfig
+    def __init__(self, config: MpmSandRobotConfig, scene: Scene, rng: np.random.Generator,
+                 library: ResponseLibrary, world_id: str = "mpm-sand") -> None:
+        check_material(world_id, library, scene.material.friction_angle_deg,
+                       scene.material.dilation_angle_deg)
+        self.config = config
+        self.library = library
+        self._rng = rng
+        self._outlines = [np.asarray(obj.outline(512), dtype=np.float64) for obj in scene.objects]
 
-    def __init__(self, config: MpmSandRobotConfig, context: BuildContext) -> None:
-        self._library = (
-            bundled_library(config.voxel_size_m)
-            if config.library_path is None
-            else _cached(Path(config.library_path))
-        )
-        super().__init__(config, context)
-        if context.scene is not None:
-            check_material(context.id, self._library, context.scene.material.friction_angle_deg,
-                           context.scene.material.dilation_angle_deg)
-        self._outlines = [
-            np.asarray(obj.outline(512), dtype=np.float64) for obj in context.scene.objects
-        ] if context.scene is not None else []
-        self._frames: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = []
-        self._frames_key: tuple[object, ...] | None = None
+    def begin(self, movement: PlateMovement) -> None:
+        cfg, rng = self.config, self._rng
+        self._movement = movement
+        self._decay = math.exp(-movement.control_period_s / cfg.drag_fluctuation_time_s)
+        self._innovation = math.sqrt(1 - self._decay * self._decay)
+        # Three draws that the analytic world spends on its shear-band cycle: spent here too,
+        # so that one seed gives both worlds the same drag fluctuation (and this world the
+        # runs it gave before worlds were a seam of their own).
+        rng.uniform(size=3)
+        self._fluctuation = cfg.drag_fluctuation_fraction * rng.standard_normal()
+        # Each object's outline in the movement's frame: along the heading from the start,
+        # and across it (+ to the left).
+        dx, dy = movement.direction
+        sx, sy = movement.start_m
+        frames = []
+        for outline in self._outlines:
+            rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
+            frames.append((rx * dx + ry * dy, -rx * dy + ry * dx))
+        self._frames: list[tuple[NDArray[np.float64], NDArray[np.float64]]] = frames
 
-    @property
-    def library(self) -> ResponseLibrary:
-        """The response library the forces come from."""
-        return self._library
-
-    def _movement_frames(self) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
-        """Each object's outline in the current movement's frame: along the heading from the
-        start, and across it (+ to the left); computed once per movement (or part of one)."""
-        key = (self._index, self._start_xy, self._direction_xy)
-        if key != self._frames_key:
-            dx, dy = self._direction_xy
-            sx, sy = self._start_xy
-            frames = []
-            for outline in self._outlines:
-                rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
-                frames.append((rx * dx + ry * dy, -rx * dy + ry * dx))
-            self._frames, self._frames_key = frames, key
-        return self._frames
-
-    def _interaction(
-        self, position: tuple[float, float], advance: float
-    ) -> tuple[tuple[float, float], int]:
-        cfg = self.config
-        library = self._library
-        previous: float = self._fluctuation  # type: ignore[has-type]
-        self._fluctuation = self._decay * previous + self._innovation * (
+    def respond(self, plate: PlateSample) -> WorldResponse:
+        cfg, movement = self.config, self._movement
+        library = self.library
+        self._fluctuation = self._decay * self._fluctuation + self._innovation * (
             cfg.drag_fluctuation_fraction * self._rng.standard_normal()
         )
         scale = max(0.0, 1.0 + self._fluctuation)
-        drag = library.free_drag(self._depth, self._travelled) * scale
-        dx, dy = self._direction_xy
-        sx, sy = self._start_xy
+        depth = movement.depth_m
+        drag = library.free_drag(depth, plate.travelled_m) * scale
+        dx, dy = movement.direction
+        sx, sy = movement.start_m
+        position = plate.position_m
         along = (position[0] - sx) * dx + (position[1] - sy) * dy
         across = -(position[0] - sx) * dy + (position[1] - sy) * dx
-        half = cfg.plate_width_m / 2
+        half = movement.plate_width_m / 2
         u_max = float(library.offsets_u[-1])
         excess_x = excess_y = 0.0
         penetration = 0.0
-        for a, c in self._movement_frames():
+        for a, c in self._frames:
             s_m = along - float(a.min())
             if along > float(a.max()) or s_m < float(library.s_m[0]):
                 continue  # past the object, or farther ahead than any engine run saw it
@@ -155,7 +162,7 @@ class MpmSandRobot(SandboxRobot):
             u = abs(offset) / (radius + half)
             taper = 1.0 - max(0.0, u - u_max) / cfg.offset_taper_u
             if taper > 0.0:
-                rx, ry = library.ratio(self._depth, radius, min(u, u_max), min(0.0, s_m))
+                rx, ry = library.ratio(depth, radius, min(u, u_max), min(0.0, s_m))
                 excess_x += (rx - 1.0) * taper
                 # ratio_y is for an object on the +across side; mirror for the other side.
                 excess_y += ry * taper * (1.0 if offset <= 0 else -1.0)
@@ -173,5 +180,35 @@ class MpmSandRobot(SandboxRobot):
             state = CONTACT
             spring = cfg.contact_stiffness_n_per_m * penetration
             fx, fy = fx - spring * dx, fy - spring * dy
-        self._penetration = penetration
-        return (fx, fy), state
+        return WorldResponse((fx, fy), state)
+
+
+class MpmSandRobot(SandboxRobot):
+    """A plate raked through sand, its force from the engine's response library: the
+    sandbox robot holding an :class:`MpmSandWorld`.
+
+    Parameters
+    ----------
+    config : MpmSandRobotConfig
+    context : BuildContext
+        Needs ``context.scene``; randomness (the drag fluctuation) from ``context.rng``.
+    """
+
+    config: MpmSandRobotConfig
+
+    def __init__(self, config: MpmSandRobotConfig, context: BuildContext) -> None:
+        self._library = (
+            bundled_library(config.voxel_size_m)
+            if config.library_path is None
+            else _cached(Path(config.library_path))
+        )
+        super().__init__(config, context)
+
+    def build_world(self, scene: Scene, rng: np.random.Generator) -> World:
+        """An :class:`MpmSandWorld` on this robot's library."""
+        return MpmSandWorld(self.config, scene, rng, self._library, self.id)
+
+    @property
+    def library(self) -> ResponseLibrary:
+        """The response library the forces come from."""
+        return self._library

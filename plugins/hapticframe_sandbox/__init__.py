@@ -1,6 +1,8 @@
 """Simulated sandbox: a plate raked through sand towards buried objects, and its force sensor.
 
-Registers the robot ``sandbox`` and the sensor ``sandbox-force``. Importing this package is
+Registers the robot ``sandbox`` and the sensor ``sandbox-force``. The robot's physics is a
+:class:`hapticframe.kinds.World` (:class:`AnalyticSandWorld` by default; another robot type
+chooses its own by overriding :meth:`SandboxRobot.build_world`). Importing this package is
 cheap; the simulator classes load on first attribute access.
 """
 
@@ -11,6 +13,7 @@ from hapticframe import lazy_exports
 from ._config import SandboxForceSensorConfig, SandboxRobotConfig, SandboxTaxelSensorConfig
 
 __all__ = [
+    "AnalyticSandWorld",
     "GroundTruthLog",
     "MovementTruth",
     "SandboxForceSensor",
@@ -28,6 +31,7 @@ __all__ = [
 ]
 
 _LAZY = {
+    "AnalyticSandWorld": "._analytic",
     "GroundTruthLog": "._truth",
     "MovementTruth": "._truth",
     "SandboxRobot": "._robot",

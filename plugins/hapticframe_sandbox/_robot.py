@@ -1,10 +1,12 @@
 """The simulated sandbox: a plate raked through sand towards buried objects.
 
-The robot is also the world simulator. Each control step it advances the fingertip along a
-straight exploratory movement, places the failure zone ahead of it (thesis Eq. 3.2, Figure
-3.2), and computes the true interaction force: free plate drag modulated by the shear-band
-nucleation cycle, a jamming surge once the failure zone reaches an object, and a stiff
-contact force once the plate does. The sandbox force sensor reads that force from here.
+Each control step the robot advances the fingertip along a straight exploratory movement
+and asks its :class:`~hapticframe.kinds.World` for the true interaction force and state
+(:meth:`SandboxRobot.build_world`; by default the :class:`AnalyticSandWorld`: free plate drag
+modulated by the shear-band nucleation cycle, a jamming surge once the failure zone (thesis
+Eq. 3.2, Figure 3.2) reaches an object, and a stiff contact force once the plate does). The
+sandbox force sensor reads that force from here. Every world gets the same plumbing from the
+robot: movements, clock, depth schedule, halts, ground truth, physical truth, ``follows``.
 
 The robot is also a :class:`~hapticframe.kinds.PhysicalTruthSource`: per step it exposes the
 tool's pose, velocity, acceleration and the environment's force and torque on it as a
@@ -44,14 +46,18 @@ from hapticframe.kinds import (
     MovementResult,
     PhysicalTruth,
     PhysicalTruthSource,
+    PlateMovement,
+    PlateSample,
     Robot,
     RobotFollower,
     RobotState,
     RunOutcome,
+    World,
 )
 from hapticframe_granular import arthur_angle, rupture_distance, side_crescent_angle
 
 from . import _functional as F
+from ._analytic import AnalyticSandWorld
 from ._config import SandboxRobotConfig
 from ._truth import CONTACT, FREE, JAMMING, STATE_NAMES, GroundTruthLog, MovementTruth
 from ._world import _followed_robot, _Sandbox
@@ -104,15 +110,6 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
             )
         )
         self._rake_rad = math.radians(config.rake_angle_deg)
-        # Bounding circles let far-away objects be skipped without sampling the sector:
-        # (centre x, centre y, radius) in plain floats for the per-step test.
-        self._bounds = [
-            (
-                *np.asarray(obj.centroid_m, dtype=np.float64).tolist(),
-                float(np.max(np.linalg.norm(obj.outline(512) - obj.centroid_m, axis=1))),
-            )
-            for obj in self._scene.objects
-        ]
         # Following an emulated robot: that robot moves; this sandbox is the sand around it.
         self._followed: Robot | None = None
         #: Following: the log rows after which the tool rests (each movement's last step).
@@ -120,6 +117,11 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         if config.follows is not None:
             self._followed = _followed_robot(context.id, config.follows, context.inputs)
             self._dt = 1.0 / self._followed.control_rate_hz
+        # The mechanics: what this robot's world answers each step.
+        self._physics = self.build_world(context.scene, context.rng)
+        if not isinstance(self._physics, World):
+            raise TypeError(f"robot {context.id!r}: build_world returned "
+                            f"{type(self._physics).__name__}, not a hapticframe.kinds.World")
         # One sandbox, shared with the sandbox robots named in inputs: its clock and the
         # depth schedule (section 3.5.1), which shrinks after each movement that reached
         # an object.
@@ -154,6 +156,22 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         self._origin = (*home.tolist(), 0.0, config.depth_m)
         if isinstance(self._followed, EnvironmentCoupled):
             self._followed.couple_environment(self)
+
+    # --- the world -------------------------------------------------------------------------
+
+    def build_world(self, scene: Scene, rng: np.random.Generator) -> World:
+        """The world this robot consults each step (called once, while it is built).
+
+        The sandbox's own is the :class:`AnalyticSandWorld` configured by this robot's
+        config; a robot type with another world (``mpm-sand``, a lab's) overrides this
+        method. ``rng`` is the robot's generator: every draw of the world comes from it.
+        """
+        return AnalyticSandWorld(self.config, scene, rng)
+
+    @property
+    def world(self) -> World:
+        """The world this robot's forces and true states come from."""
+        return self._physics
 
     # --- Robot interface (the base checks depth and workspace, then calls _begin) ------------
 
@@ -199,28 +217,20 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
         # element, as on these arrays, without numpy's per-call overhead.
         self._direction_xy = tuple(self._direction.tolist())
         self._start_xy = tuple(np.asarray(self._start, dtype=np.float64).tolist())
-        self._decay = math.exp(-self._dt / cfg.drag_fluctuation_time_s)
-        self._sector_geometry: tuple[NDArray[np.float64], ...] | None = None
-        self._innovation = math.sqrt(1 - self._decay * self._decay)
         self._travelled = 0.0
+        # The failure zone's geometry, recorded in the movement's truth whatever the world.
         self._rupture = rupture_distance(depth, self._rake_rad, self._beta_rad)
-        # An object matters once the fingertip is within its bounding radius plus the
-        # failure zone's reach and the plate: (x, y, that distance squared) per object.
-        reach = self._rupture + cfg.plate_width_m
-        self._near_limits = [
-            (cx, cy, (radius + reach) ** 2, radius) for cx, cy, radius in self._bounds
-        ]
         self._eta_rad = (
             math.radians(cfg.side_crescent_angle_deg)
             if cfg.side_crescent_angle_deg is not None
             else side_crescent_angle(world.interactions // 2)
         )
-        self._steady_drag = F.free_drag_n(depth, cfg.drag_coefficient_n_per_m2)
-        # A fresh shear-band cycle at a random phase, and a stationary drag fluctuation.
-        self._new_shear_cycle()
-        self._cycle_position = self._rng.uniform(0.0, self._cycle_length)
-        self._fluctuation = cfg.drag_fluctuation_fraction * self._rng.standard_normal()
-        self._penetration = 0.0
+        self._physics.begin(PlateMovement(
+            index=self._em, start_m=self._start_xy, heading_rad=float(self._heading),
+            length_m=float(self._length), depth_m=float(depth), speed_m_per_s=self._speed,
+            control_period_s=self._dt, plate_width_m=cfg.plate_width_m,
+            interactions=world.interactions,
+        ))
         self._em_start_time = self._time
         self._em_max_state = FREE
         self._em_max_force = 0.0
@@ -278,8 +288,10 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
     ) -> float:
         """The sand's force with the plate at ``position`` after moving ``advance`` along the
         heading, logged with the step's motion; returns the force's magnitude."""
-        force, true_state = self._interaction(position, advance)
-        magnitude = self._record(position, force, true_state)
+        response = self._physics.respond(
+            PlateSample(self._time, position, self._travelled, advance, speed, acceleration)
+        )
+        magnitude = self._record(position, response.force_n, response.state)
         self._log_motion.append((self._heading, speed, acceleration))
         return magnitude
 
@@ -340,16 +352,18 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
             self._active = False
             self._halt_reason = str(reason)
 
-    def checkpoint(self) -> tuple[dict[str, Any], int, Mapping[str, Any]]:
-        """The state a step changes: every attribute, the log length and the generator.
+    def checkpoint(self) -> tuple[dict[str, Any], int, Mapping[str, Any], Any]:
+        """The state a step changes: every attribute, the log length, the generator and
+        the world's own checkpoint.
 
         Attribute values are immutable or, like the ground-truth logs, only appended to
         within a movement, so a shallow copy suffices. Valid until the movement ends.
         """
-        return dict(self.__dict__), len(self._log_t), self._rng.bit_generator.state
+        return (dict(self.__dict__), len(self._log_t), self._rng.bit_generator.state,
+                self._physics.checkpoint())
 
-    def rewind(self, checkpoint: tuple[dict[str, Any], int, Mapping[str, Any]]) -> None:
-        attributes, logged, generator = checkpoint
+    def rewind(self, checkpoint: tuple[dict[str, Any], int, Mapping[str, Any], Any]) -> None:
+        attributes, logged, generator, world = checkpoint
         if attributes["_index"] != self._index or logged > len(self._log_t):
             raise ValueError(f"robot {self.id!r}: the checkpoint is not from this movement")
         for log in (self._log_t, self._log_pos, self._log_state, self._log_force,
@@ -357,6 +371,7 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
             del log[logged:]
         self.__dict__.update(attributes)
         self._rng.bit_generator.state = generator
+        self._physics.rewind(world)
 
     def on_movement_end(self, result: MovementResult) -> None:
         self._close_movement()
@@ -549,119 +564,6 @@ class SandboxRobot(Robot, PhysicalTruthSource, RobotFollower):
     @property
     def shear_band_angle_deg(self) -> float:
         return math.degrees(self._beta_rad)
-
-    # --- the world -----------------------------------------------------------------------
-
-    def _new_shear_cycle(self) -> None:
-        cfg = self.config
-        jitter = cfg.shear_cycle_jitter
-        self._cycle_length = (
-            cfg.shear_cycle_length_fraction
-            * self._rupture
-            * self._rng.uniform(1 - jitter, 1 + jitter)
-        )
-        # Zero depth would make a zero-length cycle; keep the loop in step() finite.
-        self._cycle_length = max(self._cycle_length, 1e-6)
-        self._cycle_amplitude = cfg.shear_cycle_amplitude * self._rng.uniform(
-            1 - jitter, 1 + jitter
-        )
-
-    def _interaction(
-        self, position: tuple[float, float], advance: float
-    ) -> tuple[tuple[float, float], int]:
-        """True force ``(x, y)`` and state after the plate moved ``advance`` to ``position``."""
-        cfg = self.config
-        # Shear-band nucleation: the drag builds over a cycle, then drops at a new band.
-        self._cycle_position += advance
-        while self._cycle_position >= self._cycle_length:
-            self._cycle_position -= self._cycle_length
-            self._new_shear_cycle()
-        # Slow multiplicative fluctuation (an AR(1) process with the configured correlation time).
-        self._fluctuation = self._decay * self._fluctuation + self._innovation * (
-            cfg.drag_fluctuation_fraction * self._rng.standard_normal()
-        )
-        scale = max(0.0, 1.0 + self._fluctuation)
-        drag = (
-            self._steady_drag
-            * F.startup_factor(self._travelled, self._rupture)
-            * F.shear_cycle_factor(self._cycle_position / self._cycle_length, self._cycle_amplitude)
-            * scale
-        )
-        dx, dy = self._direction_xy
-        fx, fy = -drag * dx, -drag * dy
-        hit_distance, hit_angle, in_contact = self._locate_objects(position)
-        state = FREE
-        if math.isfinite(hit_distance) and hit_distance <= self._rupture:
-            state = JAMMING
-            surge = F.jamming_force_n(
-                hit_distance,
-                self._rupture,
-                cfg.jamming_gain_n_per_m,
-                self._depth,
-                cfg.jamming_exponent,
-            )
-            push = surge * scale
-            ux, uy = F.unit_vector(hit_angle).tolist()
-            fx, fy = fx - push * ux, fy - push * uy
-        if in_contact:
-            state = CONTACT
-            self._penetration += advance
-            spring = F.contact_force_n(self._penetration, cfg.contact_stiffness_n_per_m)
-            fx, fy = fx - spring * dx, fy - spring * dy
-        else:
-            self._penetration = 0.0
-        return (fx, fy), state
-
-    def _locate_objects(self, xy: tuple[float, float]) -> tuple[float, float, bool]:
-        """Nearest object distance in the failure zone, its direction, and plate contact."""
-        x, y = xy
-        dx, dy = self._direction_xy
-        # An object matters when its bounding circle is within reach and not wholly behind
-        # the plate: the sector's rays fan out at most 90 degrees from the heading (the side
-        # angle is capped there) and the plate lies across it, so nothing sampled is behind.
-        # Rounding in these tests cannot change the answer: an object just outside the
-        # bound lies a plate half-width beyond anything the sector or plate samples.
-        for cx, cy, limit_squared, radius in self._near_limits:
-            if (x - cx) ** 2 + (y - cy) ** 2 <= limit_squared and (
-                (cx - x) * dx + (cy - y) * dy >= -radius
-            ):
-                break
-        else:
-            return math.inf, self._heading, False
-        position = np.array(xy)
-        geometry = self._sector_geometry
-        if geometry is None:
-            geometry = self._sector_geometry = self._fan_geometry()
-        angles, radii, directions, ray_offsets, edge_offsets = geometry
-        hits = F.first_hit_distances(
-            position, angles, radii, self._scene.occupied,
-            directions=directions, ray_offsets=ray_offsets,
-        )
-        best = int(np.argmin(hits))
-        in_contact = bool(
-            hits[best] == 0.0 or self._scene.occupied(position + edge_offsets).any()
-        )
-        return float(hits[best]), float(angles[best]), in_contact
-
-    def _fan_geometry(self) -> tuple[NDArray[np.float64], ...]:
-        """The current movement's sector rays and plate face relative to the fingertip.
-
-        Fixed for a movement (heading, rupture distance and side angle change only between
-        movements), so they are computed at the first step near an object and reused:
-        ray angles, radii, ray directions, ``radii x directions`` and the plate-edge
-        offsets, each exactly as :func:`F.first_hit_distances` and
-        :func:`F.plate_edge_points` would compute them.
-        """
-        cfg = self.config
-        eta = self._eta_rad
-        n_rays = cfg.sector_angular_samples
-        offsets = np.zeros(1) if n_rays == 1 else np.linspace(-eta, eta, n_rays)
-        angles = self._heading + offsets
-        radii = np.linspace(0.0, self._rupture, cfg.sector_radial_samples)
-        directions = F.unit_vector(angles)
-        ray_offsets = radii[None, :, None] * directions[:, None, :]
-        edge_offsets = F.plate_edge_offsets(self._heading, cfg.plate_width_m)
-        return angles, radii, directions, ray_offsets, edge_offsets
 
     def _record(
         self, position: tuple[float, float], force: tuple[float, float], state: int
