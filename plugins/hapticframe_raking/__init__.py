@@ -23,6 +23,7 @@ from ._data import (
 )
 from ._estimator import RakingEstimator, pretrained_model_dir
 from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_keras_model
+from ._keras_check import KERAS_TOLERANCE, keras_available, keras_check
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
 from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
 from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
@@ -32,6 +33,7 @@ __all__ = [
     "DEPTH_CLASSES",
     "DIRECTION_CLASSES",
     "INPUT_SETS",
+    "KERAS_TOLERANCE",
     "AuthorsModels",
     "DenseLayer",
     "DistanceEstimateConfig",
@@ -51,6 +53,8 @@ __all__ = [
     "data_path",
     "fit_model",
     "jamming_labels",
+    "keras_available",
+    "keras_check",
     "load_keras_model",
     "load_trials",
     "object_point",
