@@ -27,9 +27,19 @@ from ._keras_check import KERAS_TOLERANCE, keras_available, keras_check
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
 from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
 from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
+from ._selection import (
+    CV_GRID,
+    CV_RANGE_MM,
+    SELECTED,
+    cross_validate,
+    selected_settings,
+    trial_groups,
+)
 from ._sensor_model import DistanceEstimateSensorModel, place_observations
 
 __all__ = [
+    "CV_GRID",
+    "CV_RANGE_MM",
     "DEPTH_CLASSES",
     "DIRECTION_CLASSES",
     "INPUT_SETS",
@@ -47,9 +57,11 @@ __all__ = [
     "RakingEstimatorConfig",
     "RakingModel",
     "RakingTrial",
+    "SELECTED",
     "TrainingTrial",
     "TrialScores",
     "authors_models_dir",
+    "cross_validate",
     "data_path",
     "fit_model",
     "jamming_labels",
@@ -62,10 +74,12 @@ __all__ = [
     "pretrained_model_dir",
     "score_trials",
     "select_inputs",
+    "selected_settings",
     "sigmoid",
     "softmax",
     "strip_keras_model",
     "summarize",
+    "trial_groups",
     "windows",
     "write_jamming_labels",
 ]

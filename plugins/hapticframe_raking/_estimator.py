@@ -69,7 +69,7 @@ class RakingEstimator(Classifier):
     def settings(self) -> EstimatorSettings:
         c = self.config
         return EstimatorSettings(c.input_set, c.window_steps, c.hidden_units, c.epochs,
-                                 c.batch_size, c.learning_rate, c.skip_first_steps)
+                                 c.batch_size, c.learning_rate, c.skip_first_steps, c.range_mm)
 
     @property
     def model(self) -> RakingModel:

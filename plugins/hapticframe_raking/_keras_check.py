@@ -84,7 +84,7 @@ def _load_error(path: Path) -> str | None:
         with warnings.catch_warnings():  # its input_shape warning is not the finding
             warnings.simplefilter("ignore")
             keras.models.load_model(path, compile=False)
-    except Exception as exc:  # noqa: BLE001 - what Keras raises is the finding itself
+    except Exception as exc:
         return f"{type(exc).__name__}: {str(exc).splitlines()[0][:200]}"
     return None
 
@@ -102,7 +102,7 @@ def _check_model(path: Path, task: str, x: NDArray[np.float64]) -> dict[str, Any
     per_layer = _build(task, x.shape[2], "float64")
     per_layer.load_weights(path)
     whole64 = np.asarray(keras.ops.convert_to_numpy(per_layer(x)), dtype=np.float64)
-    layers = []
+    layers: list[dict[str, Any]] = []
     h = x
     for keras_layer, port_layer in zip(per_layer.layers, port.layers, strict=True):
         want = np.asarray(keras.ops.convert_to_numpy(keras_layer(h)), dtype=np.float64)
@@ -114,9 +114,9 @@ def _check_model(path: Path, task: str, x: NDArray[np.float64]) -> dict[str, Any
         "file": path.name,
         "keras3_load_model_error": _load_error(path),
         "built_from": "train_main.py",
-        "windows": int(len(x)),
-        "max_relative_difference": max(_relative(port_out, whole64),
-                                       *(layer["max_relative_difference"] for layer in layers)),
+        "windows": len(x),
+        "max_relative_difference": max([_relative(port_out, whole64)]
+                                       + [float(x["max_relative_difference"]) for x in layers]),
         "whole_float64_max_abs_difference": float(np.max(np.abs(port_out - whole64))),
         "whole_float32_max_abs_difference": float(np.max(np.abs(port_out - keras_out))),
         "whole_float32_max_relative_difference": _relative(port_out, keras_out),
