@@ -16,11 +16,12 @@ sample on one thread, median over a test trial.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import platform
 import tempfile
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -104,6 +105,31 @@ _TIE = 1e-9
 PROTOCOLS = (("all_steps", "every step from the 5th"), ("last_step", "each trial's last step"))
 
 
+#: Bins of the distance error's profile: by true distance (mm) and by step (1-based).
+DISTANCE_BINS_MM = (0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0)
+STEP_BINS = (5, 15, 25, 35, 45, 55, 65, 80)
+
+
+def _error_profile(estimates: Sequence[np.ndarray], testing: Sequence[Any]
+                   ) -> dict[str, list[float | None]]:
+    """Mean absolute distance error (mm) per true-distance bin and per step bin, from the
+    5th step, over all test trials; ``estimates[i]`` are trial i's per-step estimates from
+    its 5th step on."""
+    err = np.concatenate([np.abs(e - t.distance_mm[4:]) for e, t in
+                          zip(estimates, testing, strict=True)])
+    dist = np.concatenate([t.distance_mm[4:] for t in testing])
+    step = np.concatenate([np.arange(5, len(t) + 1) for t in testing])
+
+    def binned(values: np.ndarray, edges: Sequence[float]) -> list[float | None]:
+        out: list[float | None] = []
+        for lo, hi in itertools.pairwise(edges):
+            m = (values >= lo) & (values < hi)
+            out.append(float(err[m].mean()) if m.any() else None)
+        return out
+
+    return {"by_distance": binned(dist, DISTANCE_BINS_MM), "by_step": binned(step, STEP_BINS)}
+
+
 def _compare(ours: np.ndarray, theirs: np.ndarray, higher_better: bool) -> dict[str, Any]:
     """Mean and median of each, the paired wins, ties and losses of ours, a signed-rank test.
 
@@ -169,6 +195,8 @@ def run_raking_real(options: BenchOptions) -> dict[str, Any]:
                 ours_runs.append(score_trials(model.estimate_trial, testing, input_set))
                 if seed == 0:
                     model.save(model_dir)
+                    ours_steps = [model.estimate_trial(select_inputs(t.force, input_set))
+                                  .distance_mm[4:] for t in testing]
             per_trial = {key: np.mean([getattr(r, key) for r in ours_runs], axis=0)
                          for key in summarize(theirs)}
             ours_summary = {key: {"mean": float(v.mean()), "std": float(v.std()),
@@ -182,7 +210,11 @@ def run_raking_real(options: BenchOptions) -> dict[str, Any]:
                 "per_trial": {"names": list(theirs.names),
                               "ours": {k: v.tolist() for k, v in per_trial.items()},
                               "theirs": {k: getattr(theirs, k).tolist() for k in per_trial}},
-                "comparison": _verdicts(per_trial, theirs)}
+                "comparison": _verdicts(per_trial, theirs),
+                "error_profile": {
+                    "ours_seed0": _error_profile(ours_steps, testing),
+                    "theirs": _error_profile([authors.estimate_trial(select_inputs(
+                        t.force, input_set)).distance_mm for t in testing], testing)}}
             entry["verdicts"] = {task: entry["comparison"][task]["verdict"]
                                  for task, *_ in TASKS}
             force = testing[0].force
@@ -333,6 +365,21 @@ def render_raking_markdown(results: Mapping[str, Any]) -> str:
             lines.append(f"| {input_set} | {name} | {_cell(e['ours'][key], unit)} | "
                          f"{_cell(e['theirs'][key], unit)} | "
                          f"{e['comparison'][task]['all_steps']['verdict']} |")
+    lines += ["", "## Where the distance error is", "",
+              "Mean absolute distance error (mm) over the test steps, ours (seed 0) | theirs, "
+              "by true distance and by step.", "",
+              "| bin | " + " | ".join(results["input_sets"]) + " |",
+              "|---|" + "---|" * len(results["input_sets"])]
+    for kind, edges, unit in (("by_distance", DISTANCE_BINS_MM, "mm"),
+                              ("by_step", STEP_BINS, "")):
+        for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
+            label = (f"{lo:.0f}–{hi:.0f} mm" if unit else f"steps {lo}–{hi - 1}")
+            cells = []
+            for e in results["input_sets"].values():
+                o = e["error_profile"]["ours_seed0"][kind][i]
+                t = e["error_profile"]["theirs"][kind][i]
+                cells.append("–" if o is None or t is None else f"{o:.1f} \\| {t:.1f}")
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
     lines += ["", "## At each trial's last step (the tool at the object)", "",
               "| input set | direction correct | depth correct | distance error (mm) |",
               "|---|---|---|---|"]

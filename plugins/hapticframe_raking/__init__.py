@@ -28,6 +28,7 @@ from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
 from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
 from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
 from ._selection import (
+    CV_CHOICE,
     CV_GRID,
     CV_RANGE_MM,
     SELECTED,
@@ -38,6 +39,7 @@ from ._selection import (
 from ._sensor_model import DistanceEstimateSensorModel, place_observations
 
 __all__ = [
+    "CV_CHOICE",
     "CV_GRID",
     "CV_RANGE_MM",
     "DEPTH_CLASSES",

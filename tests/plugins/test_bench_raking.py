@@ -93,3 +93,20 @@ def test_a_verdict_needs_the_mean_and_the_median() -> None:
     assert same["verdict"] == "met" and same["ties"] == 5 and same["wilcoxon_p"] == 1.0
     worse = _compare(np.full(5, 0.2), np.full(5, 0.4), higher_better=True)
     assert worse["verdict"] == "missed" and worse["losses"] == 5
+
+
+def test_the_cv_report_marks_its_choice() -> None:
+    from hapticframe_bench._raking_real_cv import render_raking_cv_markdown
+
+    rows = [{"settings": {"range_mm": r, "skip_first_steps": 0, "window_steps": 10},
+             "distance_mae_capped_mm": c, "distance_mae_in_range_mm": 20.0,
+             "distance_mae_mm": 30.0, "direction_accuracy": 0.3, "depth_accuracy": 0.5}
+            for r, c in ((None, 25.0), (100.0, 15.0))]
+    text = render_raking_cv_markdown({
+        "training_trials": 80, "folds": 4, "seed": 0, "range_mm": 100.0,
+        "machine": {"load_average_1min": None},
+        "input_sets": {"4_3-axis": {"rows": rows, "chosen": rows[1]["settings"],
+                                    "matches_shipped": True}}})
+    chosen = [line for line in text.splitlines() if line.endswith("| chosen |")]
+    assert len(chosen) == 1 and chosen[0].startswith("| 100.0 | 0 | 10 | 15.0 |")
+    assert "Shipped in `SELECTED`: the same." in text

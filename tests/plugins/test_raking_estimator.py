@@ -213,6 +213,9 @@ def test_cross_validation_holds_out_whole_configurations() -> None:
     assert [r["settings"] for r in rows] == [{"range_mm": None}, {"range_mm": 100.0}]
     for r in rows:
         assert np.isfinite(r["distance_mae_in_range_mm"]) and r["distance_mae_mm"] > 0
+        # Against the truth capped at the range: never more than against the true distance
+        # for a model whose estimates stay within it.
+        assert np.isfinite(r["distance_mae_capped_mm"]) and r["distance_mae_capped_mm"] > 0
         assert 0.0 <= r["direction_accuracy"] <= 1.0
     with pytest.raises(ValueError, match="cannot make 4 folds"):
         cross_validate(few, EstimatorSettings(input_set="1_norm"), folds=4)
