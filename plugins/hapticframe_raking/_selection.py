@@ -63,7 +63,7 @@ def trial_groups(trials: Sequence[RakingTrial]) -> NDArray[np.int64]:
 
 def _fold_scores(trials: Sequence[RakingTrial], predict: Callable[[NDArray[np.float64]],
                  Any], input_set: str) -> list[tuple[float, ...]]:
-    rows = []
+    rows: list[tuple[float, ...]] = []
     for t in trials:
         est = predict(select_inputs(t.force, input_set))
         d = t.distance_mm[4:]
