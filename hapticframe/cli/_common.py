@@ -150,6 +150,9 @@ SUMMARY_METRICS = (
     "last_contact_error_s",
     "wall_time_s",
 )
+#: Scores of a classifier that estimates where the object is (``<id>_distance_mae_mm``, ...,
+#: as the raking estimator's finalize names them), printed before the wall time.
+SUMMARY_SCORE_SUFFIXES = ("_distance_mae_mm", "_direction_accuracy", "_depth_accuracy")
 
 
 def summary_line(metrics: Any, label_channel: str = "contact", *, searched: bool = True) -> str:
@@ -159,6 +162,10 @@ def summary_line(metrics: Any, label_channel: str = "contact", *, searched: bool
     wanted = [k.replace("contact_", f"{label_channel}_", 1) for k in SUMMARY_METRICS]
     if not searched or ("object_found" not in metrics and "objects_found" not in metrics):
         wanted.remove("movements")  # no search: a perception run's zero movements say nothing
+    scores = [k for k in metrics if isinstance(k, str) and k.endswith(SUMMARY_SCORE_SUFFIXES)]
+    if scores:
+        at = wanted.index("wall_time_s")
+        wanted[at:at] = [k for k in scores if k not in wanted]
     parts = []
     for key in wanted:
         value = metrics.get(key)

@@ -16,11 +16,12 @@ sample on one thread, median over a test trial.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import platform
 import tempfile
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -31,14 +32,16 @@ from hapticframe.kinds import BuildContext, SampleBatch
 from hapticframe_raking import (
     INPUT_SETS,
     AuthorsModels,
-    EstimatorSettings,
     RakingEstimator,
     RakingEstimatorConfig,
     TrainingTrial,
+    authors_models_dir,
     fit_model,
+    keras_check,
     load_trials,
     score_trials,
     select_inputs,
+    selected_settings,
     summarize,
 )
 
@@ -68,10 +71,12 @@ def _one_blas_thread() -> Iterator[str]:
         yield "1 (threadpoolctl)"
 
 
-def _per_step_ms(model_dir: Path, input_set: str, trial_force: np.ndarray) -> float:
+def _per_step_ms(model_dir: Path, input_set: str, trial_force: np.ndarray,
+                 window_steps: int = 10) -> float:
     """Median wall time of one streaming update of one sample (ms)."""
     estimator = RakingEstimator(
-        RakingEstimatorConfig(input_set=input_set, model_dir=str(model_dir)),  # type: ignore[arg-type]
+        RakingEstimatorConfig(input_set=input_set, window_steps=window_steps,  # type: ignore[arg-type]
+                              model_dir=str(model_dir)),
         BuildContext("timing", np.random.default_rng(0)))
     times = []
     for i in range(len(trial_force)):
@@ -95,9 +100,70 @@ def _authors_step_ms(models: AuthorsModels, inputs: np.ndarray) -> float:
     return 1e3 * float(np.median(times))
 
 
-def _verdict(ours: float, theirs: float, higher_better: bool) -> str:
-    better = ours >= theirs if higher_better else ours <= theirs
-    return "met" if better else "missed"
+#: Per-trial scores closer than this count as a tie in the paired comparison.
+_TIE = 1e-9
+PROTOCOLS = (("all_steps", "every step from the 5th"), ("last_step", "each trial's last step"))
+
+
+#: Bins of the distance error's profile: by true distance (mm) and by step (1-based).
+DISTANCE_BINS_MM = (0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0)
+STEP_BINS = (5, 15, 25, 35, 45, 55, 65, 80)
+
+
+def _error_profile(estimates: Sequence[np.ndarray], testing: Sequence[Any]
+                   ) -> dict[str, list[float | None]]:
+    """Mean absolute distance error (mm) per true-distance bin and per step bin, from the
+    5th step, over all test trials; ``estimates[i]`` are trial i's per-step estimates from
+    its 5th step on."""
+    err = np.concatenate([np.abs(e - t.distance_mm[4:]) for e, t in
+                          zip(estimates, testing, strict=True)])
+    dist = np.concatenate([t.distance_mm[4:] for t in testing])
+    step = np.concatenate([np.arange(5, len(t) + 1) for t in testing])
+
+    def binned(values: np.ndarray, edges: Sequence[float]) -> list[float | None]:
+        out: list[float | None] = []
+        for lo, hi in itertools.pairwise(edges):
+            m = (values >= lo) & (values < hi)
+            out.append(float(err[m].mean()) if m.any() else None)
+        return out
+
+    return {"by_distance": binned(dist, DISTANCE_BINS_MM), "by_step": binned(step, STEP_BINS)}
+
+
+def _compare(ours: np.ndarray, theirs: np.ndarray, higher_better: bool) -> dict[str, Any]:
+    """Mean and median of each, the paired wins, ties and losses of ours, a signed-rank test.
+
+    Met: ours at least as good as theirs in both the mean and the median over trials.
+    """
+    from scipy.stats import wilcoxon
+
+    gain = (ours - theirs) if higher_better else (theirs - ours)  # > 0: ours better
+    nonzero = np.abs(gain) > _TIE
+    p = float(wilcoxon(ours[nonzero], theirs[nonzero]).pvalue) if nonzero.sum() >= 1 else 1.0
+
+    def at_least(a: float, b: float) -> bool:
+        return bool(a >= b - _TIE) if higher_better else bool(a <= b + _TIE)
+
+    mean_ok = at_least(float(ours.mean()), float(theirs.mean()))
+    median_ok = at_least(float(np.median(ours)), float(np.median(theirs)))
+    return {"ours_mean": float(ours.mean()), "theirs_mean": float(theirs.mean()),
+            "ours_median": float(np.median(ours)), "theirs_median": float(np.median(theirs)),
+            "wins": int((gain > _TIE).sum()), "ties": int((~nonzero).sum()),
+            "losses": int((gain < -_TIE).sum()), "wilcoxon_p": p,
+            "mean_met": mean_ok, "median_met": median_ok,
+            "verdict": "met" if mean_ok and median_ok else "missed"}
+
+
+def _verdicts(per_trial: Mapping[str, np.ndarray], theirs: Any) -> dict[str, Any]:
+    """Per task: both protocols compared, and met where both are."""
+    out: dict[str, Any] = {}
+    for task, key, higher, _ in TASKS:
+        protocols = {name: _compare(np.asarray(per_trial[k]), np.asarray(getattr(theirs, k)),
+                                    higher)
+                     for (name, _), k in zip(PROTOCOLS, (key, _FINAL[task]), strict=True)}
+        met = all(v["verdict"] == "met" for v in protocols.values())
+        out[task] = protocols | {"verdict": "met" if met else "missed"}
+    return out
 
 
 def run_raking_real(options: BenchOptions) -> dict[str, Any]:
@@ -113,8 +179,8 @@ def run_raking_real(options: BenchOptions) -> dict[str, Any]:
     with _one_blas_thread() as blas, tempfile.TemporaryDirectory() as scratch:
         results["blas_threads"] = blas
         for input_set in INPUT_SETS:
-            settings = EstimatorSettings(input_set=input_set)
-            results["settings"] = settings.__dict__
+            settings = selected_settings(input_set)
+            results["settings"][input_set] = settings.__dict__
             authors = AuthorsModels.load(input_set)
             theirs = score_trials(authors.estimate_trial, testing, input_set)
             trials = [TrainingTrial(select_inputs(t.force, input_set), t.distance_mm,
@@ -129,6 +195,8 @@ def run_raking_real(options: BenchOptions) -> dict[str, Any]:
                 ours_runs.append(score_trials(model.estimate_trial, testing, input_set))
                 if seed == 0:
                     model.save(model_dir)
+                    ours_steps = [model.estimate_trial(select_inputs(t.force, input_set))
+                                  .distance_mm[4:] for t in testing]
             per_trial = {key: np.mean([getattr(r, key) for r in ours_runs], axis=0)
                          for key in summarize(theirs)}
             ours_summary = {key: {"mean": float(v.mean()), "std": float(v.std()),
@@ -142,37 +210,65 @@ def run_raking_real(options: BenchOptions) -> dict[str, Any]:
                 "per_trial": {"names": list(theirs.names),
                               "ours": {k: v.tolist() for k, v in per_trial.items()},
                               "theirs": {k: getattr(theirs, k).tolist() for k in per_trial}},
-                "verdicts": {}}
-            for task, key, higher, _ in TASKS:
-                entry["verdicts"][task] = _verdict(ours_summary[key]["mean"],
-                                                   entry["theirs"][key]["mean"], higher)
+                "comparison": _verdicts(per_trial, theirs),
+                "error_profile": {
+                    "ours_seed0": _error_profile(ours_steps, testing),
+                    "theirs": _error_profile([authors.estimate_trial(select_inputs(
+                        t.force, input_set)).distance_mm for t in testing], testing)}}
+            entry["verdicts"] = {task: entry["comparison"][task]["verdict"]
+                                 for task, *_ in TASKS}
             force = testing[0].force
-            entry["ours_step_ms"] = _per_step_ms(model_dir, input_set, force)
+            entry["ours_step_ms"] = _per_step_ms(model_dir, input_set, force,
+                                                 settings.window_steps)
             entry["theirs_step_ms"] = _authors_step_ms(authors,
                                                        select_inputs(force, input_set))
             entry["verdicts"]["step_time"] = ("met" if entry["ours_step_ms"] <= STEP_TARGET_MS
                                               else "missed")
             results["input_sets"][input_set] = entry
             options.echo(_line(input_set, entry))
+        results["keras_check"] = _keras(testing, options)
     results["machine"] = {"platform": platform.platform(), "numpy": np.__version__,
                           "load_average_1min": load_average()}
+    task_verdicts = [e["verdicts"][task] for e in results["input_sets"].values()
+                     for task, *_ in TASKS]
+    results["verdicts_met"] = f"{task_verdicts.count('met')} of {len(task_verdicts)}"
+    keras = results["keras_check"]
     results["all_met"] = all(v == "met" for e in results["input_sets"].values()
-                             for v in e["verdicts"].values())
+                             for v in e["verdicts"].values()) and (
+        keras.get("within_tolerance", True))
+    options.echo(f"  verdicts met (both protocols, mean and median): {results['verdicts_met']}")
     atomic_write(options.out_dir / "raking-real.json", json.dumps(results, indent=2) + "\n")
     atomic_write(options.out_dir / "raking-real.md", render_raking_markdown(results))
     _figure(options.out_dir / "raking-real.png", results)
     options.echo(load_note(results["machine"]["load_average_1min"]))
     options.echo(f"wrote {options.out_dir / 'raking-real.md'} and raking-real.json")
-    return {"all_met": results["all_met"],
+    return {"all_met": results["all_met"], "verdicts_met": results["verdicts_met"],
+            "keras_within_tolerance": keras.get("within_tolerance", keras.get("skipped")),
             **{f"{s}_{task}": e["verdicts"][task] for s, e in results["input_sets"].items()
                for task, *_ in TASKS}}
 
 
+def _keras(testing: Any, options: BenchOptions) -> dict[str, Any]:
+    """The port against Keras itself on the test windows (skipped without Keras 3)."""
+    report = keras_check(testing, authors_models_dir())
+    if "skipped" in report:
+        options.echo(f"  keras check skipped: {report['skipped']}")
+    else:
+        options.echo(f"  keras check ({report['keras']}, {report['backend']}): port within "
+                     f"{report['max_relative_difference']:.1e} of Keras in float64 on "
+                     f"{report['windows']} windows x {len(report['models'])} models "
+                     f"(tolerance {report['tolerance']:.0e}); as the authors ran it, float32: "
+                     f"{report['float32_max_relative_difference']:.1e}")
+    return report
+
+
 def _line(input_set: str, entry: Mapping[str, Any]) -> str:
     parts = []
-    for task, key, _, unit in TASKS:
-        ours, theirs = entry["ours"][key]["mean"], entry["theirs"][key]["mean"]
-        parts.append(f"{task} {ours:.3g}{unit} vs {theirs:.3g}{unit} "
+    for task, _, _, unit in TASKS:
+        c = entry["comparison"][task]
+        a, b = c["all_steps"], c["last_step"]
+        parts.append(f"{task} {a['ours_mean']:.3g}{unit} vs {a['theirs_mean']:.3g}{unit} "
+                     f"(last {b['ours_mean']:.3g} vs {b['theirs_mean']:.3g}) "
                      f"{entry['verdicts'][task]}")
     return (f"  {input_set:9s} " + "; ".join(parts)
             + f"; step {entry['ours_step_ms']:.3f} ms {entry['verdicts']['step_time']}")
@@ -184,8 +280,43 @@ def _cell(stats: Mapping[str, float], unit: str) -> str:
     return f"{stats['mean']:.3f} ± {stats['std']:.3f} (median {stats['median']:.3f})"
 
 
+def _number(value: float, unit: str) -> str:
+    return f"{value:.1f}" if unit else f"{value:.3f}"
+
+
+def _keras_lines(keras: Mapping[str, Any]) -> list[str]:
+    lines = ["## The port against Keras itself", ""]
+    if "skipped" in keras:
+        return [*lines, f"Skipped: {keras['skipped']}."]
+    lines += [
+        f"Keras {keras['keras']} ({keras['backend']} backend). `keras.models.load_model` on "
+        f"the authors' files: {'; '.join(keras['keras3_load_model'])} (their Keras 2 LSTM "
+        "config carries `time_major`, which Keras 3 no longer takes). So each model is built "
+        "as their `train_main.py` builds it and Keras's own HDF5 reader sets its weights "
+        f"(`load_weights`). On all {keras['windows']} test windows: largest difference of the "
+        f"port from Keras, relative to max(1, |output|), **{keras['max_relative_difference']:.1e}"
+        f"** in float64 (whole model and layer by layer; tolerance "
+        f"{keras['tolerance']:.0e}: {'met' if keras['within_tolerance'] else 'missed'}); "
+        f"against Keras in float32, as the authors ran it: "
+        f"{keras['float32_max_relative_difference']:.1e} (float32 rounding). Keras 3 "
+        "multiplies a Dense layer's inputs in float32 even in a float64 model (its type "
+        "promotion makes 64-bit results 32-bit), so the Dense rows agree to float32 rounding "
+        "and the LSTM rows to float64 rounding.",
+        "",
+        "| input set | task | float64, per layer | float64, whole | float32, whole |",
+        "|---|---|---|---|---|"]
+    for m in keras["models"]:
+        layers = ", ".join(f"{x['layer']}({x['units']}) {x['max_relative_difference']:.0e}"
+                           for x in m["layers_float64"])
+        lines.append(f"| {m['input_set']} | {m['task']} | {layers} | "
+                     f"{m['whole_float64_max_abs_difference']:.1e} abs | "
+                     f"{m['whole_float32_max_relative_difference']:.1e} |")
+    return lines
+
+
 def render_raking_markdown(results: Mapping[str, Any]) -> str:
-    """The report: a table per protocol, ours beside theirs, with the verdicts."""
+    """The report: the verdicts with their paired comparison, a table per protocol, ours
+    beside theirs, the cost and the Keras check."""
     machine = results["machine"]
     lines = [
         "# Real raking data: ours against the authors' models",
@@ -193,9 +324,35 @@ def render_raking_markdown(results: Mapping[str, Any]) -> str:
         f"{results['data']['testing_trials']} test trials "
         f"({results['data']['testing_steps_scored']} scored steps), our estimator trained "
         f"on {results['data']['training_trials']} trials with {results['seeds']} seed(s); "
-        f"mean ± standard deviation over test trials (ours: each trial's score averaged "
-        f"over the seeds). {machine['platform']}; BLAS threads "
+        f"over test trials (ours: each trial's score averaged over the seeds). Our settings "
+        f"per input set were chosen by cross-validation on the training trials only "
+        f"(`hapticframe bench raking-real-cv`). {machine['platform']}; BLAS threads "
         f"{results['blas_threads']}; {load_note(machine['load_average_1min'])}.",
+        "",
+        f"## Verdicts: {results['verdicts_met']} met",
+        "",
+        "Met: ours at least as good as theirs in both the mean and the median over the test "
+        "trials, on both protocols (every step from the 5th; each trial's last step). Paired "
+        "per trial: wins / ties / losses of ours, and the Wilcoxon signed-rank p (two-sided, "
+        "ties left out).",
+        "",
+        "| input set | task | protocol | ours mean | theirs mean | ours median | theirs median "
+        "| wins / ties / losses | p | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for input_set, e in results["input_sets"].items():
+        for task, _, _, unit in TASKS:
+            c = e["comparison"][task]
+            for protocol, label in PROTOCOLS:
+                v = c[protocol]
+                lines.append(
+                    f"| {input_set} | {task}{' (mm)' if unit else ''} | {label} | "
+                    f"{_number(v['ours_mean'], unit)} | {_number(v['theirs_mean'], unit)} | "
+                    f"{_number(v['ours_median'], unit)} | "
+                    f"{_number(v['theirs_median'], unit)} | "
+                    f"{v['wins']} / {v['ties']} / {v['losses']} | {v['wilcoxon_p']:.2g} | "
+                    f"{v['verdict']} |")
+    lines += [
         "",
         "## Every step from the 5th (the authors' test_main.py protocol)",
         "",
@@ -206,7 +363,23 @@ def render_raking_markdown(results: Mapping[str, Any]) -> str:
         for task, key, _, unit in TASKS:
             name = f"{task} {'MAE (mm)' if unit else 'accuracy'}"
             lines.append(f"| {input_set} | {name} | {_cell(e['ours'][key], unit)} | "
-                         f"{_cell(e['theirs'][key], unit)} | {e['verdicts'][task]} |")
+                         f"{_cell(e['theirs'][key], unit)} | "
+                         f"{e['comparison'][task]['all_steps']['verdict']} |")
+    lines += ["", "## Where the distance error is", "",
+              "Mean absolute distance error (mm) over the test steps, ours (seed 0) | theirs, "
+              "by true distance and by step.", "",
+              "| bin | " + " | ".join(results["input_sets"]) + " |",
+              "|---|" + "---|" * len(results["input_sets"])]
+    for kind, edges, unit in (("by_distance", DISTANCE_BINS_MM, "mm"),
+                              ("by_step", STEP_BINS, "")):
+        for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
+            label = (f"{lo:.0f}–{hi:.0f} mm" if unit else f"steps {lo}–{hi - 1}")
+            cells = []
+            for e in results["input_sets"].values():
+                o = e["error_profile"]["ours_seed0"][kind][i]
+                t = e["error_profile"]["theirs"][kind][i]
+                cells.append("–" if o is None or t is None else f"{o:.1f} \\| {t:.1f}")
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
     lines += ["", "## At each trial's last step (the tool at the object)", "",
               "| input set | direction correct | depth correct | distance error (mm) |",
               "|---|---|---|---|"]
@@ -224,11 +397,15 @@ def render_raking_markdown(results: Mapping[str, Any]) -> str:
     for input_set, e in results["input_sets"].items():
         lines.append(f"| {input_set} | {e['ours_step_ms']:.3f} | {e['theirs_step_ms']:.3f} "
                      f"| {e['train_s_median']:.1f} | {e['verdicts']['step_time']} |")
-    lines += ["", "## Our means per training seed", ""]
+    lines += ["", "## Our settings and means per training seed", ""]
     for input_set, e in results["input_sets"].items():
+        s = results["settings"][input_set]
         cells = [f"{task} " + ", ".join(f"{v:.3g}" for v in e["ours_seed_means"][key])
                  for task, key, _, _ in TASKS]
-        lines.append(f"- {input_set}: " + "; ".join(cells))
+        lines.append(f"- {input_set} (window {s['window_steps']}, first "
+                     f"{s['skip_first_steps']} steps left out, distance capped at "
+                     f"{s['range_mm']} mm): " + "; ".join(cells))
+    lines += ["", *_keras_lines(results["keras_check"])]
     return "\n".join(lines) + "\n"
 
 

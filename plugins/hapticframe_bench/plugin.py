@@ -116,6 +116,13 @@ def hapticframe_benchmarks() -> Iterator[BenchSpec]:
         "theirs)",
     )
     yield BenchSpec(
+        name="raking-real-cv",
+        summary="How raking-real's settings were chosen: grouped cross-validation on the 80 "
+        "real training trials only, per input set (distance cap, steps left out, window).",
+        factory="hapticframe_bench._raking_real_cv:run_raking_real_cv",
+        install_hint=_LEARN_HINT,
+    )
+    yield BenchSpec(
         name="raking-jamming",
         summary="The force/force-rate jamming rule on real raking data: calibrated on 80 "
         "trials, first-flag distance and far false alarms on 20, force against distance.",

@@ -23,15 +23,29 @@ from ._data import (
 )
 from ._estimator import RakingEstimator, pretrained_model_dir
 from ._keras import KerasModelError, KerasSequential, load_keras_model, strip_keras_model
+from ._keras_check import KERAS_TOLERANCE, keras_available, keras_check
 from ._lstm import DenseLayer, LSTMLayer, sigmoid, softmax
 from ._model import EstimatorSettings, ObjectEstimate, RakingModel, TrainingTrial, fit_model
 from ._scoring import AuthorsModels, TrialScores, authors_models_dir, score_trials, summarize
+from ._selection import (
+    CV_CHOICE,
+    CV_GRID,
+    CV_RANGE_MM,
+    SELECTED,
+    cross_validate,
+    selected_settings,
+    trial_groups,
+)
 from ._sensor_model import DistanceEstimateSensorModel, place_observations
 
 __all__ = [
+    "CV_CHOICE",
+    "CV_GRID",
+    "CV_RANGE_MM",
     "DEPTH_CLASSES",
     "DIRECTION_CLASSES",
     "INPUT_SETS",
+    "KERAS_TOLERANCE",
     "AuthorsModels",
     "DenseLayer",
     "DistanceEstimateConfig",
@@ -45,12 +59,16 @@ __all__ = [
     "RakingEstimatorConfig",
     "RakingModel",
     "RakingTrial",
+    "SELECTED",
     "TrainingTrial",
     "TrialScores",
     "authors_models_dir",
+    "cross_validate",
     "data_path",
     "fit_model",
     "jamming_labels",
+    "keras_available",
+    "keras_check",
     "load_keras_model",
     "load_trials",
     "object_point",
@@ -58,10 +76,12 @@ __all__ = [
     "pretrained_model_dir",
     "score_trials",
     "select_inputs",
+    "selected_settings",
     "sigmoid",
     "softmax",
     "strip_keras_model",
     "summarize",
+    "trial_groups",
     "windows",
     "write_jamming_labels",
 ]

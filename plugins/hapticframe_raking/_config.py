@@ -42,6 +42,10 @@ class RakingEstimatorConfig(PluginConfig):
     skip_first_steps: int = Field(
         20, ge=0, le=10_000, description="Steps at the start of each training recording left "
         "out of training (the tool's start-up transient; the authors leave out 20).")
+    range_mm: float | None = Field(
+        None, gt=0, le=10_000, allow_inf_nan=False, description="Distances beyond this are "
+        "learned as this (mm; null: not capped): far from the object the forces do not tell "
+        "the distance. bench raking-real-cv chooses it per input set.")
     restart_after_gap_s: float = Field(
         0.5, gt=0, le=1e6, allow_inf_nan=False, description="A pause in the samples longer "
         "than this starts a new window (a new trial; imported trials are 1 s apart).")

@@ -69,7 +69,7 @@ class RakingEstimator(Classifier):
     def settings(self) -> EstimatorSettings:
         c = self.config
         return EstimatorSettings(c.input_set, c.window_steps, c.hidden_units, c.epochs,
-                                 c.batch_size, c.learning_rate, c.skip_first_steps)
+                                 c.batch_size, c.learning_rate, c.skip_first_steps, c.range_mm)
 
     @property
     def model(self) -> RakingModel:
@@ -270,8 +270,11 @@ class RakingEstimator(Classifier):
         if outcome.figures:
             from ._figures import save_estimate_figure
 
+            c = self.config
             save_estimate_figure(outcome.out_dir / f"{self.id}-estimates.png", t, est,
-                                 arrays.get(f"true_{self.config.distance_channel}"))
+                                 arrays.get(f"true_{c.distance_channel}"),
+                                 arrays.get(f"true_{c.direction_channel}"),
+                                 arrays.get(f"true_{c.depth_channel}"))
         (outcome.out_dir / f"{self.id}-model.json").write_text(json.dumps(
             {"settings": self.model.settings.__dict__}, indent=2) + "\n")
         return metrics

@@ -54,10 +54,17 @@ class EstimatorSettings:
     batch_size: int = 128
     learning_rate: float = 3e-3
     skip_first_steps: int = 20
+    #: Distances beyond this are learned as this (mm; None: not capped). Far from the object
+    #: the forces do not tell the distance, and an uncapped model learns the training
+    #: trials' start distances instead; the map reads no estimate beyond 0.1 m anyway.
+    range_mm: float | None = None
 
     def __post_init__(self) -> None:
         if self.input_set not in INPUT_SETS:
             raise ValueError(f"input_set {self.input_set!r} is not one of {', '.join(INPUT_SETS)}")
+        if self.range_mm is not None and not (math.isfinite(self.range_mm)
+                                              and self.range_mm > 0):
+            raise ValueError(f"range_mm must be a positive number or None, got {self.range_mm}")
 
 
 @dataclass(frozen=True)
@@ -164,7 +171,8 @@ def _training_arrays(trials: Sequence[TrainingTrial], settings: EstimatorSetting
         w = windows(trial.inputs, settings.window_steps, pad=True)
         keep = slice(min(settings.skip_first_steps, max(len(w) - 1, 0)), None)
         xs.append(w[keep])
-        ds.append(trial.distance_mm[keep])
+        d = trial.distance_mm[keep]
+        ds.append(d if settings.range_mm is None else np.minimum(d, settings.range_mm))
         dirs.append(trial.direction[keep])
         deps.append(trial.depth[keep])
     return (np.concatenate(xs), np.concatenate(ds), np.concatenate(dirs),

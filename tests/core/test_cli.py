@@ -236,6 +236,13 @@ def test_a_run_without_a_search_prints_no_movement_count():
     # plans no movement: its line counts none.
     scored = {"movements": 0, "object_found": True, "contact_balanced_accuracy": 0.9}
     assert "movements" not in summary_line(scored, searched=False)
+    # An object estimator's scores are printed (the raking example), before the wall time.
+    raking = {"estimator_distance_mae_mm": 18.24, "estimator_direction_accuracy": 0.41,
+              "estimator_depth_accuracy": 0.6, "estimator_replaced_samples": 0,
+              "wall_time_s": 3.0}
+    assert summary_line(raking, searched=False) == (
+        "estimator_distance_mae_mm=18.24, estimator_direction_accuracy=0.41, "
+        "estimator_depth_accuracy=0.6, wall_time_s=3")
 
 
 def test_only_an_experiment_with_a_planner_counts_movements():

@@ -182,3 +182,41 @@ def test_the_shipped_model_is_what_the_training_example_trains(tmp_path: Path,
     a, b = fresh.estimate_trial(x), shipped.estimate_trial(x)
     assert np.median(np.abs(a.distance_mm - b.distance_mm)) < 5.0
     assert np.mean(a.direction_proba.argmax(1) == b.direction_proba.argmax(1)) > 0.9
+
+
+def test_the_distance_cap_bounds_the_training_targets() -> None:
+    from hapticframe_raking._model import _training_arrays
+
+    trials = [TrainingTrial(select_inputs(t.force, "1_norm"), t.distance_mm, t.direction,
+                            t.depth) for t in load_trials("training")[:2]]
+    capped = _training_arrays(trials, EstimatorSettings(input_set="1_norm", range_mm=100.0))[1]
+    free = _training_arrays(trials, EstimatorSettings(input_set="1_norm"))[1]
+    assert free.max() > 140.0 and capped.max() == 100.0
+    np.testing.assert_array_equal(capped, np.minimum(free, 100.0))
+    for bad in (0.0, -5.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="range_mm"):
+            EstimatorSettings(range_mm=bad)
+    with pytest.raises(ValueError):
+        RakingEstimatorConfig(range_mm=float("nan"))
+
+
+def test_cross_validation_holds_out_whole_configurations() -> None:
+    pytest.importorskip("torch")
+    from hapticframe_raking import cross_validate, selected_settings, trial_groups
+
+    trials = load_trials("training")
+    groups = trial_groups(trials)
+    assert len(np.unique(groups)) == 16 and np.all(np.bincount(groups)[1:] == 5)
+    few = [t for t in trials if t.name[:2] in ("01", "02", "03")]
+    rows = cross_validate(few, EstimatorSettings(input_set="1_norm", epochs=1, hidden_units=4),
+                          grid={"range_mm": (None, 100.0)}, folds=3)
+    assert [r["settings"] for r in rows] == [{"range_mm": None}, {"range_mm": 100.0}]
+    for r in rows:
+        assert np.isfinite(r["distance_mae_in_range_mm"]) and r["distance_mae_mm"] > 0
+        # Against the truth capped at the range: never more than against the true distance
+        # for a model whose estimates stay within it.
+        assert np.isfinite(r["distance_mae_capped_mm"]) and r["distance_mae_capped_mm"] > 0
+        assert 0.0 <= r["direction_accuracy"] <= 1.0
+    with pytest.raises(ValueError, match="cannot make 4 folds"):
+        cross_validate(few, EstimatorSettings(input_set="1_norm"), folds=4)
+    assert selected_settings("4_3-axis").range_mm == 100.0
