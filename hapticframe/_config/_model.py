@@ -172,8 +172,9 @@ class RunSettings(BaseModel):
         description="Largest share of the run's CPU time that map snapshots may take: a "
         "snapshot that is due is skipped while the snapshots so far took more (the maps' "
         "last state is always written). Small maps stay at snapshot_rate_hz; a large map's "
-        "snapshots (each changed tile's covariance) thin out so the recording costs the "
-        "same share at every region size. 1: every due snapshot.",
+        "snapshots (the grid moments of each tile changed since the last one; unchanged "
+        "tiles' are kept) thin out, so the snapshots cost at most this share at every "
+        "region size. 1: every due snapshot.",
     )
     live_tick_s: float = Field(
         0.01, gt=0, le=10.0,
