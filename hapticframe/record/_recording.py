@@ -44,14 +44,16 @@ import logging
 import math
 import os
 import time
+from bisect import bisect_left
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from operator import itemgetter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, BinaryIO
 
 import numpy as np
-from pydantic_core import to_json
+import orjson
 
 from hapticframe._atomic import output_error
 from hapticframe._errors import UsageError
@@ -92,6 +94,7 @@ __all__ = [
     "SNAPSHOT_SPACING_M",
     "SYNC_S",
     "RunRecording",
+    "decode_message",
     "encode_message",
     "find_recording",
     "listening",
@@ -225,17 +228,39 @@ def _plain(array: np.ndarray) -> Any:
 
 
 def _json_fallback(value: Any) -> Any:
-    """What the serializer does not know: numpy arrays and scalars as Python values."""
-    if isinstance(value, (np.ndarray, np.generic)):
+    """What the serializer does not take as it is: numpy arrays it cannot read in place
+    (not C-contiguous, another byte order or dtype) and numpy scalars, as Python values."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind == "f":
+            return np.ascontiguousarray(value, dtype=np.float64)
         return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
     raise TypeError(f"a recording message cannot hold {type(value).__name__}")
 
 
+_JSON_OPTIONS = orjson.OPT_SERIALIZE_NUMPY
+
+
 def encode_message(data: Mapping[str, Any]) -> bytes:
-    """A message as ``run.mcap`` holds it: JSON, non-finite floats as null, numpy values as
-    lists (pydantic-core's serializer, pydantic's own: the same JSON as :func:`json.dumps`,
-    about 8x faster on the float lists that make up most of a recording)."""
-    return to_json(data, inf_nan_mode="null", fallback=_json_fallback)
+    """A message as ``run.mcap`` holds it: JSON, non-finite floats as null, numpy arrays as
+    arrays (orjson, which reads a float64 array in place: the same JSON as :func:`json.dumps`
+    of the array's list, about 4x faster than making the list first)."""
+    try:
+        return orjson.dumps(data, default=_json_fallback, option=_JSON_OPTIONS)
+    except orjson.JSONEncodeError as exc:
+        if isinstance(exc.__cause__, TypeError):  # raised by _json_fallback: not JSON
+            raise exc.__cause__ from None
+    # What orjson refuses to read in place (a big-endian array): as Python values.
+    try:
+        return orjson.dumps(_nan_to_none(data), default=_json_fallback)
+    except orjson.JSONEncodeError as exc:
+        raise TypeError(f"a recording message cannot be written as JSON: {exc}") from exc
+
+
+def decode_message(payload: bytes) -> Any:
+    """A message of ``run.mcap`` decoded (its nulls stay None)."""
+    return orjson.loads(payload)
 
 
 def _nan_to_none(value: Any) -> Any:
@@ -250,6 +275,10 @@ def _nan_to_none(value: Any) -> Any:
     if isinstance(value, np.generic):
         return _nan_to_none(value.item())
     return value
+
+
+#: A held robot row's model time (its first field).
+_row_time = itemgetter(0)
 
 
 @dataclass
@@ -343,6 +372,7 @@ class RunRecording:
             self._listeners.remove(listener)
 
     def _tell(self, topic: str, t_s: float, data: Mapping[str, Any], payload: bytes) -> None:
+        decoded: Any = None
         for listener in list(self._listeners):
             try:
                 if getattr(listener, "wants_payload", False):
@@ -350,7 +380,9 @@ class RunRecording:
                     # just written rather than encoding them a second time.
                     listener(topic, t_s, data, payload)  # type: ignore[call-arg]
                 else:
-                    listener(topic, t_s, data)
+                    if decoded is None:  # the message as a reader sees it: lists, None
+                        decoded = decode_message(payload)
+                    listener(topic, t_s, decoded)
             except Exception as exc:  # a listener never fails the run
                 _log.warning("recording listener %r failed on %s and is dropped: %s: %s",
                              getattr(listener, "__qualname__", listener), topic,
@@ -432,15 +464,19 @@ class RunRecording:
             block.rows.extend(rows)
             if self.snapshot_rate_hz > 0:
                 period, due = 1.0 / self.snapshot_rate_hz, lane[1]
-                for t, position, heading, depth, _ in rows:
-                    if t >= due:
-                        due = t + period - _EPS_S
-                        # Deferred, not an event: an event writes every open block first,
-                        # and poses at the snapshot rate would cut a long run's blocks into
-                        # tens of thousands of small messages.
-                        self.later(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
-                                   _foxglove.pose_message(t, position, heading, depth), t,
-                                   plain=True)
+                # The steps come in time order: the next pose is found by bisection, not
+                # by looking at each of the hundreds of steps between two poses.
+                k = bisect_left(rows, due, key=_row_time)
+                while k < len(rows):
+                    t, position, heading, depth, _ = rows[k]
+                    due = t + period - _EPS_S
+                    # Deferred, not an event: an event writes every open block first, and
+                    # poses at the snapshot rate would cut a long run's blocks into tens of
+                    # thousands of small messages.
+                    self.later(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
+                               _foxglove.pose_message(t, position, heading, depth), t,
+                               plain=True)
+                    k = bisect_left(rows, due, lo=k + 1, key=_row_time)
                 lane[1] = due
             self._seen(block, rows[0][0], rows[-1][0])
 
@@ -597,7 +633,10 @@ class RunRecording:
             target = data
             for name in key[:-1]:
                 target = target.setdefault(name, {})
-            target[key[-1]] = _plain(array)
+            # The array itself: the encoder reads it in place (float64, so that what is
+            # read back is the value recorded, to the bit).
+            target[key[-1]] = (array.astype(np.float64) if array.dtype.kind == "f"
+                               and array.dtype != np.float64 else array)
         if block.rows:
             # Python numbers already (robot_state): lists as they are, non-finite ones
             # written as null by the serializer; through numpy they cost a 10 x 10 m
@@ -727,5 +766,5 @@ def read_recording(path: Path) -> dict[str, list[tuple[int, dict[str, Any]]]]:
             channels[record.id] = record.topic
         elif isinstance(record, Message) and record.channel_id in channels:
             out.setdefault(channels[record.channel_id], []).append(
-                (record.log_time, json.loads(record.data)))
+                (record.log_time, decode_message(record.data)))
     return out

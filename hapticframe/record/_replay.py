@@ -39,6 +39,7 @@ from hapticframe.kinds import ExploratoryMovement, MovementResult, RobotState
 from hapticframe.record._recording import (
     _check_magic,
     _records,
+    decode_message,
     find_recording,
     open_run_recording,
 )
@@ -99,11 +100,11 @@ def read_timeline(path: Path) -> Recorded:
         elif isinstance(record, Message) and record.channel_id in channels:
             topic = channels[record.channel_id]
             if topic in (LOOP.name, MOVEMENT.name):
-                out.timeline.append((topic, json.loads(record.data)))
+                out.timeline.append((topic, decode_message(record.data)))
             elif topic == METRICS.name:
-                out.metrics = json.loads(record.data)
+                out.metrics = decode_message(record.data)
             elif (robot_id := ROBOT_STATE.id_of(topic)) is not None:
-                rows.setdefault(robot_id, []).append(json.loads(record.data))
+                rows.setdefault(robot_id, []).append(decode_message(record.data))
     out.cut = stop[0] if stop else ""
     for robot_id, messages in rows.items():
         def column(name: str, messages: list[dict[str, Any]] = messages) -> np.ndarray:

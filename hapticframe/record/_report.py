@@ -32,7 +32,7 @@ from hapticframe import plotting
 from hapticframe._defaults import OUTLINE_LEVEL
 from hapticframe._errors import UsageError
 from hapticframe.record import _foxglove
-from hapticframe.record._recording import _check_magic, _records, find_recording
+from hapticframe.record._recording import _check_magic, _records, decode_message, find_recording
 from hapticframe.run._channels import (
     CLASSIFIER,
     MAP_GRID,
@@ -108,7 +108,7 @@ def load_recording(path: Path) -> Recording:
             out.metadata[record.name] = dict(record.metadata)
         elif isinstance(record, Message) and record.channel_id in channels:
             try:
-                data = json.loads(record.data)
+                data = decode_message(record.data)
             except ValueError:
                 continue  # not one of ours: nothing to draw from it
             out.messages.setdefault(channels[record.channel_id], []).append(

@@ -230,3 +230,61 @@ def test_a_run_can_record_nothing(lab_dir):
     assert run(experiment, out) == 0
     assert not (out / RECORDING).exists() and RECORDING not in record(out)["files"]
     assert not os.path.exists(out / STAGING)
+
+
+def _reference_json(value: Any) -> Any:
+    """What a message holds, made by hand: lists of Python floats, non-finite ones None."""
+    if isinstance(value, dict):
+        return {k: _reference_json(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return _reference_json(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [_reference_json(v) for v in value]
+    if isinstance(value, np.generic):
+        return _reference_json(value.item())
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def test_messages_hold_arrays_as_json_reads_them_back_to_the_bit() -> None:
+    """The encoder reads arrays in place (orjson); the reference is :mod:`json` of their
+    lists. Views, other dtypes, non-finite values and numpy scalars included."""
+    from hapticframe.record._recording import decode_message, encode_message
+
+    rng = np.random.default_rng(3)
+    grid = rng.normal(size=(40, 6)) * 10.0 ** rng.integers(-300, 300, size=(40, 6))
+    grid[3, 2], grid[5, 1], grid[7, 4] = np.nan, np.inf, -np.inf
+    data = {
+        "dense": grid,
+        "view": grid[::3, 1::2],  # not contiguous
+        "fortran": np.asfortranarray(grid),
+        "big_endian": grid.astype(">f8"),
+        "ints": np.arange(-5, 5, dtype=np.int32),
+        "flags": grid > 0,
+        "nested": {"empty": np.zeros((0, 2)), "scalar": np.float64(np.nan),
+                   "count": np.int64(7), "tiny": np.array([5e-324, -0.0])},
+        "rows": [(1.5, [0.25, float("nan")], 3)],
+    }
+    payload = encode_message(data)
+    assert json.loads(payload) == _reference_json(data)
+    decoded = decode_message(payload)
+    read_back = np.where(np.isfinite(grid), grid, np.nan)  # null reads back as NaN
+    assert np.array_equal(np.array(decoded["dense"], dtype=float), read_back, equal_nan=True)
+    assert np.array_equal(np.array(decoded["view"], dtype=float), read_back[::3, 1::2],
+                          equal_nan=True)
+    assert decoded["nested"]["empty"] == []
+    with pytest.raises(TypeError, match="cannot hold object"):
+        encode_message({"what": object()})
+
+
+def test_float32_samples_are_recorded_as_their_float64_values(tmp_path: Path) -> None:
+    """A sensor's float32 channel reads back as the same numbers in float64 (not float32's
+    shortest decimal, which is another float64)."""
+    values = np.array([[0.1], [1 / 3], [2.0 ** -140]], dtype=np.float32)
+    recording = RunRecording(tmp_path / RECORDING)
+    recording.samples("sensor", "cheap", SampleBatch(
+        np.array([0.0, 0.01, 0.02]), {"force": values}))
+    recording.close()
+    [(_, data)] = read_recording(tmp_path / RECORDING)["/sensor/cheap"]
+    assert np.array_equal(np.array(data["channels"]["force"]), values.astype(np.float64))

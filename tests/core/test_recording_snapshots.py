@@ -280,3 +280,28 @@ def test_due_snapshots_are_skipped_while_they_exceed_their_cpu_share(tmp_path) -
     reader = make_reader(open(tmp_path / "a.mcap", "rb"))
     grids = [m for _, c, m in reader.iter_messages() if c.topic == "/map/ramp/grid"]
     assert len(grids) == 1
+
+
+def test_poses_are_the_first_steps_of_each_period_however_the_steps_are_taken(tmp_path):
+    """The poses are found by bisection in each taken batch of steps; the reference is the
+    rule itself applied step by step: a pose at the first step at least one period (less
+    the tolerance) after the last pose."""
+    rng = np.random.default_rng(11)
+    times = np.cumsum(rng.uniform(0.0005, 0.09, size=3000))
+    rate_hz = 5.0
+    recording = RunRecording(tmp_path / "a.mcap")
+    recording.configure_snapshots(rate_hz)
+    for t in times:
+        recording.robot_state("arm", RobotState(float(t), np.array([t, -t]), 0.0, 0.02), 0)
+        if rng.random() < 0.02:
+            assert recording.now_s == t  # takes the held steps in: batches of every size
+    recording.close()
+    expected, due = [], -np.inf
+    for t in times:
+        if t >= due:
+            expected.append(t)
+            due = t + 1.0 / rate_hz - 1e-6  # the recording's tolerance, _EPS_S
+    poses = read_recording(tmp_path / "a.mcap")["/robot/arm/pose"]
+    got = sorted(p["timestamp"]["sec"] + p["timestamp"]["nsec"] * 1e-9 for _, p in poses)
+    assert len(got) == len(expected) > 100
+    assert got == pytest.approx(expected, abs=1e-9)
