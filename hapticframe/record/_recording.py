@@ -351,7 +351,9 @@ class RunRecording:
         self.snapshot_rate_hz = SNAPSHOT_RATE_HZ
         self._next_snapshot_s = -math.inf
         self._robot_lanes: dict[str, list[Any]] = {}
-        self._robot_rows: dict[str, list[tuple[float, list[float], float, float, int]]] = {}
+        # (t, x, y, heading, depth, movement): flat tuples of numbers, which the garbage
+        # collector stops tracking (a 10 x 10 m search holds up to a block of them).
+        self._robot_rows: dict[str, list[tuple[float, float, float, float, float, int]]] = {}
         self._scene_written = False
         self._guard(lambda: self._writer.start(profile="", library=f"hapticframe {__version__}"))
         if metadata:
@@ -441,8 +443,9 @@ class RunRecording:
         rows = self._robot_rows.get(robot_id)
         if rows is None:
             rows = self._robot_rows[robot_id] = []
-        rows.append((float(state.timestamp_s), state.position_m.tolist(),
-                     float(state.heading_rad), float(state.depth_m), movement_index))
+        x, y = state.position_m.tolist()
+        rows.append((float(state.timestamp_s), x, y, float(state.heading_rad),
+                     float(state.depth_m), movement_index))
         if len(rows) >= _ROBOT_ROWS_HELD:  # a run with no sensor to move the blocks on
             self._take_robot_rows()
 
@@ -459,8 +462,8 @@ class RunRecording:
             block = self._blocks.get(lane[0])
             if block is None:
                 block = self._block(lane[0], ROBOT_STATE.schema)
-                block.row_fields = ("timestamps_s", "positions_m", "headings_rad",
-                                    "depths_m", "movement_index")
+                block.row_fields = ("timestamps_s", "x", "y", "headings_rad", "depths_m",
+                                    "movement_index")
             block.rows.extend(rows)
             if self.snapshot_rate_hz > 0:
                 period, due = 1.0 / self.snapshot_rate_hz, lane[1]
@@ -468,13 +471,13 @@ class RunRecording:
                 # by looking at each of the hundreds of steps between two poses.
                 k = bisect_left(rows, due, key=_row_time)
                 while k < len(rows):
-                    t, position, heading, depth, _ = rows[k]
+                    t, x, y, heading, depth, _ = rows[k]
                     due = t + period - _EPS_S
                     # Deferred, not an event: an event writes every open block first, and
                     # poses at the snapshot rate would cut a long run's blocks into tens of
                     # thousands of small messages.
                     self.later(ROBOT_POSE.topic(robot_id), ROBOT_POSE.schema,
-                               _foxglove.pose_message(t, position, heading, depth), t,
+                               _foxglove.pose_message(t, (x, y), heading, depth), t,
                                plain=True)
                     k = bisect_left(rows, due, lo=k + 1, key=_row_time)
                 lane[1] = due
@@ -638,12 +641,15 @@ class RunRecording:
             target[key[-1]] = (array.astype(np.float64) if array.dtype.kind == "f"
                                and array.dtype != np.float64 else array)
         if block.rows:
-            # Python numbers already (robot_state): lists as they are, non-finite ones
-            # written as null by the serializer; through numpy they cost a 10 x 10 m
-            # search's recording a second more.
-            for name, column in zip(block.row_fields, zip(*block.rows, strict=True),
-                                    strict=True):
-                data[name] = list(column)
+            # Python numbers already (robot_state): columns as they are (the serializer
+            # writes a tuple as an array, non-finite numbers as null); x and y as the
+            # (n, 2) positions.
+            columns = dict(zip(block.row_fields, zip(*block.rows, strict=True), strict=True))
+            data["timestamps_s"] = columns["timestamps_s"]
+            data["positions_m"] = np.column_stack((np.array(columns["x"], dtype=np.float64),
+                                                   np.array(columns["y"], dtype=np.float64)))
+            for name in ("headings_rad", "depths_m", "movement_index"):
+                data[name] = columns[name]
         self._write(topic, block.schema, block.end_s, data)
 
     def _write(self, topic: str, schema: str, t_s: float, data: Mapping[str, Any]) -> None:
