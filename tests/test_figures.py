@@ -143,12 +143,21 @@ def test_forces_names_the_true_force_and_draws_the_classifier_thresholds(
     assert "true plate force" in figure.axes[0].get_ylabel()
 
 
-def test_log_odds_scale_is_symmetric_about_zero_and_the_map_explained(search_figures) -> None:
-    figure = search_figures["logodds_phase1.png"]
-    low, high = figure.axes[0].images[0].get_clim()
+@pytest.mark.parametrize("name", ["logodds_phase1.png", "logodds_phase2.png"])
+def test_log_odds_scale_is_symmetric_about_zero_and_the_map_explained(search_figures,
+                                                                      name: str) -> None:
+    figure = search_figures[name]
+    image = figure.axes[0].images[0]
+    low, high = image.get_clim()
     assert low == -high and high > 0
-    note = " ".join(t.get_text() for t in figure.texts)
-    assert "baseline map" in note and "darker squares" in note
+    # A diverging scale: white at 0, blue (free) below, red (occupied) above.
+    cmap = image.get_cmap()
+    middle, free, occupied = (np.asarray(cmap(v)[:3]) for v in (0.5, 0.0, 1.0))
+    assert middle.min() > 0.9
+    assert free[2] > free[0] + 0.2 and occupied[0] > occupied[2] + 0.2
+    note = " ".join(t.get_text() for t in figure.texts).replace("\n", " ")
+    assert "Map 'grid': an occupancy grid" in note and "baseline map" in note
+    assert "darker squares along a path are sampling" in note and "2.5 times the points" in note
 
 
 def test_a_found_object_puts_no_verdict_on_any_figure(search_figures) -> None:
