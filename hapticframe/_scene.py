@@ -42,9 +42,12 @@ _FROZEN = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 #: beyond any sandbox, small enough that no sum or product of coordinates overflows.
 MAX_COORDINATE_M = 1000.0
 #: A region's sides lie between these (metres): half a centimetre (the conformance kit
-#: tries planners on a region smaller than any line spacing) and a 100 m field.
+#: tries planners on a region smaller than any line spacing) and 20 m, twice the largest
+#: bench region (10 x 10 m, tests/data/bhm/). A larger side is far more likely a region
+#: written in centimetres (75 for 0.75) than a field raked by touch, so it is refused with
+#: that question.
 MIN_REGION_SIDE_M = 0.005
-MAX_REGION_SIDE_M = 100.0
+MAX_REGION_SIDE_M = 20.0
 #: The smallest object size (a radius, a semi-axis; metres): smaller ones are below any
 #: evaluation grid.
 MIN_OBJECT_SIZE_M = 0.001
@@ -73,7 +76,14 @@ class RegionConfig(BaseModel):
             raise ValueError("region needs x_max_m > x_min_m and y_max_m > y_min_m")
         width, height = self.x_max_m - self.x_min_m, self.y_max_m - self.y_min_m
         for axis, side in (("x", width), ("y", height)):
-            if not MIN_REGION_SIDE_M <= side <= MAX_REGION_SIDE_M:
+            if side > MAX_REGION_SIDE_M:
+                raise ValueError(
+                    f"the region is {side:.4g} m along {axis} ({axis}_min_m to {axis}_max_m), "
+                    f"more than the {MAX_REGION_SIDE_M:g} m a side may be: did you mean "
+                    f"centimetres? Every *_m value is in metres ({side:.4g} cm would be "
+                    f"{side / 100:.4g} m)"
+                )
+            if side < MIN_REGION_SIDE_M:
                 raise ValueError(
                     f"the region is {side:.4g} m along {axis}; a side must lie between "
                     f"{MIN_REGION_SIDE_M:g} m and {MAX_REGION_SIDE_M:g} m"

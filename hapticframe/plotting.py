@@ -119,13 +119,14 @@ def layout_map(
         # Measured, not guessed: its size in inches does not depend on the figure's.
         extent = legend.get_window_extent()
         legend_w, legend_h = extent.width / figure.dpi, extent.height / figure.dpi
+    note_h = 0.0
+    if note:
+        # The note's lines widen the figure as the legend does.
+        note_h = _NOTE_LINE_IN * (note.count("\n") + 1) + 0.05
+        legend_w = max(legend_w, _NOTE_CHAR_IN * max(len(x) for x in note.splitlines()))
     right = sum(_COLORBAR_IN) if colorbar_axes is not None else _RIGHT_IN
     width = max(_LEFT_IN + w + right, min_width_in, legend_w + 2 * _LEGEND_PAD_IN)
     left = _LEFT_IN + (width - (_LEFT_IN + w + right)) / 2  # centre a narrow map
-    note_h = 0.0
-    if note:
-        note_h = _NOTE_LINE_IN * (note.count("\n") + 1) + 0.05
-        legend_w = max(legend_w, _NOTE_CHAR_IN * max(len(x) for x in note.splitlines()))
     bottom = _BOTTOM_IN + note_h + (legend_h + _LEGEND_PAD_IN if legend is not None else 0.0)
     title_in = _TITLE_IN if axes.get_title() else 0.15
     height = bottom + h + title_in

@@ -7,6 +7,7 @@ and the bench's ``search.png`` are drawn from small inputs.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -142,12 +143,21 @@ def test_forces_names_the_true_force_and_draws_the_classifier_thresholds(
     assert "true plate force" in figure.axes[0].get_ylabel()
 
 
-def test_log_odds_scale_is_symmetric_about_zero_and_the_map_explained(search_figures) -> None:
-    figure = search_figures["logodds_phase1.png"]
-    low, high = figure.axes[0].images[0].get_clim()
+@pytest.mark.parametrize("name", ["logodds_phase1.png", "logodds_phase2.png"])
+def test_log_odds_scale_is_symmetric_about_zero_and_the_map_explained(search_figures,
+                                                                      name: str) -> None:
+    figure = search_figures[name]
+    image = figure.axes[0].images[0]
+    low, high = image.get_clim()
     assert low == -high and high > 0
-    note = " ".join(t.get_text() for t in figure.texts)
-    assert "baseline map" in note and "darker squares" in note
+    # A diverging scale: white at 0, blue (free) below, red (occupied) above.
+    cmap = image.get_cmap()
+    middle, free, occupied = (np.asarray(cmap(v)[:3]) for v in (0.5, 0.0, 1.0))
+    assert middle.min() > 0.9
+    assert free[2] > free[0] + 0.2 and occupied[0] > occupied[2] + 0.2
+    note = " ".join(t.get_text() for t in figure.texts).replace("\n", " ")
+    assert "Map 'grid': an occupancy grid" in note and "baseline map" in note
+    assert "darker squares along a path are sampling" in note and "2.5 times the points" in note
 
 
 def test_a_found_object_puts_no_verdict_on_any_figure(search_figures) -> None:
@@ -301,9 +311,21 @@ def test_the_check_catches_a_proxy_entry_and_a_clipped_title() -> None:
         check_figure(figure, "clipped")
 
 
-def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch) -> None:
+#: The README's sentence stating each engine example's outcome: the number of movements.
+ENGINE_OUTCOMES = {
+    "search-ellipse-physics.yaml": r"It does \*\*not\*\* find the ellipse: (\d+) movements \((\d+) "
+                                   r"in phase 1, (\d+) in phase 2\), (\d+) of them halted",
+    "search-ellipse-physics-drag.yaml": r"example above does not find its ellipse \((\d+) "
+                                        r"movements",
+}
+
+
+@pytest.mark.parametrize("example", sorted(ENGINE_OUTCOMES))
+def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch,
+                                                          example: str) -> None:
     # The engine's sand: the same search finds no object (README, "sand our models did not
-    # write"); every figure says so, and outline.png's title says it has no outline.
+    # write"); every figure says so, outline.png's title says it has no outline, and the
+    # README states the run's outcome as it is.
     captured: dict[str, Figure] = {}
     save = plotting.save_figure
 
@@ -312,9 +334,15 @@ def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch)
         return save(figure, path)
 
     monkeypatch.setattr(plotting, "save_figure", capture)
-    experiment = validate_file(ROOT / "examples" / "search-ellipse-physics.yaml")
+    experiment = validate_file(ROOT / "examples" / example)
     result = run_experiment(experiment, tmp_path, echo=lambda _: None, progress=False)
     assert result["object_found"] is False
+    stated = re.search(ENGINE_OUTCOMES[example], (ROOT / "README.md").read_text())
+    assert stated is not None, f"the README no longer states {example}'s outcome"
+    measured = (result["movements"], result["ems_phase1"], result["ems_phase2"],
+                result["object_interactions"])
+    numbers = tuple(int(group) for group in stated.groups())
+    assert numbers == measured[:len(numbers)], (example, numbers, measured)
     assert SEARCH_FIGURES <= set(captured)
     for name, figure in captured.items():
         texts = [t.get_text() for ax in figure.axes for t in ax.texts]

@@ -12,7 +12,8 @@ name that resolves to 127.0.0.1. So, as Jupyter does, every request must
 - carry the session's token (``?token=``, or an ``Authorization: token ...`` header), which
   only the address the command printed holds; compared in constant time.
 
-The page's own files (``/static/``: the same for everyone, no data) need no token.
+The page's own files (``/static/``: the same for everyone, no data) need no token, nor does
+``/favicon.ico``, which a browser asks for without the page's query (answered 204, empty).
 """
 
 from __future__ import annotations
@@ -21,7 +22,11 @@ import hmac
 import secrets
 from collections.abc import Mapping
 
-__all__ = ["AccessPolicy", "new_token"]
+__all__ = ["PUBLIC_PATHS", "AccessPolicy", "new_token"]
+
+#: Paths answered without the token (still only to this Host and Origin): they carry no
+#: data. A browser asks for ``/favicon.ico`` on its own, without the page's ``?token=``.
+PUBLIC_PATHS = frozenset({"/favicon.ico"})
 
 
 def new_token() -> str:
@@ -83,6 +88,6 @@ class AccessPolicy:
                 headers: Mapping[str, str]) -> str | None:
         """Why a request for ``path`` is refused, or None when it may be answered."""
         error = self.host_error(headers) or self.origin_error(headers)
-        if error is None and not path.startswith("/static/"):
+        if error is None and not path.startswith("/static/") and path not in PUBLIC_PATHS:
             error = self.token_error(query, headers)
         return error

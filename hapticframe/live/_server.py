@@ -345,6 +345,7 @@ class LiveServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/frame", self._frame)
         app.router.add_get("/ws", self._websocket)
+        app.router.add_get("/favicon.ico", self._favicon)
         app.router.add_static("/static/", STATIC, show_index=False)
         runner = web.AppRunner(app, access_log=None, handle_signals=False)
         await runner.setup()
@@ -484,6 +485,12 @@ class LiveServer:
         else:
             self._encoded.move_to_end(key)
         return text
+
+    async def _favicon(self, request: web.Request) -> web.StreamResponse:
+        """No icon: 204, so that a browser's own request is neither refused nor logged."""
+        from aiohttp import web
+
+        return web.Response(status=204)
 
     async def _index(self, request: web.Request) -> web.StreamResponse:
         from aiohttp import web

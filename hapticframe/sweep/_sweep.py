@@ -263,6 +263,7 @@ def _summarise_point(point: Point, rows: Sequence[Mapping[str, Any]]) -> dict[st
     means = {k: _mean([r["metrics"].get(k) for r in ok]) for k in keys}
     stds = {k: _std([r["metrics"].get(k) for r in ok]) for k in keys}
     cost = {k: _mean([r.get(k) for r in ok]) for k in COST_KEYS}
+    cost_std = {k: _std([r.get(k) for r in ok]) for k in COST_KEYS}
     if not rows:
         status = "invalid"
     elif not failed:
@@ -276,7 +277,7 @@ def _summarise_point(point: Point, rows: Sequence[Mapping[str, Any]]) -> dict[st
             "warnings": sum(int((r.get("warnings") or {}).get("count", 0)) for r in rows),
             "warning_messages": list(dict.fromkeys(
                 m for r in rows for m in (r.get("warnings") or {}).get("messages", ())))[:3],
-            "metrics": means, "metrics_std": stds, "cost": cost}
+            "metrics": means, "metrics_std": stds, "cost": cost, "cost_std": cost_std}
 
 
 def pareto_front(points: Sequence[tuple[float, float]]) -> list[int]:

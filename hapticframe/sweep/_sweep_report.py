@@ -7,6 +7,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hapticframe.sweep._format import flow_text, format_value, unchanged
 from hapticframe.sweep._sweep_trials import SEARCH_KEYS, _is_onset_key
 
@@ -126,71 +128,187 @@ def render_markdown(result: Mapping[str, Any]) -> str:
 
 #: A sweep with more points than this names only its front and its baseline in pareto.png.
 LABEL_ALL_UP_TO = 12
+#: The cost pareto.png weighs accuracy against: mean CPU time per run, which a busy machine
+#: does not inflate as it does wall time (docs/sweeps.md, "Two fronts").
+PARETO_COST = "cpu_time_s"
+#: A point's label is tried in this many directions around it (from the right, counter-
+#: clockwise), at distances of 1 to :data:`_LABEL_RINGS` steps of :data:`_LABEL_STEP_PT`.
+_LABEL_DIRECTIONS = 16
+_LABEL_STEP_PT = 5.0
+_LABEL_RINGS = 40
+#: Half the side of the square around each drawn point that no label covers (points).
+_MARK_HALF_PT = 7.0
+# The figure's margins in inches: tick and axis labels at the left and bottom, the title.
+_LEFT_IN, _RIGHT_IN, _TITLE_IN, _XLABEL_IN, _LEGEND_PAD_IN = 0.9, 0.25, 0.45, 0.55, 0.12
+
+
+def _cost(point: Mapping[str, Any]) -> float | None:
+    value = point["cost"].get(PARETO_COST)
+    return None if value is None else float(value)
+
+
+def _spread(point: Mapping[str, Any], table: str, key: str | None) -> float:
+    """A point's standard deviation over its trials of ``key`` in ``table``; 0 when
+    unknown (one finished trial, or a metric with no spread recorded)."""
+    if key is None or point.get("trials_ok", 0) < 2:
+        return 0.0
+    value = (point.get(table) or {}).get(key)
+    return float(value) if isinstance(value, (int, float)) and value == value else 0.0
+
+
+def _align(component: float) -> tuple[str, float]:
+    """The alignment of a label whose offset from its point has this unit ``component``,
+    and where that puts the label's near edge, as a share of its size back from its anchor."""
+    if component > 0.3:
+        return "left", 0.0
+    if component < -0.3:
+        return "right", 1.0
+    return "center", 0.5
+
+
+def _place_labels(figure: Any, ax: Any, items: Sequence[tuple[str, float, float]],
+                  marks: Sequence[tuple[float, float]]) -> list[Any]:
+    """Annotate each (label, x, y) near its point, where no other label and no point of
+    ``marks`` is and inside the axes: the nearest free place at growing distances in
+    :data:`_LABEL_DIRECTIONS` directions, joined to its point by a thin line once it had to
+    move away. Returns the annotations; a label with no free place within reach is left out
+    (``sweep.md`` names every point)."""
+    from matplotlib.transforms import Bbox
+
+    renderer = figure.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    scale = figure.dpi / 72.0
+    half = _MARK_HALF_PT * scale
+    anchors = ax.transData.transform(np.asarray(marks, dtype=float).reshape(-1, 2))
+    taken = [Bbox.from_extents(px - half, py - half, px + half, py + half)
+             for px, py in anchors]
+    angles = np.arange(_LABEL_DIRECTIONS) * (2 * np.pi / _LABEL_DIRECTIONS)
+    style = {"fontsize": 6, "zorder": 5, "textcoords": "offset points",
+             "bbox": {"boxstyle": "round,pad=0.15", "facecolor": "white",
+                      "edgecolor": "none", "alpha": 0.85}}
+    placed: list[Any] = []
+    for label, x, y in items:
+        probe = ax.annotate(label, (x, y), xytext=(0.0, 0.0), **style)
+        size = probe.get_window_extent(renderer)
+        probe.remove()
+        width, height = size.width * 1.05, size.height * 1.1
+        px, py = ax.transData.transform((x, y))
+        choice = None
+        for ring in range(1, _LABEL_RINGS + 1):
+            for angle in angles:
+                cos, sin = float(np.cos(angle)), float(np.sin(angle))
+                ha, back_x = _align(cos)
+                va, back_y = _align(sin)
+                va = {"left": "bottom", "right": "top"}.get(va, va)
+                dx, dy = ring * _LABEL_STEP_PT * cos, ring * _LABEL_STEP_PT * sin
+                x0 = px + dx * scale - back_x * width
+                y0 = py + dy * scale - back_y * height
+                box = Bbox.from_bounds(x0, y0, width, height)
+                if (box.x0 >= frame.x0 and box.x1 <= frame.x1 and box.y0 >= frame.y0
+                        and box.y1 <= frame.y1
+                        and not any(box.overlaps(other) for other in taken)):
+                    choice = (dx, dy, ha, va, ring, box)
+                    break
+            if choice is not None:
+                break
+        if choice is None:
+            continue
+        dx, dy, ha, va, ring, box = choice
+        arrow = None if ring <= 2 else {"arrowstyle": "-", "color": "0.6", "linewidth": 0.5}
+        placed.append(ax.annotate(label, (x, y), xytext=(dx, dy), ha=ha, va=va,
+                                  arrowprops=arrow, **style))
+        taken.append(box)
+    return placed
 
 
 def save_pareto_figure(path: Path, result: Mapping[str, Any]) -> bool:
-    """``pareto.png``: accuracy cost against mean wall time, every finished point, the
-    front highlighted; False when matplotlib is not installed."""
+    """``pareto.png``: accuracy cost against mean CPU time per run (:data:`PARETO_COST`),
+    every finished point with its seed spread (one standard deviation of both over its
+    trials) when it had more than one, the CPU-time front highlighted, the labels placed
+    where none overprints another, and the legend below the axes inside the figure; False
+    when matplotlib is not installed."""
     try:
         from hapticframe.plotting import new_figure, save_figure
 
-        figure = new_figure(9.5, 5.0)
+        figure = new_figure(8.0, 5.5)
     except ImportError:
         return False
-    ax = figure.add_subplot(1, 1, 1)
+    ax = figure.add_axes((0.1, 0.3, 0.85, 0.6))
     accuracy = result.get("accuracy")
-    plotted = [p for p in result["points"] if p.get("accuracy_cost") is not None]
-    front = sorted((p for p in plotted if p.get("front")),
-                   key=lambda p: p["cost"]["wall_time_s"])
+    metric = accuracy.get("metric") if accuracy else None
+    plotted = [p for p in result["points"]
+               if p.get("accuracy_cost") is not None and _cost(p) is not None]
+    front = [p for p in plotted if p.get("front_cpu")]
     off = [p for p in plotted if p.get("off_front")]
-    others = [p for p in plotted if not p.get("front") and not p.get("off_front")]
+    others = [p for p in plotted if not p.get("front_cpu") and not p.get("off_front")]
     # A search that missed the object reports a cost far above the rest (18 cm against
     # 1-3 cm in the README's sweep) and would squash the front into the axis: such points
     # are drawn at the top edge, their values in sweep.md.
     kept = [p["accuracy_cost"] for p in plotted if not p.get("off_front")]
     top = max(kept) * 1.15 if kept and max(kept) > 0 else None
-    y = {id(p): (min(p["accuracy_cost"], top) if top is not None and p.get("off_front")
-                 else p["accuracy_cost"]) for p in plotted}
+    clipped = {id(p) for p in off if top is not None and p["accuracy_cost"] > top}
+    x: dict[int, float] = {id(p): _cost(p) or 0.0 for p in plotted}
+    y: dict[int, float] = {id(p): float(top if top is not None and id(p) in clipped
+                                        else p["accuracy_cost"]) for p in plotted}
+    spread = [p for p in plotted if p.get("trials_ok", 0) > 1]
+    if spread:
+        trials = sorted({int(p["trials_ok"]) for p in spread})
+        ax.errorbar([x[id(p)] for p in spread], [y[id(p)] for p in spread],
+                    xerr=[_spread(p, "cost_std", PARETO_COST) for p in spread],
+                    yerr=[0.0 if id(p) in clipped else _spread(p, "metrics_std", metric)
+                          for p in spread],
+                    fmt="none", ecolor="0.55", elinewidth=0.8, capsize=2, zorder=1,
+                    label="seed spread: \u00b11 s.d. over "
+                          + "/".join(map(str, trials)) + " trials")
     if off:
-        ax.scatter([p["cost"]["wall_time_s"] for p in off], [y[id(p)] for p in off],
-                   color="tab:gray", marker="x",
+        ax.scatter([x[id(p)] for p in off], [y[id(p)] for p in off],
+                   color="tab:gray", marker="x", zorder=2,
                    label="missed the object in some trials (at most the top edge)")
     if others:
-        ax.scatter([p["cost"]["wall_time_s"] for p in others],
-                   [p["accuracy_cost"] for p in others], color="tab:gray", marker="o",
-                   label="point")
+        ax.scatter([x[id(p)] for p in others], [y[id(p)] for p in others],
+                   color="tab:gray", marker="o", zorder=2, label="point")
+    front.sort(key=lambda p: x[id(p)])
     if front:
-        ax.plot([p["cost"]["wall_time_s"] for p in front], [p["accuracy_cost"] for p in front],
-                color="tab:red", marker="o", linestyle="-", label="Pareto front")
+        ax.plot([x[id(p)] for p in front], [y[id(p)] for p in front],
+                color="tab:red", marker="o", linestyle="-", zorder=3,
+                label="Pareto front (CPU time)")
     base = result["points"][0]
-    if base.get("accuracy_cost") is not None:
-        ax.scatter([base["cost"]["wall_time_s"]], [base["accuracy_cost"]], s=160,
-                   facecolors="none", edgecolors="black", label="baseline (the file)")
-    times = [p["cost"]["wall_time_s"] for p in plotted]
-    middle = (min(times) + max(times)) / 2 if times else 0.0
+    if id(base) in x:
+        ax.scatter([x[id(base)]], [y[id(base)]], s=160, facecolors="none",
+                   edgecolors="black", zorder=4, label="baseline (the file)")
     # Every label of a large sweep would be a pile of text: then only the front and the
     # baseline are named (sweep.md lists every point).
     named = plotted if len(plotted) <= LABEL_ALL_UP_TO else [
-        p for p in plotted if p.get("front") or p is base]
-    for number, p in enumerate(sorted(named, key=lambda p: p["cost"]["wall_time_s"])):
-        # Labels point inwards, so that those of the rightmost points are not cut off, and
-        # alternate above and below the line, so that neighbours on the front do not overlap.
-        right = p["cost"]["wall_time_s"] > middle
-        ax.annotate(p["label"], (p["cost"]["wall_time_s"], y[id(p)]), fontsize=6,
-                    xytext=(-3 if right else 3, 4 if number % 2 == 0 else -9),
-                    textcoords="offset points", ha="right" if right else "left")
+        p for p in plotted if p.get("front_cpu") or p is base]
     failed = sum(1 for p in result["points"] if p.get("accuracy_cost") is None)
-    ax.set_xlabel("mean wall time per run (s)")
+    ax.set_xlabel("mean CPU time per run (s)")
     ax.set_ylabel(accuracy["description"] if accuracy else "no accuracy metric")
     ax.set_title(f"{result['experiment_file']}: {len(plotted)} points"
                  + (", the front named" if len(named) < len(plotted) else "")
                  + (f", {failed} without a finite accuracy (see sweep.md)" if failed else ""),
                  fontsize=9)
+    width, height = figure.get_size_inches()
+    legend_h = 0.0
     if plotted:
-        # Beside the axes, not over the points.
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
+        handles, labels = ax.get_legend_handles_labels()
+        legend = figure.legend(handles, labels, loc="lower center", ncols=2, fontsize=8,
+                               bbox_to_anchor=(0.5, _LEGEND_PAD_IN / height),
+                               bbox_transform=figure.transFigure)
+        legend_h = legend.get_window_extent().height / figure.dpi + 2 * _LEGEND_PAD_IN
     else:
         ax.text(0.5, 0.5, "no point finished with an accuracy", ha="center",
                 transform=ax.transAxes)
+    bottom = legend_h + _XLABEL_IN
+    ax.set_position((_LEFT_IN / width, bottom / height,
+                     (width - _LEFT_IN - _RIGHT_IN) / width,
+                     (height - bottom - _TITLE_IN) / height))
+    # The limits as drawn, then fixed, so that the labels are placed where they will be.
+    ax.margins(0.08, 0.1)
+    ax.autoscale_view()
+    ax.set_xlim(ax.get_xlim())
+    ax.set_ylim(ax.get_ylim())
+    _place_labels(figure, ax, [(str(p["label"]), x[id(p)], y[id(p)])
+                               for p in sorted(named, key=lambda p: x[id(p)])],
+                  [(x[id(p)], y[id(p)]) for p in plotted])
     save_figure(figure, path)
     return True

@@ -65,12 +65,19 @@ def draw_log_odds(
     return figure
 
 
-# What a reader of the figure needs and cannot see in it.
-_NOTE = ("The occupancy grid: the thesis's OctoMap-style baseline map, {cell_cm:g} cm cells "
-         "(red occupied, blue free, white unknown),\nfed the same observations as the "
-         "planner's map. The darker squares spaced along a path: cells where a free-space\n"
-         "sector of the sensor model starts (one every few cm of travel); its points crowd "
-         "there, so those cells gather the most evidence.")
+# What a reader of the figure needs and cannot see in it. The pattern it explains was
+# measured on the README's main job (tests/plugins/test_grid.py checks it): along the
+# phase-1 line every other cell holds 5 observed points against 2 and ends at log odds
+# -2.0 against -0.8.
+_NOTE = ("Map 'grid': an occupancy grid of {cell_cm:g} cm cells (OctoMap-style log odds, the "
+         "thesis's baseline map), beside the Bayesian\nHilbert Map and fed by its input sensor "
+         "model: each observed point adds its log odds to its cell (red occupied, blue free,\n"
+         "white unknown). The regular darker squares along a path are sampling, not sand: a "
+         "sample is mapped as a polar\ngrid of points ahead of the fingertip (failure-zone "
+         "kernel defaults: 1.5 cm apart, a sample per 2 cm of travel), a few\non the path "
+         "itself, so every other cell on a path holds about 2.5 times the points of its "
+         "neighbours (the\nfingertip's own point and those of the samples behind it), so "
+         "more free evidence.")
 
 
 def _symmetric_limit(limits: tuple[float, float]) -> float:

@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from hapticframe import Knob
@@ -190,7 +191,7 @@ def test_a_large_sweep_names_only_its_front_and_baseline(monkeypatch: Any, tmp_p
     captured: dict[str, Any] = {}
     monkeypatch.setattr(plotting, "save_figure", lambda figure, path: captured.update(f=figure))
     points = [{"label": f"k={i}", "accuracy_cost": 1.0 + (i % 7) / 10,
-               "cost": {"wall_time_s": 1.0 + i / 10}, "front": i in (0, 3, 9),
+               "cost": {"cpu_time_s": 1.0 + i / 10}, "front_cpu": i in (0, 3, 9),
                "off_front": False} for i in range(55)]
     assert save_pareto_figure(tmp_path / "pareto.png", {
         "points": points, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
@@ -200,3 +201,95 @@ def test_a_large_sweep_names_only_its_front_and_baseline(monkeypatch: Any, tmp_p
     save_pareto_figure(tmp_path / "few.png", {
         "points": few, "accuracy": {"description": "cost"}, "experiment_file": "x.yaml"})
     assert len(captured["f"].axes[0].texts) == LABEL_ALL_UP_TO
+
+
+def _swept(trials: int) -> dict[str, Any]:
+    """A sweep's result as run_sweep summarises it: eight hinge spacings over ``trials`` seeded
+    trials each, close together in CPU time (so that their labels crowd)."""
+    from hapticframe.sweep._sweep import Point, _summarise_point
+
+    rng = np.random.default_rng(3)
+    summaries = []
+    for number in range(8):
+        values = () if number == 0 else (("bhm.hinge_spacing_m", 0.01 * number),)
+        point = Point("baseline" if number == 0 else f"bhm.hinge_spacing_m={0.01 * number:g}",
+                      values)
+        rows = [{"status": "ok", "metrics": {"object_found": 1.0,
+                                             "centroid_error_m": 0.01 + 0.004 * rng.random()},
+                 "wall_time_s": 2.0 + rng.random(), "cpu_time_s": 0.30 + 0.02 * rng.random()}
+                for _ in range(trials)]
+        summaries.append(_summarise_point(point, rows))
+    measure = accuracy_measure(["object_found", "centroid_error_m"])
+    _mark_front(summaries, measure)
+    assert measure is not None
+    return {"points": summaries, "experiment_file": "x.yaml", "trials": trials,
+            "accuracy": {"metric": measure[0], "description": measure[1]}}
+
+
+def _draw(monkeypatch: Any, tmp_path: Path, result: dict[str, Any]) -> Any:
+    import hapticframe.plotting as plotting
+    from hapticframe.sweep._sweep_report import save_pareto_figure
+
+    captured: dict[str, Any] = {}
+    save = plotting.save_figure
+
+    def capture(figure: Any, path: Path) -> Path:
+        captured["f"] = figure
+        return save(figure, path)
+
+    monkeypatch.setattr(plotting, "save_figure", capture)
+    assert save_pareto_figure(tmp_path / "pareto.png", result)
+    assert (tmp_path / "pareto.png").stat().st_size > 0
+    return captured["f"]
+
+
+def test_pareto_png_draws_cpu_time_seed_spread_a_legend_inside_and_no_overprint(
+        monkeypatch: Any, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from matplotlib.container import ErrorbarContainer
+
+    result = _swept(trials=3)
+    figure = _draw(monkeypatch, tmp_path, result)
+    ax = figure.axes[0]
+    assert "CPU time" in ax.get_xlabel()
+    points = result["points"]
+    # Error bars: one per point, x the CPU time's and y the accuracy's standard deviation
+    # over the point's trials.
+    bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+    assert len(bars) == 1 and bars[0].has_xerr and bars[0].has_yerr
+    x_segments, y_segments = bars[0].lines[2]
+    x_half = [float(np.ptp(s[:, 0])) / 2 for s in x_segments.get_segments()]
+    y_half = [float(np.ptp(s[:, 1])) / 2 for s in y_segments.get_segments()]
+    np.testing.assert_allclose(x_half, [p["cost_std"]["cpu_time_s"] for p in points])
+    np.testing.assert_allclose(y_half, [p["metrics_std"]["centroid_error_m"] for p in points])
+    assert min(x_half) > 0 and min(y_half) > 0
+    # The points sit at their mean CPU time.
+    centres = sorted(float(np.mean(s[:, 0])) for s in x_segments.get_segments())
+    np.testing.assert_allclose(centres, sorted(p["cost"]["cpu_time_s"] for p in points))
+    # The legend lies inside the figure and names the spread.
+    renderer = figure.canvas.get_renderer()
+    frame = figure.bbox
+    assert len(figure.legends) == 1 and ax.get_legend() is None
+    box = figure.legends[0].get_window_extent(renderer)
+    assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0
+    assert box.y1 <= ax.get_window_extent(renderer).y0  # below the axes, over no point
+    assert any("seed spread" in t.get_text() for t in figure.legends[0].get_texts())
+    # Every point named, no label over another, all inside the axes.
+    labels = [t for t in ax.texts]
+    assert sorted(t.get_text() for t in labels) == sorted(p["label"] for p in points)
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    inside = ax.get_window_extent(renderer)
+    for i, a in enumerate(boxes):
+        assert inside.x0 <= a.x0 and a.x1 <= inside.x1 and inside.y0 <= a.y0 and a.y1 <= inside.y1
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (labels[i].get_text(), a, b)
+
+
+def test_pareto_png_of_one_trial_per_point_draws_no_spread(monkeypatch: Any,
+                                                           tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from matplotlib.container import ErrorbarContainer
+
+    figure = _draw(monkeypatch, tmp_path, _swept(trials=1))
+    assert not [c for c in figure.axes[0].containers if isinstance(c, ErrorbarContainer)]
+    assert not any("seed spread" in t.get_text() for t in figure.legends[0].get_texts())

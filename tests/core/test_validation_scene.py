@@ -123,3 +123,33 @@ def test_a_flat_polygon_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture
                  "vertices_m": [[0, 0], [0.05, 0], [0.1, 0]]})
     text = refused(tmp_path, data, capsys)
     assert "scene.objects[0]" in text and "area" in text
+
+
+def test_a_region_written_in_centimetres_is_refused_with_that_question(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The README's 75 x 50 cm region, its numbers written as if the fields took centimetres.
+    data = _ellipse()
+    data["scene"]["region"] = {"x_min_m": 0.0, "x_max_m": 75.0, "y_min_m": 0.0, "y_max_m": 50.0}
+    data["scene"]["objects"] = [{"shape": "ellipse", "center_m": [42.0, 21.0],
+                                 "semi_axes_m": [4.5, 2.5], "orientation_deg": 35}]
+    text = refused(tmp_path, data, capsys)
+    path = tmp_path / "mutant.yaml"
+    line = next(number for number, row in enumerate(path.read_text().splitlines(), 1)
+                if row.strip() == "region:")
+    assert f"{path}:{line}: scene.region: the region is 75 m along x" in text
+    assert "did you mean centimetres?" in text and "0.75 m" in text
+    # One side too long is enough, and the limit itself is a legal side.
+    long_y = _set(_ellipse(), ("scene", "region"),
+                  {"x_min_m": 0.0, "x_max_m": 0.75, "y_min_m": 0.0, "y_max_m": 20.5})
+    assert "20.5 m along y" in refused(tmp_path, long_y, capsys)
+    widest = _set(_ellipse(), ("scene", "region"),
+                  {"x_min_m": -10.0, "x_max_m": 10.0, "y_min_m": 0.0, "y_max_m": 0.5})
+    widest["run"]["figures"] = False
+    assert main(["validate", str(_write(tmp_path, widest))]) == 0
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in (ROOT / "tests" / "data" / "bhm")
+                                        .glob("*.yaml")))
+def test_the_bench_regions_up_to_10_by_10_m_stay_valid(name: str) -> None:
+    assert main(["validate", str(ROOT / "tests" / "data" / "bhm" / name)]) == 0

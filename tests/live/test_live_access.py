@@ -174,6 +174,29 @@ def test_the_std_image_runs_to_the_maps_largest_std() -> None:
     assert flat["std_scale"] == 0.5 and set(base64.b64decode(flat["std"])) == {0}
 
 
+def test_a_browsers_favicon_request_gets_204_and_logs_nothing(caplog) -> None:
+    # A browser asks for /favicon.ico by itself, without the page's ?token=: it gets an
+    # empty 204, is not counted as refused and leaves no warning; a foreign Host is still
+    # refused there.
+    import logging
+
+    feed = LiveFeed()
+    with LiveServer(feed, port=0) as server:
+        base, _ = _split(server.url)
+        with caplog.at_level(logging.DEBUG):
+            for _ in range(2):
+                request = urllib.request.Request(f"{base}favicon.ico", headers={
+                    "Accept": "image/avif,image/webp,image/png,image/*;q=0.8",
+                    "Referer": f"{base}", "Sec-Fetch-Dest": "image"})
+                with urllib.request.urlopen(request, timeout=10) as response:
+                    assert response.status == 204 and response.read() == b""
+                    assert response.headers["X-Content-Type-Options"] == "nosniff"
+        assert server.refused == 0
+        assert not [r for r in caplog.records if r.levelno >= logging.WARNING], caplog.text
+        assert _request(f"{base}favicon.ico", {"Host": "evil.example"})[0] == 403
+        assert server.refused == 1
+
+
 # --- view: each page at its own time, bad times refused -------------------------------------------
 
 

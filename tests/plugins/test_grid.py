@@ -242,3 +242,40 @@ def test_probabilities_stay_in_bounds_for_any_input() -> None:
     assert np.all((estimate.mean >= 0.1192 - 1e-12) & (estimate.mean <= 0.971 + 1e-12))
     assert np.all(estimate.std <= 0.5)
     assert expit(grid.log_odds).max() <= 0.971 + 1e-12
+
+
+def test_the_dark_squares_along_a_path_are_cells_with_more_observed_points(tmp_path: Path) -> None:
+    # What the log-odds figures' note says (hapticframe_grid._plots._NOTE), measured on the
+    # README's main job: along the phase-1 line every other cell holds about 2.5 times the
+    # observed points of its neighbours and so ends darker (more negative log odds).
+    from hapticframe.cli._cli import main
+
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path / "run"
+    assert main(["run", str(root / "examples" / "search-ellipse.yaml"), "--out", str(out),
+                 "--quiet", "--set", "run.figures=false"]) == 0
+    with np.load(out / "trace.npz", allow_pickle=False) as trace:
+        points = trace["sensor_model/failure-zone/points_m"]
+        targets = trace["sensor_model/failure-zone/targets"]
+        weights = trace["sensor_model/failure-zone/weights"]
+        movement = trace["robot/arm/movement_index"]
+        position = trace["robot/arm/position_m"]
+    grid = build()
+    grid.update(Observations(points, targets, weights))
+    line = position[movement == 0]
+    assert np.ptp(line[:, 1]) < 1e-9  # phase 1 rakes along x
+    cell = grid.config.cell_size_m
+    row = int(np.floor(line[0, 1] / cell))
+    # The first straight stretch, away from the object and the region's edge.
+    columns = np.arange(6, int(np.floor(0.30 / cell)))
+    in_row = np.floor(points[:, 1] / cell).astype(int) == row
+    counts = np.bincount(np.floor(points[in_row, 0] / cell).astype(int),
+                         minlength=grid.shape[0])[columns]
+    log_odds = grid.log_odds[columns, row]
+    even, odd = counts[::2], counts[1::2]
+    dense, sparse = (even, odd) if even.mean() > odd.mean() else (odd, even)
+    assert 2.0 <= dense.mean() / sparse.mean() <= 3.0
+    assert np.all(dense > sparse[:dense.size]) or np.all(dense[:sparse.size] > sparse)
+    dark = log_odds[::2] if even.mean() > odd.mean() else log_odds[1::2]
+    light = log_odds[1::2] if even.mean() > odd.mean() else log_odds[::2]
+    assert dark.max() < light.min() < 0  # both free, the dense cells darker
