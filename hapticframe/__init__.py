@@ -22,6 +22,8 @@ _LAZY = {
     "BenchOptions": "hapticframe.cli._bench",
     "BenchSpec": "hapticframe._specs",
     "BrokenPlugin": "hapticframe._registry",
+    "CALIBRATION_CLASSES": "hapticframe.calibration",
+    "read_calibration_run": "hapticframe.calibration",
     "Circle": "hapticframe._scene",
     "ClassifierSpec": "hapticframe._specs",
     "Ellipse": "hapticframe._scene",
@@ -130,6 +132,8 @@ if TYPE_CHECKING:  # static type checkers see the real imports (each an explicit
     from hapticframe._specs import SensorModelSpec as SensorModelSpec
     from hapticframe._specs import SensorSpec as SensorSpec
     from hapticframe._version import __version__ as __version__
+    from hapticframe.calibration import CALIBRATION_CLASSES as CALIBRATION_CLASSES
+    from hapticframe.calibration import read_calibration_run as read_calibration_run
     from hapticframe.cli._bench import BenchOptions as BenchOptions
     from hapticframe.hookspecs import hookimpl as hookimpl
     from hapticframe.record._recorded import run_experiment as run_experiment

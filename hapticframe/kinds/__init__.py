@@ -44,11 +44,12 @@ from hapticframe.kinds.map import Map, query_points
 from hapticframe.kinds.planner import Planner
 from hapticframe.kinds.robot import Robot
 from hapticframe.kinds.sensor import Sensor
-from hapticframe.kinds.sensor_model import SensorModel
+from hapticframe.kinds.sensor_model import CalibrationRecording, SensorModel, TrainableSensorModel
 from hapticframe.kinds.world import PlateMovement, PlateSample, TruthState, World, WorldResponse
 
 __all__ = [
     "BuildContext",
+    "CalibrationRecording",
     "ChannelInfo",
     "ClassProbabilities",
     "Classifier",
@@ -81,6 +82,7 @@ __all__ = [
     "Sensor",
     "SensorModel",
     "Trainable",
+    "TrainableSensorModel",
     "TruthState",
     "World",
     "WorldResponse",

@@ -9,18 +9,25 @@ Contract
   them all at once (streaming equals batch) for a fixed state; state that changes between
   movements (a count of interactions, a shrinking depth) changes in
   :meth:`Component.on_movement_end`.
+- A sensor model learned from calibration recordings is a :class:`TrainableSensorModel`:
+  ``hapticframe train FILE --calibration RUN_DIR...`` calls its :meth:`~TrainableSensorModel.fit`
+  with the recordings and saves its fitted parameters (plain JSON or arrays, loaded
+  without running code) as the component's artifact.
 """
 
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import ClassVar
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from hapticframe._kind import Kind
 from hapticframe.kinds._base import Component
+from hapticframe.kinds._calibration import CalibrationRecording
 from hapticframe.kinds._records import LocatedMeasurement, Observations
 
-__all__ = ["SensorModel"]
+__all__ = ["CalibrationRecording", "SensorModel", "TrainableSensorModel"]
 
 
 class SensorModel(Component):
@@ -31,3 +38,39 @@ class SensorModel(Component):
     @abstractmethod
     def observe(self, measurement: LocatedMeasurement) -> Observations:
         """Map observations implied by ``measurement``."""
+
+
+@runtime_checkable
+class TrainableSensorModel(Protocol):
+    """A sensor model whose parameters are learned from calibration recordings.
+
+    ``hapticframe train`` calls :meth:`fit` once with every calibration recording, then
+    :meth:`save` into the component's artifact folder; a run loads the artifact with
+    :meth:`load` (the component's ``artifact`` setting, as for classifiers).
+    """
+
+    def fit(self, recordings: Sequence[CalibrationRecording]) -> None:
+        """Learn the model's parameters from calibration recordings.
+
+        Parameters
+        ----------
+        recordings : sequence of CalibrationRecording
+            Each with the plate's poses along its movements, the classifier's class
+            probabilities per sample (with timestamps) and the known buried objects.
+
+        Raises
+        ------
+        ValueError
+            When the recordings cannot determine the parameters (say, no movement
+            interacted); the message says what is missing.
+        """
+
+    def training_report(self) -> Mapping[str, Any]:
+        """What the last fit learned, as plain JSON-able values (empty before a fit)."""
+        ...
+
+    def save(self, directory: str | Path) -> Any:
+        """Write the fitted parameters into ``directory`` (JSON or ``.npy``; no pickles)."""
+
+    def load(self, directory: str | Path) -> None:
+        """Read parameters :meth:`save` wrote; ``ValueError`` when they do not fit."""

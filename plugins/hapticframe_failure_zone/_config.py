@@ -52,6 +52,12 @@ class FailureZoneConfig(PluginConfig):
         description="Kernel state ('free', 'jamming', 'contact') of each classifier class name; "
         "a classifier with classes ('free', 'contact') works unchanged.",
     )
+    model_dir: str | None = Field(
+        None,
+        description="Directory written by save() (failure_zone_fit.json, e.g. by `hapticframe "
+        "train --calibration RUN_DIR`) to load at build time: the fitted shear-band angle, "
+        "sector half-angle and depth schedule replace the ones configured here.",
+    )
     rake_angle_deg: float = Field(
         90.0, gt=0, lt=180,
         description="Angle α of the fingertip to the free surface, degrees (90: vertical raking).",

@@ -69,15 +69,20 @@ floats without building arrays (:meth:`FailureZoneKernel._quiet_single_row`).
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe import atomic_write
 from hapticframe.kinds import (
     BuildContext,
+    CalibrationRecording,
     LocatedMeasurement,
     MovementResult,
     Observations,
@@ -90,6 +95,7 @@ from hapticframe_granular import (
     side_crescent_angle_analytic,
 )
 
+from ._calibration import FailureZoneFit, fit_failure_zone
 from ._config import FailureZoneConfig
 from ._functional import (
     STATES,
@@ -129,8 +135,14 @@ class FailureZoneKernel(SensorModel):
         ``context.scene.material`` supplies the shear-band angle when the config does not.
     """
 
+    #: The file :meth:`save` writes into an artifact folder.
+    ARTIFACT = "failure_zone_fit.json"
+
     def __init__(self, config: FailureZoneConfig, context: BuildContext) -> None:
+        if config.model_dir is not None:
+            config = _updated(config, _read_fit(Path(config.model_dir))["config"])
         super().__init__(config, context)
+        self._fit: FailureZoneFit | None = None
         if config.shear_band_angle_deg is not None:
             beta = math.radians(config.shear_band_angle_deg)
         elif context.scene is not None:
@@ -453,6 +465,76 @@ class FailureZoneKernel(SensorModel):
         self._previous_state = previous_state
         return emit
 
+    # --- training from calibration recordings (issue 32 §2) -----------------------------------
+
+    def fit(self, recordings: Sequence[CalibrationRecording]) -> None:
+        """Fit the rupture distance, sector half-angle and depth schedule from calibration
+        recordings (:func:`~hapticframe_failure_zone.fit_failure_zone` over all of them,
+        movement indices kept apart per recording); the fitted fields replace the config's.
+
+        Parameters
+        ----------
+        recordings : sequence of CalibrationRecording
+            The classes map to kernel states through ``class_states``.
+
+        Raises
+        ------
+        ValueError
+            With no recordings, or when no movement became jammed.
+        """
+        if not recordings:
+            raise ValueError("no calibration recordings given")
+        parts: dict[str, list[np.ndarray]] = {k: [] for k in ("p", "h", "d", "m", "s")}
+        outlines: list[FloatArray] = []
+        base = 0
+        for rec in recordings:
+            state_of = np.array([STATES.index(self.config.class_states.get(c, "free"))
+                                 for c in rec.classes], dtype=np.int64)
+            parts["p"].append(rec.positions_m)
+            parts["h"].append(rec.headings_rad)
+            parts["d"].append(rec.depth_m)
+            parts["s"].append(state_of[rec.labels()])
+            parts["m"].append(rec.movement_index + base)
+            base += int(rec.movement_index.max()) + 1 if len(rec) else 0
+            outlines.extend(rec.outlines_m)
+        p, h, d, m, s = (np.concatenate(parts[k]) for k in ("p", "h", "d", "m", "s"))
+        fit = fit_failure_zone(p, h, d, m, s, outlines,
+                               rake_angle_deg=self.config.rake_angle_deg)
+        self._apply(fit.config_overrides())
+        self._fit = fit
+
+    def _apply(self, overrides: Mapping[str, Any]) -> None:
+        self.config = _updated(self.config, overrides)
+        if self.config.shear_band_angle_deg is not None:
+            self.shear_band_angle_rad = math.radians(self.config.shear_band_angle_deg)
+        self.rake_angle_rad = math.radians(self.config.rake_angle_deg)
+        for cache in (self._class_cache, self._column_cache, self._sector_cache,
+                      self._target_cache):
+            cache.clear()
+        self.reset()
+
+    def training_report(self) -> Mapping[str, Any]:
+        """The last fit's values (:meth:`FailureZoneFit.as_dict`); empty before a fit."""
+        return {} if self._fit is None else self._fit.as_dict()
+
+    def save(self, directory: str | Path) -> Path:
+        """Write the last fit into ``directory/failure_zone_fit.json`` (plain JSON).
+
+        Raises
+        ------
+        ValueError
+            Before any fit.
+        """
+        if self._fit is None:
+            raise ValueError("nothing to save: the failure-zone kernel has not been fitted")
+        target = Path(directory) / self.ARTIFACT
+        atomic_write(target, json.dumps(self._fit.as_dict(), indent=2) + "\n")
+        return target
+
+    def load(self, directory: str | Path) -> None:
+        """Apply the fit :meth:`save` wrote into ``directory``."""
+        self._apply(_read_fit(Path(directory))["config"])
+
     def describe(self) -> dict[str, Any]:
         """The current parameters, for progress lines and run metadata."""
         reach, gamma, eta = self.parameters()
@@ -464,3 +546,23 @@ class FailureZoneKernel(SensorModel):
             "gamma_per_m2": gamma,
             "half_angle_rad": eta,
         }
+
+
+def _read_fit(directory: Path) -> dict[str, Any]:
+    """The saved fit in ``directory``, checked to carry the config fields it sets."""
+    path = directory / FailureZoneKernel.ARTIFACT
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: not a failure-zone fit ({type(exc).__name__}: {exc})") from exc
+    config = data.get("config") if isinstance(data, dict) else None
+    allowed = set(FailureZoneConfig.model_fields) - {"model_dir"}
+    if not isinstance(config, dict) or not set(config) <= allowed:
+        raise ValueError(f"{path}: 'config' must map failure-zone config fields to values")
+    return data
+
+
+def _updated(config: FailureZoneConfig, overrides: Mapping[str, Any]) -> FailureZoneConfig:
+    """``config`` with ``overrides`` applied, validated as a config (a bad value is a
+    ``ValueError`` naming the field)."""
+    return FailureZoneConfig.model_validate({**config.model_dump(), **dict(overrides)})

@@ -22,9 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hapticframe import Scene, atomic_write
+from hapticframe import atomic_write, read_calibration_run
+from hapticframe.kinds import BuildContext
 
-from ._calibration import FailureZoneFit, fit_failure_zone
+from ._calibration import FailureZoneFit
+from ._config import FailureZoneConfig
+from ._kernel import FailureZoneKernel
 
 __all__ = ["fit_recorded_runs", "main"]
 
@@ -33,6 +36,11 @@ def fit_recorded_runs(run_dirs: Sequence[str | Path], robot: str = "arm",
                       rake_angle_deg: float = 90.0) -> FailureZoneFit:
     """:func:`fit_failure_zone` over recorded runs (movement indices kept apart per run).
 
+    A thin wrapper over the train step: each run is read with
+    :func:`hapticframe.read_calibration_run` and the recordings go to
+    :meth:`FailureZoneKernel.fit <hapticframe_failure_zone.FailureZoneKernel.fit>`, as
+    ``hapticframe train --calibration`` does.
+
     Raises
     ------
     ValueError
@@ -40,29 +48,13 @@ def fit_recorded_runs(run_dirs: Sequence[str | Path], robot: str = "arm",
     """
     if not run_dirs:
         raise ValueError("no recorded runs given")
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("p", "h", "d", "m", "s")}
-    outlines: list[np.ndarray] = []
-    base = 0
-    for run_dir in map(Path, run_dirs):
-        try:
-            with np.load(run_dir / "trace.npz", allow_pickle=False) as trace:
-                parts["p"].append(trace[f"robot/{robot}/position_m"])
-                parts["h"].append(trace[f"robot/{robot}/heading_rad"])
-            with np.load(run_dir / "ground_truth.npz", allow_pickle=False) as truth:
-                parts["d"].append(truth["depth_m"])
-                parts["s"].append(truth["state"])
-                movement = truth["movement_index"].astype(np.int64)
-            scene = json.loads((run_dir / "run.json").read_text())["resolved_config"]["scene"]
-        except (OSError, KeyError, ValueError) as exc:
-            raise ValueError(f"{run_dir}: not a recorded run with ground truth "
-                             f"({type(exc).__name__}: {exc})") from exc
-        if scene is None:
-            raise ValueError(f"{run_dir}/run.json: the run has no scene (no buried objects)")
-        parts["m"].append(movement + base)
-        base += int(movement.max()) + 1 if movement.size else 0
-        outlines.extend(o.outline() for o in Scene.model_validate(scene).objects)
-    p, h, d, m, s = (np.concatenate(parts[k]) for k in ("p", "h", "d", "m", "s"))
-    return fit_failure_zone(p, h, d, m, s, outlines, rake_angle_deg=rake_angle_deg)
+    recordings = [read_calibration_run(run_dir, robot) for run_dir in run_dirs]
+    kernel = FailureZoneKernel(FailureZoneConfig(rake_angle_deg=rake_angle_deg),
+                               BuildContext(id="failure-zone-fit",
+                                            rng=np.random.default_rng(0)))
+    kernel.fit(recordings)
+    assert kernel._fit is not None  # set by fit
+    return kernel._fit
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -76,3 +76,63 @@ def test_fit_runs_names_a_run_that_is_not_a_recording(tmp_path, capsys) -> None:
     assert main([str(tmp_path / "missing"), "--out", str(tmp_path / "fit.json")]) == 2
     assert "missing: not a recorded run" in capsys.readouterr().err
     assert not (tmp_path / "fit.json").exists()
+
+
+def _calibration(ratio: float, depths: list[float], lateral: list[float]):
+    from hapticframe import CALIBRATION_CLASSES
+    from hapticframe.kinds import CalibrationRecording
+
+    pos, head, dep, mov, state, outlines = _recording(ratio, depths, lateral)
+    return CalibrationRecording(np.arange(len(state)) * 0.01, pos, head, dep, mov,
+                                np.eye(3)[state], CALIBRATION_CLASSES, outlines)
+
+
+def test_kernel_fit_is_the_train_step_and_its_artifact_loads(tmp_path) -> None:
+    from hapticframe.kinds import BuildContext, TrainableSensorModel
+    from hapticframe_failure_zone import FailureZoneKernel
+
+    def build(**kw) -> FailureZoneKernel:
+        return FailureZoneKernel(FailureZoneConfig(**kw),
+                                 BuildContext(id="fz", rng=np.random.default_rng(0)))
+
+    kernel = build()
+    assert isinstance(kernel, TrainableSensorModel)
+    assert kernel.training_report() == {}
+    with pytest.raises(ValueError, match="not been fitted"):
+        kernel.save(tmp_path)
+    # Two recordings; movement indices are kept apart, so the schedule sees four movements.
+    kernel.fit([_calibration(1.2, [0.044, 0.034], [0.0, 0.0]),
+                _calibration(1.2, [0.029, 0.0265], [0.0, 0.0])])
+    report = kernel.training_report()
+    assert report["rupture_ratio"] == pytest.approx(1.2, abs=0.03)
+    assert kernel.config.shear_band_angle_deg == pytest.approx(report["shear_band_angle_deg"])
+    assert kernel.shear_band_angle_rad == pytest.approx(
+        math.radians(report["shear_band_angle_deg"]))
+    kernel.save(tmp_path)
+    loaded = build(model_dir=str(tmp_path))
+    assert loaded.config.shear_band_angle_deg == pytest.approx(report["shear_band_angle_deg"])
+    assert loaded.parameters(0.03) == pytest.approx(kernel.parameters(0.03))
+    assert loaded.parameters(0.03) != pytest.approx(build().parameters(0.03))
+    (tmp_path / FailureZoneKernel.ARTIFACT).write_text('{"config": {"nope": 1}}')
+    with pytest.raises(ValueError, match="failure-zone config fields"):
+        build(model_dir=str(tmp_path))
+
+
+def test_calibration_recording_names_bad_input() -> None:
+    from hapticframe.kinds import CalibrationRecording
+
+    args = [np.zeros(3), np.zeros((3, 2)), np.zeros(3), np.zeros(3), [0, 0, 1],
+            np.eye(3), ("free", "jamming", "contact"), [_circle((0, 0), 0.1)]]
+    assert len(CalibrationRecording(*args)) == 3
+    bad = list(args)
+    bad[1] = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="lab-run-7: positions_m"):
+        CalibrationRecording(*bad, source="lab-run-7")
+    bad = list(args)
+    bad[4] = [1, 0, 0]
+    with pytest.raises(ValueError, match="must not decrease"):
+        CalibrationRecording(*bad)
+    bad = list(args)
+    bad[7] = []
+    with pytest.raises(ValueError, match="known object"):
+        CalibrationRecording(*bad)
