@@ -10,9 +10,10 @@ Contract
   movements (a count of interactions, a shrinking depth) changes in
   :meth:`Component.on_movement_end`.
 - A sensor model learned from calibration recordings is a :class:`TrainableSensorModel`:
-  ``hapticframe train FILE --calibration RUN_DIR...`` calls its :meth:`~TrainableSensorModel.fit`
-  with the recordings and saves its fitted parameters (plain JSON or arrays, loaded
-  without running code) as the component's artifact.
+  its :meth:`~TrainableSensorModel.fit` takes the recordings
+  (:func:`hapticframe.read_calibration_run` reads one from a run's folder) and
+  :meth:`~TrainableSensorModel.save` writes its fitted parameters (plain JSON or arrays,
+  loaded without running code). ``hapticframe train`` does not call it yet.
 """
 
 from __future__ import annotations
@@ -44,9 +45,9 @@ class SensorModel(Component):
 class TrainableSensorModel(Protocol):
     """A sensor model whose parameters are learned from calibration recordings.
 
-    ``hapticframe train`` calls :meth:`fit` once with every calibration recording, then
-    :meth:`save` into the component's artifact folder; a run loads the artifact with
-    :meth:`load` (the component's ``artifact`` setting, as for classifiers).
+    A trainer calls :meth:`fit` once with every calibration recording, then :meth:`save`
+    into a folder; a built model reads that folder with :meth:`load` (the failure-zone
+    kernel: its ``model_dir`` setting). ``hapticframe train`` does not call it yet.
     """
 
     def fit(self, recordings: Sequence[CalibrationRecording]) -> None:

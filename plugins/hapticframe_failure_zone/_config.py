@@ -54,8 +54,8 @@ class FailureZoneConfig(PluginConfig):
     )
     model_dir: str | None = Field(
         None,
-        description="Directory written by save() (failure_zone_fit.json, e.g. by `hapticframe "
-        "train --calibration RUN_DIR`) to load at build time: the fitted shear-band angle, "
+        description="Directory written by the kernel's save() after fit() "
+        "(failure_zone_fit.json) to load at build time: the fitted shear-band angle, "
         "sector half-angle and depth schedule replace the ones configured here.",
     )
     rake_angle_deg: float = Field(

@@ -38,8 +38,8 @@ def fit_recorded_runs(run_dirs: Sequence[str | Path], robot: str = "arm",
 
     A thin wrapper over the train step: each run is read with
     :func:`hapticframe.read_calibration_run` and the recordings go to
-    :meth:`FailureZoneKernel.fit <hapticframe_failure_zone.FailureZoneKernel.fit>`, as
-    ``hapticframe train --calibration`` does.
+    :meth:`FailureZoneKernel.fit <hapticframe_failure_zone.FailureZoneKernel.fit>`, the
+    sensor model's own fit step.
 
     Raises
     ------
