@@ -170,7 +170,7 @@ class RunSettings(BaseModel):
     snapshot_cpu_share: float = Field(
         0.03, gt=0, le=1.0,
         description="Largest share of the run's CPU time that map snapshots may take (0.03: "
-        "the recording's other writes take up to 6 % of a 10 x 10 m search, and the whole "
+        "the recording's other writes took 4-7 % of a 10 x 10 m search as measured, and the whole "
         "recording's budget is 10 %): a "
         "snapshot that is due is skipped while the snapshots so far took more (the maps' "
         "last state is always written). Small maps stay at snapshot_rate_hz; a large map's "
