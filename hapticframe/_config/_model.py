@@ -116,6 +116,15 @@ class RunSettings(BaseModel):
         "whose recordings stand in for it while fitting. Training sensors are not streamed "
         "during the run and no component may name them in its inputs.",
     )
+    calibration_runs: list[Annotated[str, Field(min_length=1, max_length=4096)]] = Field(
+        default_factory=list, max_length=1000,
+        description="`hapticframe train`: recorded calibration runs (their --out "
+        "directories) to fit the sensor models that learn from calibration recordings "
+        "(TrainableSensorModel, e.g. learned-zone): robot poses, what the sensor model's "
+        "classifier reported and the scene's known objects. `train --calibration DIR` adds "
+        "one. Record them over an object buried where you know it, with "
+        "run.halt_on_interaction: false.",
+    )
     figures: bool = Field(
         True, description="Let components write their figures (benchmarks switch this off)."
     )

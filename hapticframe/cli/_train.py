@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 from hapticframe.cli._common import (
     add_out_options,
@@ -23,6 +24,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("file", metavar="FILE")
     add_out_options(p, "the artifacts", "the artifacts of a training run")
     p.add_argument("--strict", action="store_true", help="fail if any plugin fails to load")
+    p.add_argument(
+        "--calibration", action="append", default=[], metavar="RUN_DIR",
+        help="a recorded calibration run (a run's --out directory over an object buried "
+        "where you know it) to fit the sensor models that learn from them; repeatable, "
+        "replaces the file's run.calibration_runs")
     add_set_option(p)
     add_plugin_module_option(p)
     p.set_defaults(func=cmd_train)
@@ -31,6 +37,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def cmd_train(args: argparse.Namespace) -> int:
     from hapticframe.run._train import train_experiment
 
+    if args.calibration:
+        from hapticframe._config._overrides import Override
+
+        runs = [str(d) for d in args.calibration]
+        # As the last --set: it replaces the file's list, recorded in train.json's overrides.
+        args.set = [*args.set, Override("run.calibration_runs", runs,
+                                        "run.calibration_runs=" + json.dumps(runs))]
     experiment = validate_experiment(args, args.file, command="train")
     record = train_experiment(experiment, args.out, overwrite=args.overwrite,
                               echo=progress_line, min_free_bytes=min_free(args))

@@ -13,7 +13,9 @@ Contract
   its :meth:`~TrainableSensorModel.fit` takes the recordings
   (:func:`hapticframe.read_calibration_run` reads one from a run's folder) and
   :meth:`~TrainableSensorModel.save` writes its fitted parameters (plain JSON or arrays,
-  loaded without running code). ``hapticframe train`` does not call it yet.
+  loaded without running code). ``hapticframe train`` fits every such sensor model on the
+  runs of ``run.calibration_runs`` (``train --calibration DIR``) and saves it into
+  ``DIR/<id>/``.
 """
 
 from __future__ import annotations
@@ -47,7 +49,8 @@ class TrainableSensorModel(Protocol):
 
     A trainer calls :meth:`fit` once with every calibration recording, then :meth:`save`
     into a folder; a built model reads that folder with :meth:`load` (the failure-zone
-    kernel: its ``model_dir`` setting). ``hapticframe train`` does not call it yet.
+    kernel: its ``model_dir`` setting). ``hapticframe train`` is that trainer
+    (``run.calibration_runs``).
     """
 
     def fit(self, recordings: Sequence[CalibrationRecording]) -> None:

@@ -5,7 +5,9 @@ The experiment's sensors must be finite (synthetic trials, recordings). Their re
 its inputs (joined as :attr:`~hapticframe.kinds.Component.input_alignment` says, as the run
 joins them) and then transforms them; each classifier is fitted on its inputs with labels
 taken from the sensors' label channel (``run.label_channel``, default ``contact``) at the
-classifier inputs' timestamps. Components that are
+classifier inputs' timestamps. Sensor models that learn from calibration recordings
+(:class:`~hapticframe.kinds.TrainableSensorModel`) are fitted last, on the recorded runs of
+``run.calibration_runs`` (:func:`fit_sensor_models`). Components that are
 :class:`~hapticframe.kinds.Persistent` write their artifacts into ``DIR/<component id>/``,
 and ``DIR/train.json`` records the seed, versions, plugins, the resolved config and the
 report of each :class:`~hapticframe.kinds.Trainable` component. ``train.json`` says
@@ -33,7 +35,15 @@ import numpy as np
 from hapticframe._config import Experiment
 from hapticframe._errors import HapticframeError, RunError, UsageError
 from hapticframe._kind import Kind
-from hapticframe.kinds import Component, Persistent, SampleBatch, Trainable
+from hapticframe.calibration import read_calibration_run
+from hapticframe.kinds import (
+    CalibrationRecording,
+    Component,
+    Persistent,
+    SampleBatch,
+    Trainable,
+    TrainableSensorModel,
+)
 from hapticframe.run._assembly import build_components
 from hapticframe.run._components import Components
 from hapticframe.run._results import environment
@@ -47,6 +57,7 @@ __all__ = [
     "collect_recordings",
     "fit_before_run",
     "fit_components",
+    "fit_sensor_models",
     "labels_at",
     "train_experiment",
     "training_reports",
@@ -155,6 +166,58 @@ def fit_components(
     return trained
 
 
+def fit_sensor_models(
+    experiment: Experiment,
+    components: Components,
+    run_dirs: Sequence[str],
+    echo: Callable[[str], None] = _log.info,
+) -> list[str]:
+    """Fit every sensor model that is a :class:`~hapticframe.kinds.TrainableSensorModel` on
+    the calibration runs ``run_dirs``; the ids fitted.
+
+    Each run is read with :func:`~hapticframe.read_calibration_run`: the robot the sensor
+    model names among its inputs (else the trace's only robot), the classes that the
+    classifier it names among its inputs reported during the run (else, in a simulation,
+    the world's true states), and the run's scene. Without ``run_dirs`` nothing is fitted.
+
+    Raises
+    ------
+    UsageError
+        A run that is no calibration recording (naming ``run.calibration_runs[i]``), or
+        runs given to an experiment with no trainable sensor model.
+    """
+    trainable = [e for e in experiment.of_kind(Kind.SENSOR_MODEL)
+                 if isinstance(components.sensor_models[e.id], TrainableSensorModel)]
+    if not run_dirs:
+        return []
+    if not trainable:
+        models = [f"{e.id} ({e.type})" for e in experiment.of_kind(Kind.SENSOR_MODEL)]
+        raise UsageError(
+            "run.calibration_runs: no sensor model of the experiment learns from calibration "
+            f"recordings (sensor models: {', '.join(models) or 'none'})")
+    classifiers = {e.id for e in experiment.of_kind(Kind.CLASSIFIER)}
+    robots = {e.id for e in experiment.of_kind(Kind.ROBOT)}
+    fitted: list[str] = []
+    for entry in trainable:
+        classifier = next((i for i in entry.inputs if i in classifiers), None)
+        robot = next((i for i in entry.inputs if i in robots), None)
+        recordings: list[CalibrationRecording] = []
+        for i, run_dir in enumerate(run_dirs):
+            try:
+                recordings.append(read_calibration_run(run_dir, robot, classifier))
+            except ValueError as exc:
+                raise UsageError(f"run.calibration_runs[{i}]: {exc}") from None
+        echo(f"fitting {entry.id} ({entry.type}) on {len(recordings)} calibration runs "
+             f"({sum(len(r) for r in recordings)} samples; classes from "
+             f"{'classifier ' + repr(classifier) if classifier else 'the true states'})")
+        model = components.sensor_models[entry.id]
+        assert isinstance(model, TrainableSensorModel)  # chosen so above
+        with _located(entry.id, entry.type):
+            model.fit(recordings)
+        fitted.append(entry.id)
+    return fitted
+
+
 def fit_before_run(session: Session) -> None:
     """Fit feature extractors and classifiers on the training sensors' recordings
     (``run.train_from``) before a run or replay; ``run.json`` records it
@@ -243,15 +306,21 @@ def train_experiment(
         sources = dict(experiment.model.run.train_from) or {
             e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
         }
-        recordings = collect_recordings(components, sources)
-        echo(f"training on {len(recordings)} recordings")
-        trained = fit_components(experiment, components, recordings, label_channel, echo)
+        calibration_runs = list(experiment.model.run.calibration_runs)
+        if sources or not calibration_runs:
+            recordings = collect_recordings(components, sources)
+            echo(f"training on {len(recordings)} recordings")
+            trained = fit_components(experiment, components, recordings, label_channel, echo)
+        else:
+            recordings, trained = [], []
+        trained += fit_sensor_models(experiment, components, calibration_runs, echo)
         saved = _save(components, trained, scope.staging, scope.out)
         done.update({
             **head,
             "status": "ok",
             "error": None,
             "recordings": len(recordings),
+            "calibration_runs": calibration_runs,
             "label_channel": label_channel,
             "trained": trained,
             "artifacts": saved,
