@@ -303,10 +303,12 @@ def train_experiment(
         components = scope.build(lambda stack, on_close_error: build_components(
             experiment, stack, on_close_error=on_close_error))
         # With run.train_from, the training sensors stand in for the sensors a run streams.
+        calibration_runs = list(experiment.model.run.calibration_runs)
         sources = dict(experiment.model.run.train_from) or {
             e.id: e.id for e in experiment.of_kind(Kind.SENSOR)
+            # With calibration runs, a search's streamed sensors deliver no recordings.
+            if not calibration_runs or "finite" in e.registered.spec.capabilities
         }
-        calibration_runs = list(experiment.model.run.calibration_runs)
         if sources or not calibration_runs:
             recordings = collect_recordings(components, sources)
             echo(f"training on {len(recordings)} recordings")
