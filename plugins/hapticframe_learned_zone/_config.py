@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from itertools import pairwise
+from typing import Literal
 
 from pydantic import Field, model_validator
 
@@ -27,6 +28,13 @@ class LearnedZoneConfig(PluginConfig):
         description="Directory `hapticframe train` wrote for this sensor model "
         "(learned_zone.json); None: the model learned in the analytic sandbox that ships "
         "with the plugin.",
+    )
+    mixture: Literal["one-hot", "soft"] = Field(
+        "one-hot",
+        description="What a report is: 'one-hot' its most probable class (as the "
+        "failure-zone kernel's default, and as the run's halt reads it), in the fit and in "
+        "the search; 'soft' its class probabilities as a mixture (only for a classifier "
+        "whose probabilities are calibrated: drag-ratio-jamming reports jamming at 0.6).",
     )
     ahead_min_m: float = Field(
         -0.03, ge=-0.5, le=0.0,

@@ -126,7 +126,9 @@ class LearnedZone(SensorModel):
         q = np.asarray(probabilities, dtype=np.float64)
         q = q / q.sum() if q.sum() > 0 else np.full(q.size, 1.0 / q.size)
         ratio = log_ratio(self.p_occupied[row], self.p_free[row], q)
-        weights = observation_weights(ratio, self.occupied_samples[row],
+        # A sparse band's likelihoods are mostly the pooled ones (it is shrunk towards
+        # them), so their evidence is the samples pooled over depths.
+        weights = observation_weights(ratio, self.occupied_samples[-1],
                                       self.config.prior_strength,
                                       self.config.full_weight_log_ratio)
         # The target is the posterior from an even prior, σ(log LR): the map fits soft
@@ -159,7 +161,7 @@ class LearnedZone(SensorModel):
         if n == 0:
             return Observations.empty()
         columns = self._columns_of(tuple(measurement.classes))
-        probabilities = measurement.probabilities[:, columns]
+        probabilities = _reports(measurement.probabilities[:, columns], self.config.mixture)
         positions = measurement.positions_m
         headings = measurement.headings_rad
         if not (np.isfinite(positions).all() and np.isfinite(headings).all()):
@@ -293,14 +295,15 @@ def fit_counts(recordings: Sequence[CalibrationRecording], config: LearnedZoneCo
         keep &= onset_window(rec.positions_m, rec.movement_index, rec.labels(),
                              cfg.onset_travel_m)
         rows = np.flatnonzero(keep)
-        class_total += rec.probabilities[rows].sum(axis=0)
+        reports = _reports(rec.probabilities, cfg.mixture)
+        class_total += reports[rows].sum(axis=0)
         for start in range(0, rows.size, _CHUNK):
             block = rows[start:start + _CHUNK]
             occupied = inside_outlines(
                 place(offsets, rec.positions_m[block], rec.headings_rad[block]),
                 rec.outlines_m)
             band = depth_band(rec.depth_m[block], edges)
-            o, f = count_reports(occupied, rec.probabilities[block], band, bands)
+            o, f = count_reports(occupied, reports[block], band, bands)
             n_occ += o
             n_free += f
             counted += block.size
@@ -328,6 +331,15 @@ def fit_counts(recordings: Sequence[CalibrationRecording], config: LearnedZoneCo
         "cells": len(offsets),
     }
     return model, report
+
+
+def _reports(probabilities: FloatArray, mixture: str) -> FloatArray:
+    """The reports as counted and observed: one-hot rows of the most probable class, or
+    the probabilities themselves (``mixture: soft``)."""
+    if mixture == "soft":
+        return probabilities
+    hard: FloatArray = np.eye(probabilities.shape[1])[np.argmax(probabilities, axis=1)]
+    return hard
 
 
 def _parse(data: Any, where: str) -> dict[str, Any]:

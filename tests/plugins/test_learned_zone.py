@@ -5,7 +5,6 @@ artifact round trip and its refusals, and ``hapticframe train`` fitting it from 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -179,8 +178,9 @@ def test_a_classifier_of_other_classes_is_refused():
 
 
 def test_the_bundled_model_speaks_ahead():
-    reach = _zone().reach_ahead_m()
-    assert all(0.0 < r < 0.12 for r in reach.values() if not math.isnan(r))
+    # the analytic sandbox's jamming is first reported 2.6-3.8 cm before the object: the
+    # odds rise from there across an object's size (contact is too rare there to say)
+    assert 0.02 <= _zone().reach_ahead_m()["jamming"] <= 0.12
 
 
 @pytest.mark.slow  # about 4 s: a recorded search and a train
