@@ -239,3 +239,41 @@ def test_train_names_a_run_that_is_no_calibration_recording(tmp_path, monkeypatc
                  "--calibration", str(tmp_path)])
     assert code == 2
     assert "run.calibration_runs[0]" in capsys.readouterr().err
+
+
+def test_a_report_is_its_most_probable_class_unless_soft():
+    zone, soft = _zone(), _zone(mixture="soft")
+    rec = _approaches(np.random.default_rng(3), 0.03)
+    zone.fit([rec])
+    soft.fit([rec])
+    report = LocatedMeasurement(np.array([0.0]), np.array([[0.0, 0.0]]), np.array([0.0]),
+                                np.array([[0.4, 0.6, 0.0]]), CLASSES, np.array([0.044]))
+    hard = LocatedMeasurement(np.array([0.0]), np.array([[0.0, 0.0]]), np.array([0.0]),
+                              np.array([[0.0, 1.0, 0.0]]), CLASSES, np.array([0.044]))
+    a, b = zone.observe(report), _zone_fitted_like(zone).observe(hard)
+    np.testing.assert_array_equal(a.targets, b.targets)
+    # as a mixture, 0.4 of "free" pulls the same report's targets towards 1/2
+    assert soft.observe(report).targets.max() < a.targets.max()
+
+
+def _zone_fitted_like(zone: LearnedZone) -> LearnedZone:
+    fresh = _zone()
+    fresh._use(zone._model)
+    return fresh
+
+
+@pytest.mark.slow  # about 8 s: the example's three commands in mpm-sand
+def test_the_calibrated_example_finds_its_ellipse_in_mpm_sand(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the examples' paths are relative to where they run
+    search = str(EXAMPLES / "search-ellipse-learned-zone.yaml")
+    assert main(["run", search, "--out", "runs/calibration-physics", "--quiet",
+                 "--set", "zone.model_dir=null", "--set", "run.halt_on_interaction=false",
+                 "--set", "run.max_movements=12", "--set", "run.figures=false",
+                 "--set", "scene.objects=[{shape: circle, center_m: [0.25, 0.32], "
+                 "radius_m: 0.03}]"]) == 0
+    assert main(["train", str(EXAMPLES / "calibrate-learned-zone.yaml"),
+                 "--out", "runs/learned-zone"]) == 0
+    assert main(["run", search, "--out", "runs/search", "--quiet",
+                 "--set", "run.figures=false"]) == 0
+    metrics = json.loads(Path("runs/search/metrics.json").read_text())
+    assert metrics["object_found"] and metrics["centroid_error_m"] < 0.03
