@@ -10,9 +10,9 @@ from hapticframe import lazy_exports
 
 from ._config import LearnedZoneConfig
 
-__all__ = ["LearnedZone", "LearnedZoneConfig"]
+__all__ = ["LearnedZone", "LearnedZoneConfig", "fit_counts"]
 
 #: Public names that load on first use, and their modules.
-_LAZY = {"LearnedZone": "._model"}
+_LAZY = {"LearnedZone": "._model", "fit_counts": "._model"}
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY)

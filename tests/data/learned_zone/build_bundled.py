@@ -20,8 +20,7 @@ import tempfile
 from pathlib import Path
 
 from hapticframe import read_calibration_run
-from hapticframe_learned_zone import LearnedZoneConfig
-from hapticframe_learned_zone._model import fit_counts
+from hapticframe_learned_zone import LearnedZoneConfig, fit_counts
 
 ROOT = Path(__file__).resolve().parents[3]
 TARGET = ROOT / "plugins" / "hapticframe_learned_zone" / "data" / "sandbox.json"
