@@ -5,9 +5,9 @@ a circle of 8 cm diameter and an ellipse with 9 cm and 5 cm axes. Every object l
 inside the region. Beyond the thesis (issue 19): two concave polygons of the circle's area
 (``l-shape``, ``star``) and scenes of several objects (``two-objects``: a circle and an
 ellipse; ``three-objects``: a circle, an ellipse and an L-shape), their outlines at least
-``gap_m`` apart. Placements are drawn per trial, circle then ellipse, from one seeded
-generator, so the first ``k`` trials of a run with more trials are the same ``k`` trials:
-a quick run is a prefix of the full one.
+``gap_m`` apart; and (issue 32) a 7 x 5 cm ``box``. Placements are drawn per trial, circle
+then ellipse, from one seeded generator, so the first ``k`` trials of a run with more
+trials are the same ``k`` trials: a quick run is a prefix of the full one.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "BOX_HALF_EXTENTS_M",
     "CIRCLE_RADIUS_M",
     "ELLIPSE_SEMI_AXES_M",
     "L_SHAPE_VERTICES_M",
@@ -39,6 +40,9 @@ CIRCLE_RADIUS_M = 0.04
 ELLIPSE_SEMI_AXES_M = (0.045, 0.025)
 #: The shapes of Table 3.2, in the order of its rows.
 SHAPES = ("circle", "ellipse")
+#: A 7 x 5 cm box (the ellipse's area, corners the kernels never saw): the shape no setting
+#: was chosen on in ``bench search-physics`` (issue 32 §5).
+BOX_HALF_EXTENTS_M = (0.035, 0.025)
 
 
 def _about_centroid(vertices: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
@@ -79,7 +83,12 @@ SCENE_SETS: dict[str, tuple[str, ...]] = {
 }
 #: Least distance between the outlines of two objects of one scene.
 SCENE_GAP_M = 0.10
-_VERTICES = {"l-shape": L_SHAPE_VERTICES_M, "star": STAR_VERTICES_M}
+_VERTICES = {
+    "l-shape": L_SHAPE_VERTICES_M,
+    "star": STAR_VERTICES_M,
+    "box": tuple((sx * BOX_HALF_EXTENTS_M[0], sy * BOX_HALF_EXTENTS_M[1])
+                 for sx, sy in ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))),
+}
 
 
 @dataclass(frozen=True)
@@ -89,7 +98,8 @@ class Placement:
     Parameters
     ----------
     shape : str
-        ``"circle"`` or ``"ellipse"``.
+        ``"circle"``, ``"ellipse"``, a polygon (``"l-shape"``, ``"star"``, ``"box"``) or a
+        multi-object scene (:data:`MULTI_SCENES`).
     index : int
         0-based trial number.
     center_m : tuple of float
