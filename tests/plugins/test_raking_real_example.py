@@ -175,4 +175,11 @@ def test_the_example_run_prints_its_scores(tmp_path: Path, capsys: pytest.Captur
                 "estimator_depth_accuracy"):
         assert f"{key}={short_number(metrics[key])}" in summary
     assert summary.index("estimator_depth_accuracy") < summary.index("wall_time_s")
+    # The README shows this line (the shipped model is the one the training example trains).
+    shown = [line for line in (ROOT / "README.md").read_text().splitlines()
+             if line.startswith("results in runs/raking-real ")]
+    assert len(shown) == 1
+    for key in ("estimator_distance_mae_mm", "estimator_direction_accuracy",
+                "estimator_depth_accuracy"):
+        assert f"{key}={short_number(metrics[key])}," in shown[0]
     assert (out / "estimator-estimates.png").stat().st_size > 10_000
