@@ -11,7 +11,9 @@ Every row runs the same plain-float code whatever the chunking (the drag estimat
 sample depends on the CUSUM of the one before), so streaming and batch agree bit for bit.
 Invalid or non-finite samples are held as in ``force-rate-jamming``; rows before the first
 valid sample get uniform probabilities (arg-max: free). During a movement's warm-up (the
-drag not yet estimated) a row is that of a force equal to the drag: free.
+drag not yet estimated) a row is that of a force equal to the drag (free), unless an
+earlier movement of the run carried its drag over (``carry_drag``): then the row is judged
+against the largest drag seen so far.
 """
 
 from __future__ import annotations
@@ -131,6 +133,7 @@ class DragRatioJammingClassifier(Classifier):
         return self._sample_rate_hz
 
     def reset(self) -> None:
+        # The run loop resets at every movement's start: the carried drag stays.
         self._filter.reset()
         self._drag.reset()
 
@@ -142,20 +145,28 @@ class DragRatioJammingClassifier(Classifier):
         self._drag.restore(checkpoint[1])
 
     def on_movement_end(self, result: MovementResult) -> None:
-        # Each movement has its own drag (depth, sand, start-up): estimated afresh.
-        self.reset()
+        # Each movement has its own drag (depth, sand, start-up): estimated afresh; the
+        # largest so far guards the next one's warm-up (config.carry_drag).
+        self._filter.reset()
+        if self.config.carry_drag:
+            self._drag.end_movement()
+        else:
+            self._drag.reset()
 
     def update(self, batch: SampleBatch) -> ClassProbabilities:
         rows = self._rows(batch)
         return ClassProbabilities(batch.timestamps_s, rows[-1], CLASSES)
 
     def trace(self, batch: SampleBatch) -> DragTrace:
-        """The detector's inner signals over a whole recording, from a fresh state."""
-        self.reset()
+        """The detector's inner signals over a whole recording, from a fresh state (no
+        carried drag); the classifier's own state is left as it was."""
+        state = self.checkpoint()
+        self._filter.reset()
+        self._drag.forget()
         try:
             force, drag, ratio, rate, cusum, armed, probabilities = self._rows(batch)
         finally:
-            self.reset()
+            self.rewind(state)
         return DragTrace(batch.timestamps_s, force, drag, ratio, rate, cusum, armed,
                          probabilities)
 

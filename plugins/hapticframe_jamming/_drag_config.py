@@ -73,6 +73,12 @@ class DragRatioJammingConfig(PluginConfig):
         description="Time constant of the drag estimate's slow tracking while the CUSUM is at "
         "zero (no evidence of jamming); frozen otherwise.",
     )
+    carry_drag: bool = Field(
+        True,
+        description="Judge a movement's warm-up against the largest drag of the run's earlier "
+        "movements (its CUSUM and contact rule), so that a movement starting next to an "
+        "object is not blind until its own drag is estimated; false: free until then.",
+    )
     min_drag_n: float = Field(
         0.05, gt=0, le=1e4, allow_inf_nan=False,
         description="Floor of the drag estimate (force units): a drag near zero would make "

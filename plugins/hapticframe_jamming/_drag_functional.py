@@ -78,6 +78,8 @@ class DragTrackerState:
     window: tuple[tuple[float, float], ...]
     drag: float | None
     cusum: float
+    prior: float | None = None
+    warmup_cusum: float = 0.0
 
 
 def _median(values: list[float]) -> float:
@@ -98,19 +100,44 @@ class DragTracker:
     dt`` to the CUSUM (never below 0; ``dt`` capped at ``max_dt_s``, so a gap adds no
     evidence it did not see); while the CUSUM is 0 the drag follows the force with time
     constant ``tracking_time_s``, and it stays frozen while the CUSUM holds evidence.
+
+    Carried drag (``end_movement``): the largest drag estimated in the earlier movements of
+    a run is kept as a prior. During the next movement's warm-up the CUSUM then runs on
+    ``log(f / prior)`` and contact is judged against the prior, so a movement that starts
+    next to an object (phase 2 starts them there) is not blind until its own drag is known:
+    a force that climbs past every free drag seen so far is not free sand.
     """
 
     def __init__(self, settings: DragSettings) -> None:
         self.settings = settings
         self._alpha_per_s = 1.0 / settings.tracking_time_s
+        self._prior: float | None = None
         self.reset()
 
     def reset(self) -> None:
+        """Start a movement afresh (the carried prior is kept; :meth:`forget` drops it)."""
         self._start_t: float | None = None
         self._last_t: float | None = None
         self._window: list[tuple[float, float]] = []
         self._drag: float | None = None
         self._cusum = 0.0
+        self._warmup_cusum = 0.0
+
+    def forget(self) -> None:
+        """Start a run afresh: the movement's state and the carried prior."""
+        self._prior = None
+        self.reset()
+
+    def end_movement(self) -> None:
+        """Carry this movement's drag (when it was estimated) into the prior, then reset."""
+        if self._drag is not None:
+            self._prior = self._drag if self._prior is None else max(self._prior, self._drag)
+        self.reset()
+
+    @property
+    def prior(self) -> float | None:
+        """The largest drag of the earlier movements (None before any was estimated)."""
+        return self._prior
 
     @property
     def drag(self) -> float | None:
@@ -119,27 +146,36 @@ class DragTracker:
 
     def snapshot(self) -> DragTrackerState:
         return DragTrackerState(self._start_t, self._last_t, tuple(self._window), self._drag,
-                                self._cusum)
+                                self._cusum, self._prior, self._warmup_cusum)
 
     def restore(self, state: DragTrackerState) -> None:
         self._start_t, self._last_t = state.start_t, state.last_t
         self._window = list(state.window)
         self._drag, self._cusum = state.drag, state.cusum
+        self._prior, self._warmup_cusum = state.prior, state.warmup_cusum
 
     def step(self, t: float, force: float, rate: float) -> tuple[bool, float, float, float]:
         """One filtered sample: (armed, ratio f/b, ratio rate f'/b in 1/s, CUSUM).
 
         Before the drag is estimated (not armed) the CUSUM is 0 and the ratio and its rate
         are against the median of the last ``settle_window_s`` once two have passed (1 and
-        0 before).
+        0 before); with a carried prior, the ratio, its rate and a CUSUM are against the
+        prior instead, and the result counts as armed.
         ``force`` and ``rate`` must be finite (the classifier holds the last valid sample).
         """
         s = self.settings
         if self._start_t is None:
             self._start_t = t
         if self._drag is None:
+            last = t if self._last_t is None else self._last_t
             provisional = self._warm_up(t, force)
             self._last_t = t
+            if self._prior is not None:
+                dt = min(max(t - last, 0.0), s.max_dt_s)
+                ratio = min(max(force / self._prior, _MIN_RATIO), _MAX_RATIO)
+                self._warmup_cusum = max(0.0, self._warmup_cusum
+                                         + (math.log(ratio) - s.drift) * dt)
+                return True, ratio, rate / self._prior, self._warmup_cusum
             if provisional is None:
                 return False, 1.0, 0.0, 0.0
             # Contact is still caught in the warm-up, against the last window's median (a

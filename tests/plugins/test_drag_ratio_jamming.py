@@ -235,3 +235,71 @@ def test_fit_refuses_labels_it_cannot_use():
         calibrate_drag_ratio([batch], [np.zeros(99)])
     with pytest.raises(ValueError, match="at least one"):
         calibrate_drag_ratio([], [])
+
+
+# --- the drag carried from one movement to the next -----------------------------------------
+
+
+def _ramp_from_rest(peak: float, samples: int) -> np.ndarray:
+    """A movement that starts next to an object: the force climbs from rest, no plateau."""
+    return np.linspace(0.0, peak, samples)
+
+
+def test_a_carried_drag_arms_the_next_warm_up_and_forget_drops_it():
+    tracker = DragTracker(_settings())
+    for k in range(300):
+        tracker.step(k / RATE_HZ, 4.0, 0.0)
+    tracker.end_movement()
+    assert tracker.prior == pytest.approx(4.0) and tracker.drag is None
+    out = [tracker.step(k / RATE_HZ, f, 0.0) for k, f in enumerate(_ramp_from_rest(40.0, 60))]
+    assert all(o[0] for o in out)  # judged against the prior from the first sample
+    assert out[-1][3] > 0.02  # the CUSUM on log(f / 4 N) passed its level
+    tracker.end_movement()  # no drag of its own: the prior stays the largest seen
+    assert tracker.prior == pytest.approx(4.0)
+    tracker.forget()
+    assert tracker.prior is None
+    assert not tracker.step(0.0, 10.0, 0.0)[0]
+
+
+def test_the_prior_is_the_largest_drag_so_far():
+    tracker = DragTracker(_settings())
+    for level in (6.0, 2.0):
+        for k in range(300):
+            tracker.step(k / RATE_HZ, level, 0.0)
+        tracker.end_movement()
+    assert tracker.prior == pytest.approx(6.0)
+
+
+def _movement_end(classifier: DragRatioJammingClassifier) -> None:
+    from hapticframe.kinds import MovementResult
+
+    movement = ExploratoryMovement(np.zeros(2), np.ones(2))
+    classifier.on_movement_end(MovementResult(0, movement, False, "", None))
+
+
+@pytest.mark.parametrize("carry", [True, False])
+def test_a_movement_starting_at_an_object_is_flagged_only_with_the_carried_drag(carry):
+    classifier = _classifier(carry_drag=carry)
+    classifier.update(_batch(np.full(300, 5.0)))  # free raking: the drag, 5 N
+    _movement_end(classifier)
+    classifier.reset()  # the run loop resets at every movement's start
+    ramp = _ramp_from_rest(60.0, 80)  # 0.8 s: within the warm-up of its own drag
+    flagged = []
+    for k in range(len(ramp)):
+        t = np.array([k / RATE_HZ])
+        out = classifier.update(SampleBatch(t, {"force_n": np.array([[ramp[k], 0.0]])}))
+        flagged.append(int(np.argmax(out.probabilities)) != 0)
+    assert any(flagged) is carry
+    if carry:  # not before the force passed the carried drag
+        assert ramp[flagged.index(True)] > 5.0
+
+
+def test_trace_starts_fresh_and_leaves_the_carried_drag_alone():
+    classifier = _classifier()
+    classifier.update(_batch(np.full(300, 5.0)))
+    _movement_end(classifier)
+    before = classifier.checkpoint()
+    fresh = classifier.trace(_batch(_ramp_from_rest(60.0, 80)))
+    assert not fresh.armed.any()  # no carried drag in a trace
+    assert classifier.checkpoint()[1] == before[1]
+    assert classifier.checkpoint()[1].prior == pytest.approx(5.0)
