@@ -74,6 +74,20 @@ class TwoPhaseCoverageConfig(CoverageConfig):
         "phase 2 (the dissertation). False starts phase 2 at once: one movement and one "
         "object interaction fewer, the object's far side left to phase 2.",
     )
+    reverse_confirms: bool = Field(
+        False,
+        description="With phase1_reverse: a reverse pass that meets nothing where the first "
+        "pass met something marks that report a false alarm; its interaction is dropped and "
+        "phase 1 goes on with the next line (the map keeps the evidence). False: phase 2 "
+        "starts after the reverse pass whatever it met (the dissertation).",
+    )
+    phase1_cross_pass: bool = Field(
+        False,
+        description="When every phase-1 line was raked without an interaction, rake the "
+        "lines at right angles to them (same spacing and order) before giving up: an object "
+        "lying along the lines between two of them is met across its length. False: the "
+        "search ends (the dissertation).",
+    )
     stop_short_m: float | None = Field(
         None, gt=0, le=1.0,
         description="Once the object was met stop_short_after times, each phase-2 movement "

@@ -32,6 +32,11 @@ Readings of the dissertation chosen here (all configurable):
   the next interaction elsewhere starts a new phase 1 reverse pass and phase 2. Phase-2
   lines are cut short before a found object. The search ends when ``max_objects`` were
   localised or the phase-1 lines are exhausted.
+- *A reverse pass that meets nothing* (``reverse_confirms``, off by default): the first
+  pass's interaction was a false alarm; it is dropped and phase 1 goes on, instead of
+  phase 2 circling a blob that is not there.
+- *Nothing met* (``phase1_cross_pass``, off by default): the lines at right angles are
+  raked before the search gives up.
 - *Fewer touches* (issue 19 §6, both off by default): ``phase1_reverse: false`` skips the
   reverse pass; ``stop_short_m`` ends each phase-2 movement, once the object was met
   ``stop_short_after`` times, that far before the outline estimate, and such a movement
@@ -142,17 +147,12 @@ class TwoPhaseCoverage(LinePlanner):
     def reset(self) -> None:
         """Start the search again from phase 1."""
         super().reset()
-        starts, ends = parallel_lines(
-            self.search_bounds, self.phase1_angle_deg, self.config.line_spacing_m
-        )
-        self.phase1_lines: tuple[FloatArray, FloatArray] = (starts, ends)
-        if self.config.phase1_order == "binary":
-            self._queue = binary_search_order(len(starts))
-        else:
-            self._queue = outer_last_order(len(starts))
+        self._crossed = False
+        self._lay_phase1_lines(self.phase1_angle_deg)
         self._phase = "phase1"
         self._reverse_of: ExploratoryMovement | None = None
         self._awaiting_reverse = False
+        self._forward_points = 0
         self.used_angles_deg: list[float] = [self.phase1_angle_deg]
         self.current_bounds: Bounds = self.search_bounds
         self.interaction_points: list[FloatArray] = []
@@ -169,6 +169,15 @@ class TwoPhaseCoverage(LinePlanner):
         self.found_outlines: list[FloatArray] = []
         self.found_centroids: list[FloatArray] = []
         self._segments: list[tuple[FloatArray, FloatArray, str]] = []
+
+    def _lay_phase1_lines(self, angle_deg: float) -> None:
+        """Phase 1's lines at ``angle_deg`` and the order they are raked in."""
+        starts, ends = parallel_lines(self.search_bounds, angle_deg, self.config.line_spacing_m)
+        self.phase1_lines: tuple[FloatArray, FloatArray] = (starts, ends)
+        if self.config.phase1_order == "binary":
+            self._queue = binary_search_order(len(starts))
+        else:
+            self._queue = outer_last_order(len(starts))
 
     def _start_next_object(self) -> None:
         """Forget the per-object state of phase 2; phase 1 resumes its queue."""
@@ -232,9 +241,17 @@ class TwoPhaseCoverage(LinePlanner):
             return
         if self._awaiting_reverse:
             self._awaiting_reverse = False
-            self._phase = "phase2"
+            if interacted or not self.config.reverse_confirms:
+                self._phase = "phase2"
+            else:
+                # The line met nothing from its far end: the first pass's report was a
+                # false alarm (an object on the line is met from both ends), so its
+                # interaction does not steer phase 2; phase 1 goes on.
+                del self.interaction_points[self._forward_points:]
+                del self.met_from_deg[self._forward_points:]
         elif interacted and self.config.phase1_reverse:
             self._reverse_of = result.movement
+            self._forward_points = len(self.interaction_points) - 1
         elif interacted:
             self._phase = "phase2"
 
@@ -275,6 +292,13 @@ class TwoPhaseCoverage(LinePlanner):
             )
         starts, ends = self.phase1_lines
         while not self._segments:
+            if not self._queue and self.config.phase1_cross_pass and not self._crossed:
+                # Nothing met: the object may lie along the lines, between two of them.
+                self._crossed = True
+                cross_deg = (self.phase1_angle_deg + 90.0) % 180.0
+                self._lay_phase1_lines(cross_deg)
+                self.used_angles_deg.append(cross_deg)
+                starts, ends = self.phase1_lines
             if not self._queue:
                 self._finish()  # every line raked without an interaction
                 return None
