@@ -133,7 +133,8 @@ def _goal_results(found_b: int, rmse_cm: float, trials: int = 25) -> dict:
 
     return {"mpm-sand": {CALIBRATED_ROLE: {"circle": row(found_b, rmse_cm),
                                           "box": row(found_b)}},
-            "sandbox": {"search": {"circle": row(25)},
+            "sandbox": {"search": {"circle": row(25, 1.0)},
+                        CALIBRATED_ROLE: {"circle": row(20, 0.9)},
                         CROSS_ROLE: {"circle": row(20)}}}
 
 
@@ -145,7 +146,10 @@ def test_goal_verdicts_follow_the_issue_thresholds() -> None:
     assert checks["mpm_b_circle_hausdorff_cm"]["met"] is True  # 1.2 <= 1.4
     assert "mpm_b_box_movements" not in checks  # no thesis row for the box
     assert checks["mpm_b_box_found"]["met"] is True
-    assert checks["sandbox_cross-world_circle_found"]["met"] is False  # 20 < 25
+    assert checks["sandbox_b_circle_found"]["met"] is False  # 20 < (a)'s 25
+    assert checks["sandbox_b_circle_centroid_rmse_cm"]["met"] is True  # 0.9 <= 1.0
+    assert checks["sandbox_b_circle_movements"]["met"] is True  # equal
+    assert not any("cross" in name for name in checks)  # (x) is reported, not a goal
     worse = goal_checks(_goal_results(23, 1.6), 25)
     assert worse["mpm_b_circle_found"]["met"] is False
     assert worse["mpm_b_circle_centroid_rmse_cm"]["met"] is False

@@ -270,7 +270,7 @@ def test_the_calibrated_example_finds_its_ellipse_in_mpm_sand(tmp_path, monkeypa
                  "--set", "zone.model_dir=null", "--set", "run.halt_on_interaction=false",
                  "--set", "run.max_movements=12", "--set", "run.figures=false",
                  "--set", "scene.objects=[{shape: circle, center_m: [0.25, 0.32], "
-                 "radius_m: 0.03}]"]) == 0
+                 "radius_m: 0.04}]"]) == 0
     assert main(["train", str(EXAMPLES / "calibrate-learned-zone.yaml"),
                  "--out", "runs/learned-zone"]) == 0
     assert main(["run", search, "--out", "runs/search", "--quiet",

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[3]
 SEARCH = ROOT / "examples" / "search-ellipse-learned-zone.yaml"
 BASELINE = ROOT / "examples" / "search-ellipse-physics-drag.yaml"
 CALIBRATE = ROOT / "examples" / "calibrate-learned-zone.yaml"
-CIRCLE = "[{shape: circle, center_m: [0.25, 0.32], radius_m: 0.03}]"
+CIRCLE = "[{shape: circle, center_m: [0.25, 0.32], radius_m: 0.04}]"
 
 
 def _cli(*args: str) -> int:
