@@ -11,7 +11,7 @@ placements:
 (b) calibrated in that world by the procedure of ``docs/calibration.md``, unchanged in
     every world: the ``drag-ratio-jamming`` classifier at its defaults and the
     ``learned-zone`` sensor model fitted by ``hapticframe train --calibration`` on one
-    recorded search over a known 3 cm circle (:data:`CALIBRATION_OBJECT`, at none of the
+    recorded search over a known 4 cm circle (:data:`CALIBRATION_OBJECTS`, at none of the
     scored placements) that rakes on through every interaction for
     :data:`CALIBRATION_MOVEMENTS` movements;
 (c) the dissertation's Table 3.1 configuration (role ``thesis-params``);
@@ -53,7 +53,7 @@ from ._template import search_experiment
 __all__ = [
     "CALIBRATED_ROLE",
     "CALIBRATION_MOVEMENTS",
-    "CALIBRATION_OBJECT",
+    "CALIBRATION_OBJECTS",
     "CONFIGURATIONS",
     "CROSS_ROLE",
     "PHYSICS_SHAPES",
@@ -77,10 +77,14 @@ QUICK_TRIALS = 2
 #: Movements of the calibration recording: docs/calibration.md measured the found rate
 #: against N; from 11 on the recording is one whole calibration search.
 CALIBRATION_MOVEMENTS = 12
-#: The known object of the calibration recording (examples/calibrate-learned-zone.yaml):
-#: a 3 cm circle, so neither shape nor size of a scored object.
-CALIBRATION_OBJECT: dict[str, Any] = {"shape": "circle", "center_m": [0.25, 0.32],
-                                      "radius_m": 0.04}
+#: The known objects of the calibration recordings, one recording each: 4 cm circles, as
+#: wide as the circle sought (in the engine's sand the rise starts further ahead of a wider
+#: object), at none of the scored placements' shapes and sizes but the circle's; the first
+#: is examples/calibrate-learned-zone.yaml's.
+CALIBRATION_OBJECTS: tuple[dict[str, Any], ...] = (
+    {"shape": "circle", "center_m": [0.25, 0.32], "radius_m": 0.04},
+    {"shape": "circle", "center_m": [0.55, 0.16], "radius_m": 0.04},
+)
 CALIBRATION_SEED = 7
 #: (label, role) of each configuration, in the report's order.
 CONFIGURATIONS = (
@@ -117,58 +121,67 @@ def calibrated_experiment(data: Mapping[str, Any], model_dir: str | None) -> dic
     return out
 
 
-def _calibration_search(world: str) -> dict[str, Any]:
-    data = search_experiment([CALIBRATION_OBJECT], SEARCH_PLANNER, CALIBRATION_SEED,
-                             f"calibration-{world}")
+def _calibration_search(world: str, objects: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    data = search_experiment(objects, SEARCH_PLANNER, CALIBRATION_SEED, f"calibration-{world}")
     data = calibrated_experiment(data, None)
     data["robots"][0]["type"] = WORLDS[world]
     return data
 
 
-def calibrate_in_world(world: str, out_dir: Path, echo: Any = print) -> dict[str, Any]:
+def calibrate_in_world(world: str, out_dir: Path, echo: Any = print,
+                       objects: Sequence[Mapping[str, Any]] = CALIBRATION_OBJECTS
+                       ) -> dict[str, Any]:
     """Configuration (b)'s calibration in ``world``, as a lab would do it on its rig.
 
-    Records one search over :data:`CALIBRATION_OBJECT` that rakes on through every
-    interaction (``run.halt_on_interaction: false``, :data:`CALIBRATION_MOVEMENTS`
-    movements) into ``out_dir/recording``, then runs ``hapticframe train`` on the search's
-    own experiment with that recording as its calibration run into ``out_dir/model``.
+    For each known object (default :data:`CALIBRATION_OBJECTS`) records one search that
+    rakes on through every interaction (``run.halt_on_interaction: false``, at most
+    :data:`CALIBRATION_MOVEMENTS` movements) into ``out_dir/recording-<k>``, then runs
+    ``hapticframe train`` on the search's own experiment with those recordings as its
+    calibration runs (``--calibration``, repeated) into ``out_dir/model``.
 
     Returns
     -------
     dict
-        ``recording``, ``model_dir`` (the fitted ``learned-zone``), ``train`` (the sensor
+        ``recordings``, ``model_dir`` (the fitted ``learned-zone``), ``train`` (the sensor
         model's training report from ``train.json``) and ``wall_time_s``.
     """
     started = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
-    recording = out_dir / "recording"
-    data = _calibration_search(world)
-    data["run"].update({"halt_on_interaction": False, "max_movements": CALIBRATION_MOVEMENTS,
-                        "figures": False})
-    echo(f"calibration in {world}: recording {CALIBRATION_MOVEMENTS} movements over a known "
-         f"3 cm circle into {recording}")
-    experiment = hapticframe.validate_with_overrides(data, (), source=f"<calibration {world}>")
-    try:
-        hapticframe.run_experiment(experiment, recording, overwrite=True,
-                                   echo=lambda _line: None)
-    except hapticframe.RunInconclusive:
-        # It rakes on through contact on purpose: no search result, the recording is kept.
-        pass
+    recordings = []
+    for k, obj in enumerate(objects):
+        recording = out_dir / f"recording-{k}"
+        data = _calibration_search(world, [obj])
+        data["run"].update({"halt_on_interaction": False,
+                            "max_movements": CALIBRATION_MOVEMENTS, "figures": False})
+        echo(f"calibration in {world}: recording up to {CALIBRATION_MOVEMENTS} movements over "
+             f"a known {obj['shape']} at {obj['center_m']} m into {recording}")
+        experiment = hapticframe.validate_with_overrides(data, (),
+                                                         source=f"<calibration {world}>")
+        try:
+            hapticframe.run_experiment(experiment, recording, overwrite=True,
+                                       echo=lambda _line: None)
+        except hapticframe.RunInconclusive:
+            # It rakes on through contact on purpose: no search result; the recording is
+            # what is wanted.
+            pass
+        recordings.append(recording)
     spec = out_dir / "calibrate.yaml"
-    train_data = _calibration_search(world)
-    atomic_write(spec, yaml.safe_dump(train_data, sort_keys=False))
+    atomic_write(spec, yaml.safe_dump(_calibration_search(world, objects[:1]),
+                                      sort_keys=False))
     model = out_dir / "model"
-    echo(f"calibration in {world}: hapticframe train {spec} --calibration {recording}")
+    flags = [arg for r in recordings for arg in ("--calibration", str(r))]
+    echo(f"calibration in {world}: hapticframe train {spec} {' '.join(flags)}")
     done = subprocess.run(
-        [sys.executable, "-m", "hapticframe", "train", str(spec), "--calibration",
-         str(recording), "--out", str(model), "--overwrite"],
+        [sys.executable, "-m", "hapticframe", "train", str(spec), *flags, "--out", str(model),
+         "--overwrite"],
         capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"hapticframe train {spec} failed ({done.returncode}): "
                            f"{done.stderr.strip()[-2000:]}")
     report = json.loads((model / "train.json").read_text())
-    return {"world": world, "recording": str(recording), "model_dir": str(model / "zone"),
-            "train": report, "wall_time_s": time.perf_counter() - started}
+    return {"world": world, "recordings": [str(r) for r in recordings],
+            "model_dir": str(model / "zone"), "train": report,
+            "wall_time_s": time.perf_counter() - started}
 
 
 def _stat(group: Mapping[str, Any], key: str, scale: float = 1.0) -> list[float | None]:
@@ -348,10 +361,11 @@ def render_physics_markdown(summary: Mapping[str, Any]) -> str:
                 else:
                     cells.append("✗")
             lines.append(f"| {shape} | {index} | " + " | ".join(cells) + " |")
+    known = ", ".join(f"{o['shape']} at {o['center_m']} m" for o in CALIBRATION_OBJECTS)
     lines += ["", "## Calibration (configuration (b))", "",
-              f"One recorded search per world over a known 3 cm circle at "
-              f"{CALIBRATION_OBJECT['center_m']} m, {CALIBRATION_MOVEMENTS} movements raking "
-              "on through every interaction, then `hapticframe train --calibration`:", ""]
+              f"Per world, {len(CALIBRATION_OBJECTS)} recorded search(es) over known objects "
+              f"({known}), at most {CALIBRATION_MOVEMENTS} movements raking on through every "
+              "interaction, then `hapticframe train --calibration`:", ""]
     for world, calibration in summary.get("calibration", {}).items():
         lines.append(f"- {world}: `{calibration['model_dir']}` in "
                      f"{calibration['wall_time_s']:.0f} s")

@@ -98,14 +98,14 @@ def test_calibrated_chain_replaces_classifier_and_sensor_model_and_feeds_the_map
 def test_calibration_in_the_sandbox_records_and_trains_a_learned_zone(tmp_path) -> None:
     lines: list[str] = []
     calibration = calibrate_in_world("sandbox", tmp_path, echo=lines.append)
-    trace = tmp_path / "recording" / "trace.npz"
+    trace = tmp_path / "recording-0" / "trace.npz"
     assert trace.is_file()
-    movements = json.loads((tmp_path / "recording" / "metrics.json").read_text())["movements"]
+    movements = json.loads((tmp_path / "recording-0" / "metrics.json").read_text())["movements"]
     assert 3 <= movements <= CALIBRATION_MOVEMENTS  # the planner may end it sooner
     model = json.loads((tmp_path / "model" / "zone" / "learned_zone.json").read_text())
     assert model  # the fitted tables
     assert calibration["model_dir"] == str(tmp_path / "model" / "zone")
-    assert str(tmp_path / "recording") in json.dumps(calibration["train"])
+    assert str(tmp_path / "recording-0") in json.dumps(calibration["train"])
     assert any("hapticframe train" in line for line in lines)
 
 

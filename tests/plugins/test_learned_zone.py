@@ -262,15 +262,17 @@ def _zone_fitted_like(zone: LearnedZone) -> LearnedZone:
     return fresh
 
 
-@pytest.mark.slow  # about 8 s: the example's three commands in mpm-sand
+@pytest.mark.slow  # about 10 s: the example's commands in mpm-sand
 def test_the_calibrated_example_finds_its_ellipse_in_mpm_sand(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the examples' paths are relative to where they run
     search = str(EXAMPLES / "search-ellipse-learned-zone.yaml")
-    assert main(["run", search, "--out", "runs/calibration-physics", "--quiet",
-                 "--set", "zone.model_dir=null", "--set", "run.halt_on_interaction=false",
-                 "--set", "run.max_movements=12", "--set", "run.figures=false",
-                 "--set", "scene.objects=[{shape: circle, center_m: [0.25, 0.32], "
-                 "radius_m: 0.04}]"]) == 0
+    for run_dir, centre in (("calibration-physics", "[0.25, 0.32]"),
+                            ("calibration-physics-2", "[0.55, 0.16]")):
+        assert main(["run", search, "--out", f"runs/{run_dir}", "--quiet",
+                     "--set", "zone.model_dir=null", "--set", "run.halt_on_interaction=false",
+                     "--set", "run.max_movements=12", "--set", "run.figures=false",
+                     "--set", f"scene.objects=[{{shape: circle, center_m: {centre}, "
+                     "radius_m: 0.04}]"]) == 0
     assert main(["train", str(EXAMPLES / "calibrate-learned-zone.yaml"),
                  "--out", "runs/learned-zone"]) == 0
     assert main(["run", search, "--out", "runs/search", "--quiet",
