@@ -282,8 +282,10 @@ def goal_checks(results: Mapping[str, Any], trials: int) -> dict[str, dict[str, 
             if limit is None:
                 continue
             values[f"{name}_{key}"] = value
+            # (a)'s figure rounded as printed, so the verdict reads as the table does.
             targets.append(Target(f"{name}_{key}", f"sandbox (b) {shape}: {label}, against "
-                                  "(a)'s", float(limit), unit, at_most=at_most, digits=digits))
+                                  "(a)'s", round(float(limit), digits), unit,
+                                  at_most=at_most, digits=digits))
     return {c.target.name: c.as_dict() for c in check_targets(targets, values)}
 
 
