@@ -5,6 +5,7 @@ artifact round trip and its refusals, and ``hapticframe train`` fitting it from 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,7 @@ from hapticframe_learned_zone._functional import (
 )
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+ROOT = EXAMPLES.parent
 CLASSES = ("free", "jamming", "contact")
 
 
@@ -279,3 +281,9 @@ def test_the_calibrated_example_finds_its_ellipse_in_mpm_sand(tmp_path, monkeypa
                  "--set", "run.figures=false"]) == 0
     metrics = json.loads(Path("runs/search/metrics.json").read_text())
     assert metrics["object_found"] and metrics["centroid_error_m"] < 0.03
+    # The README states this run's outcome as it is.
+    stated = re.search(r"It finds the ellipse in (\d+) movements, centroid error ([\d.]+) cm",
+                       (ROOT / "README.md").read_text())
+    assert stated is not None, "the README no longer states the calibrated example's outcome"
+    assert int(stated.group(1)) == metrics["movements"]
+    assert float(stated.group(2)) == pytest.approx(100 * metrics["centroid_error_m"], abs=0.05)
