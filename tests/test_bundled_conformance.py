@@ -24,6 +24,7 @@ BUNDLED = {
     ("sensor_model", "distance-estimate"),
     ("sensor_model", "contact-point"),
     ("sensor_model", "failure-zone-kernel"),
+    ("sensor_model", "learned-zone"),
     ("map", "bayesian-hilbert-map"),
     ("map", "gp-occupancy"),
     ("map", "belief-map"),
