@@ -16,9 +16,10 @@ the halt). For each reported sample with an estimate at its time:
   ``consistency_travel_m`` of the movement's travel (an object at rest stays put while the
   tool moves; an estimate that repeats one distance whatever the travel is not reading
   the object; NaN, or a movement that has not yet travelled that far: ``c = 0``);
-- one *object* observation (target 1) per direction class ``k`` at
-  ``p + d · u(heading + bearing_k)``, weighted ``P(k) · certainty · c``, when ``d`` is
-  within ``max_range_m``;
+- *object* observations (target 1) per direction class ``k`` at
+  ``p + d · u(heading + bearing_k)`` and ``object_depth_m`` beyond (the object goes on
+  behind its nearest outline point), weighted ``object_weight · P(k) · certainty · c``,
+  when ``d`` is within ``max_range_m``;
 - ``free_points`` *free* observations (target 0) evenly on the segment from the fingertip
   to ``d − 2σ`` straight ahead (the sand the estimate says is empty), weighted
   ``certainty · c``;
@@ -160,8 +161,9 @@ class _Track:
 def _blocks(positions_m: FloatArray, headings_rad: FloatArray, est: ObjectEstimate,
             consistency: FloatArray, config: DistanceEstimateConfig
             ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Per row: points ``(n, 4 + 2F, 2)``, targets and weights ``(n, 4 + 2F)`` (weight 0:
-    nothing there): the three direction classes' object points, the free points before
+    """Per row: points ``(n, 3D + 2F + 1, 2)``, targets and weights ``(n, 3D + 2F + 1)``
+    (weight 0: nothing there; ``D`` object depths): the three direction classes' object
+    points (at ``d``, then ``d + object_depth_m``), the free points before
     the estimate, the free points of an estimate that does not follow the travel, and the
     free point at the fingertip."""
     n = len(positions_m)
@@ -176,27 +178,35 @@ def _blocks(positions_m: FloatArray, headings_rad: FloatArray, est: ObjectEstima
     certainty = np.where(ok, certainty_weights(sigma, config), 0.0) * trust
     p = np.where(located[:, None], positions_m, 0.0)
     f = config.free_points
-    points = np.zeros((n, 4 + 2 * f, 2))
-    targets = np.zeros((n, 4 + 2 * f))
-    weights = np.zeros((n, 4 + 2 * f))
+    depths = (0.0, config.object_depth_m) if config.object_depth_m > 0 else (0.0,)
+    o = 3 * len(depths)
+    points = np.zeros((n, o + 2 * f + 1, 2))
+    targets = np.zeros((n, o + 2 * f + 1))
+    weights = np.zeros((n, o + 2 * f + 1))
     near = d <= config.max_range_m
+    column = 0
     for k, bearing in enumerate(np.radians(config.direction_bearings_deg)):
         angle = h + bearing
-        points[:, k] = p + d[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
-        targets[:, k] = 1.0
-        weights[:, k] = np.where(near, est.direction_proba[:, k] * certainty, 0.0)
+        direction = np.column_stack([np.cos(angle), np.sin(angle)])
+        weight = np.where(near, config.object_weight * est.direction_proba[:, k] * certainty,
+                          0.0)
+        for depth in depths:
+            points[:, column] = p + (d + depth)[:, None] * direction
+            targets[:, column] = 1.0
+            weights[:, column] = weight
+            column += 1
     ahead = np.column_stack([np.cos(h), np.sin(h)])
     if f:
         fractions = (np.arange(f) + 1.0) / (f + 1.0)
         reach = np.clip(d - 2.0 * sigma, 0.0, config.max_range_m)
-        points[:, 3:3 + f] = p[:, None, :] + (reach[:, None] * fractions[None, :])[..., None] * (
+        points[:, o:o + f] = p[:, None, :] + (reach[:, None] * fractions[None, :])[..., None] * (
             ahead[:, None, :])
-        weights[:, 3:3 + f] = np.where(reach > 0, certainty, 0.0)[:, None]
+        weights[:, o:o + f] = np.where(reach > 0, certainty, 0.0)[:, None]
         untracked = np.where(located, config.untracked_free_weight * (1.0 - trust), 0.0)
         if config.untracked_free_m > 0:
-            points[:, 3 + f:3 + 2 * f] = p[:, None, :] + (
+            points[:, o + f:o + 2 * f] = p[:, None, :] + (
                 config.untracked_free_m * fractions)[None, :, None] * ahead[:, None, :]
-            weights[:, 3 + f:3 + 2 * f] = untracked[:, None]
+            weights[:, o + f:o + 2 * f] = untracked[:, None]
     points[:, -1] = p
     weights[:, -1] = np.where(located, config.path_free_weight, 0.0)
     return points, targets, weights
