@@ -85,6 +85,11 @@ def distance_experiment(data: dict[str, Any], model_dir: str) -> dict[str, Any]:
                              "inputs": ["estimator", "arm"]}]
     for entry in out["maps"]:
         entry["inputs"] = ["distance"]
+    for entry in out["planners"]:
+        # The estimator's classes are far / near: a movement that ends "far" did not meet
+        # the object (with the planner's default, only "free" is free, every movement
+        # counted as an interaction and phase 1 always ended after its first line).
+        entry["config"] = {**entry.get("config", {}), "free_class_names": ["far"]}
     out["name"] = str(out.get("name", "search")) + "-distance"
     return out
 

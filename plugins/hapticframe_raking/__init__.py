@@ -36,7 +36,12 @@ from ._selection import (
     selected_settings,
     trial_groups,
 )
-from ._sensor_model import DistanceEstimateSensorModel, place_observations
+from ._sensor_model import (
+    DistanceEstimateSensorModel,
+    certainty_weights,
+    consistency_weights,
+    place_observations,
+)
 
 __all__ = [
     "CV_CHOICE",
@@ -63,6 +68,8 @@ __all__ = [
     "TrainingTrial",
     "TrialScores",
     "authors_models_dir",
+    "certainty_weights",
+    "consistency_weights",
     "cross_validate",
     "data_path",
     "fit_model",

@@ -28,8 +28,14 @@ def _estimate(d_mm: float, std_mm: float, direction: int = 1, n: int = 1) -> Obj
                           np.tile(np.eye(3)[direction], (n, 1)), np.full((n, 2), 0.5))
 
 
+#: One row, the geometry alone: no travel window, no depth, no fingertip point, weight 1.
+_GEOMETRY = {"consistency_travel_m": 0.0, "object_depth_m": 0.0, "path_free_weight": 0.0,
+             "object_weight": 1.0}
+
+
 def test_the_object_is_placed_at_the_estimated_distance_and_bearing() -> None:
-    config = DistanceEstimateConfig(direction_bearings_deg=(-90.0, 0.0, 90.0), free_points=0)
+    config = DistanceEstimateConfig(direction_bearings_deg=(-90.0, 0.0, 90.0), free_points=0,
+                                    **_GEOMETRY)
     obs = place_observations(np.array([[1.0, 2.0]]), np.array([np.pi / 2]),
                              _estimate(50.0, 0.0, direction=1), config)
     np.testing.assert_allclose(obs.points_m[obs.weights > 0.5], [[1.0, 2.05]], atol=1e-12)
@@ -39,10 +45,13 @@ def test_the_object_is_placed_at_the_estimated_distance_and_bearing() -> None:
 
 
 def test_uncertainty_lowers_the_weight_and_far_estimates_place_no_object() -> None:
-    config = DistanceEstimateConfig(free_points=2)
+    config = DistanceEstimateConfig(free_points=2, **_GEOMETRY)
     sure = place_observations(np.zeros((1, 2)), np.zeros(1), _estimate(40.0, 1.0), config)
-    unsure = place_observations(np.zeros((1, 2)), np.zeros(1), _estimate(40.0, 30.0), config)
+    unsure = place_observations(np.zeros((1, 2)), np.zeros(1), _estimate(40.0, 5.0), config)
     assert sure.weights[sure.targets == 1].max() > 4 * unsure.weights[unsure.targets == 1].max()
+    # Ten times the reference deviation: no object at all (weight 1e-4 < min_weight).
+    lost = place_observations(np.zeros((1, 2)), np.zeros(1), _estimate(40.0, 30.0), config)
+    assert not (lost.targets == 1).any()
     # The free observations lie between the tool and the estimate less two deviations.
     free = sure.points_m[sure.targets == 0]
     assert len(free) == 2 and np.all((free[:, 0] > 0) & (free[:, 0] < 0.038))
@@ -63,6 +72,7 @@ def test_it_reads_the_estimator_and_streams_as_it_batches() -> None:
     located = LocatedMeasurement(t, trial.position_m[:, :2], np.full(len(t), -np.pi / 2),
                                  probs.probabilities, probs.classes)
     whole = model.observe(located)
+    model.reset()  # the travel and the window of estimates start again
     rows = [model.observe(located.select(slice(i, i + 1))) for i in range(len(located))]
     streamed = np.concatenate([r.points_m for r in rows])
     np.testing.assert_allclose(streamed, whole.points_m)

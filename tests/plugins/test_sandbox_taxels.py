@@ -164,3 +164,7 @@ def test_the_bench_swaps_in_the_distance_chain() -> None:
     assert [s["type"] for s in changed["sensors"]] == ["sandbox-taxels"]
     assert all(m["inputs"] == ["distance"] for m in changed["maps"])
     assert experiment.seed == 3 and data["sensors"][0]["type"] == "sandbox-force"
+    # The estimator's classes are far / near: "far" is free movement for the planner.
+    assert [p["config"]["free_class_names"] for p in changed["planners"]] == [["far"]]
+    assert "config" not in data["planners"][0] or (
+        "free_class_names" not in data["planners"][0]["config"])
