@@ -106,14 +106,16 @@ def rise_profile(free: RakeResult, run: RakeResult, case: RakeCase, settings: En
 
 
 def onset_distance(s: NDArray[np.float64], ratio: NDArray[np.float64],
-                   threshold: float = 1.1) -> float:
+                   threshold: float = 1.1, startup_m: float = TRAVEL_M / 2) -> float:
     """How far ahead of the leading point ``ratio`` first stays >= ``threshold`` (m).
 
-    Only after the start-up (half the travel) does the comparison mean anything, and only
-    until TOUCH_MARGIN_M before the leading point: at touch the sand squeezes out (no contact
-    in the engine) and the smoothing window is cut at the run's end. 0 when it never does.
+    Only after the start-up (``startup_m`` of travel past the first step; the bench: half the
+    travel) does the comparison mean anything, and only until TOUCH_MARGIN_M before the
+    leading point: at touch the sand squeezes out (no contact in the engine) and the
+    smoothing window is cut at the run's end. 0 when it never does; the answer cannot exceed
+    ``-(s[0] + startup_m)``, the farthest it looks.
     """
-    settled = (s >= s[0] + TRAVEL_M / 2) & (s <= -TOUCH_MARGIN_M)
+    settled = (s >= s[0] + startup_m) & (s <= -TOUCH_MARGIN_M)
     above = (ratio >= threshold) & settled
     # The first s from which the ratio stays above the threshold to the end.
     below = np.nonzero(~above & settled)[0]

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ._checks import onset_distance, rise_profile
 from ._engine import EngineSettings, RakeCase, RakeResult
@@ -40,6 +41,9 @@ __all__ = ["ConvergenceRow", "convergence_study", "main", "save_figure", "write_
 
 #: The study's cell sizes (m): the 10 mm and 7.5 mm libraries, the bench's 5 mm, and finer.
 DEFAULT_VOXEL_SIZES_M = (0.01, 0.0075, 0.005, 0.00375)
+
+#: The free drag's start-up ends where its smoothed value first reaches this share of steady.
+STARTUP_FRACTION = 0.9
 
 RakeFunction = Callable[[RakeCase, EngineSettings, int], RakeResult]
 
@@ -55,7 +59,15 @@ class ConvergenceRow:
     steps: int
     #: Steady free drag: mean of the smoothed free drag over the last half of the travel.
     free_drag_n: float
+    #: The bench's onset (``_checks.onset_distance``: looked for only after half the
+    #: travel) and the farthest it can see; equal means the onset lies farther out.
     onset_distance_m: float
+    onset_limit_m: float
+    #: The free run's start-up: travel until its smoothed drag first reaches 90 % of steady.
+    startup_m: float
+    #: The onset looked for from the end of that start-up on, and its limit.
+    onset_after_startup_m: float
+    onset_after_startup_limit_m: float
     ratio_at_2cm: float
     ratio_at_1cm: float
     #: CPU and wall time of both runs' stepping (kernel compilation and set-up excluded).
@@ -70,6 +82,12 @@ class ConvergenceRow:
     ratio: tuple[float, ...]
     travel_m: tuple[float, ...]
     free_drag_profile_n: tuple[float, ...]
+
+
+def _onset_limit(s: NDArray[np.float64], startup_m: float) -> float:
+    """The farthest onset :func:`onset_distance` can report after ``startup_m`` (m)."""
+    looked = s[s >= s[0] + startup_m]
+    return float(-looked[0]) if looked.size else 0.0
 
 
 def _default_rake(case: RakeCase, settings: EngineSettings, seed: int) -> RakeResult:
@@ -98,11 +116,18 @@ def convergence_study(
         total_wall = time.perf_counter() - start
         s, ratio, free_drag = rise_profile(free, run, case, settings)
         travel = free.x_m - free.x_m[0] + case.speed_m_per_s * settings.step_s
+        steady = float(free_drag[free_drag.size // 2:].mean())
+        reached = np.nonzero(free_drag >= STARTUP_FRACTION * steady)[0]
+        startup = min(float(free.x_m[reached[0]] - free.x_m[0]), TRAVEL_M / 2)
         row = ConvergenceRow(
             voxel_size_m=float(voxel), particles=run.particle_count,
             free_particles=free.particle_count, steps=int(s.size),
-            free_drag_n=float(free_drag[free_drag.size // 2:].mean()),
+            free_drag_n=steady,
             onset_distance_m=onset_distance(s, ratio),
+            onset_limit_m=_onset_limit(s, TRAVEL_M / 2),
+            startup_m=startup,
+            onset_after_startup_m=onset_distance(s, ratio, startup_m=startup),
+            onset_after_startup_limit_m=_onset_limit(s, startup),
             ratio_at_2cm=float(np.interp(-0.02, s, ratio)),
             ratio_at_1cm=float(np.interp(-0.01, s, ratio)),
             cpu_s=free.cpu_s + run.cpu_s, wall_s=free.wall_s + run.wall_s,
@@ -113,7 +138,10 @@ def convergence_study(
         )
         rows.append(row)
         progress(f"{voxel * 1000:g} mm cells: {row.particles} particles, free drag "
-                 f"{row.free_drag_n:.3f} N, >= 1.1 from {row.onset_distance_m * 100:.2f} cm, "
+                 f"{row.free_drag_n:.3f} N, >= 1.1 from {row.onset_distance_m * 100:.2f} cm "
+                 f"(limit {row.onset_limit_m * 100:.2f}; after the start-up "
+                 f"{row.onset_after_startup_m * 100:.2f}, limit "
+                 f"{row.onset_after_startup_limit_m * 100:.2f} cm), "
                  f"x{row.ratio_at_2cm:.2f} at 2 cm, x{row.ratio_at_1cm:.2f} at 1 cm "
                  f"({row.cpu_s:.1f} s CPU, {row.total_wall_s:.1f} s wall)")
     return rows
@@ -132,17 +160,20 @@ def save_figure(rows: Sequence[ConvergenceRow], path: Path, depth_m: float,
         label = f"{row.voxel_size_m * 1000:g} mm cells ({row.particles} particles)"
         distance_cm = -100 * np.asarray(row.s_m)
         (line,) = left.plot(distance_cm, row.ratio, label=label)
-        if row.onset_distance_m > 0:
-            left.plot([100 * row.onset_distance_m], [1.1], "o", color=line.get_color())
+        if row.onset_after_startup_m > 0:
+            left.plot([100 * row.onset_after_startup_m], [1.1], "o", color=line.get_color())
         right.plot(100 * np.asarray(row.travel_m), row.free_drag_profile_n,
                    color=line.get_color(), label=label)
     left.axhline(1.1, color="0.5", linestyle="--", linewidth=1.0, label="1.1 × free drag")
     left.axvspan(0.0, 100 * 0.005, color="0.9", label="last 5 mm (not measured)")
+    if rows:
+        left.axvline(100 * rows[0].onset_limit_m, color="0.3", linestyle=":", linewidth=1.0,
+                     label="the bench's onset looks only nearer than this")
     left.invert_xaxis()
     left.set_xlabel("distance from plate front to the cylinder's leading point (cm)")
     left.set_ylabel("force / free drag at the same travel (1)")
     left.set_title(f"towards a {radius_m * 100:g} cm cylinder, {depth_m * 100:g} cm deep "
-                   "(dots: onset)")
+                   "(dots: onset after the start-up)")
     left.legend(fontsize=8)
     right.axvspan(0.0, 100 * TRAVEL_M / 2, color="0.93", label="start-up (not averaged)")
     right.set_xlabel("plate travel (cm)")
