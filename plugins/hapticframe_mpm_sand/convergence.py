@@ -10,10 +10,12 @@ once in free sand and once towards a cylinder of ``--radius-m`` dead ahead of th
 and ``--dilation-angle-deg``), step and particles per cell, and measures what the bench's
 rise check measures (:mod:`hapticframe_mpm_sand._checks`): the steady free drag, the force
 ratio's onset distance (where the ratio to free drag first stays ≥ 1.1 before the leading
-point) and the ratio at 2 and 1 cm. Writes ``convergence.json`` (every number, and the
-ratio and free-drag profiles) and ``convergence.png`` (the ratio against distance to the
-object, and the free drag against travel, one line per cell size). One line of progress per
-cell size. Needs the ``physics`` extra; the figure needs matplotlib.
+point) and the ratio at 2 and 1 cm. The bench looks for the onset only after half the travel,
+which caps it at 2.5 cm; the study also looks for it after ``--startup-m`` of travel (1 cm).
+Writes ``convergence.json`` (every number, and the ratio and free-drag profiles) and
+``convergence.png`` (the ratio against distance to the object, and the free drag against
+travel, one line per cell size). One line of progress per cell size. Needs the ``physics``
+extra; the figure needs matplotlib.
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ __all__ = ["ConvergenceRow", "convergence_study", "main", "save_figure", "write_
 #: The study's cell sizes (m): the 10 mm and 7.5 mm libraries, the bench's 5 mm, and finer.
 DEFAULT_VOXEL_SIZES_M = (0.01, 0.0075, 0.005, 0.00375)
 
-#: The free drag's start-up ends where its smoothed value first reaches this share of steady.
-STARTUP_FRACTION = 0.9
+#: Travel after which :attr:`ConvergenceRow.onset_after_startup_m` looks for the onset.
+DEFAULT_STARTUP_M = 0.01
 
 RakeFunction = Callable[[RakeCase, EngineSettings, int], RakeResult]
 
@@ -63,9 +65,9 @@ class ConvergenceRow:
     #: travel) and the farthest it can see; equal means the onset lies farther out.
     onset_distance_m: float
     onset_limit_m: float
-    #: The free run's start-up: travel until its smoothed drag first reaches 90 % of steady.
+    #: The onset looked for after only ``startup_m`` of travel (the ratio compares runs at
+    #: the same travel, so the free drag's slow rise cancels), and the farthest it can see.
     startup_m: float
-    #: The onset looked for from the end of that start-up on, and its limit.
     onset_after_startup_m: float
     onset_after_startup_limit_m: float
     ratio_at_2cm: float
@@ -102,10 +104,12 @@ def convergence_study(
     depth_m: float = 0.044,
     radius_m: float = 0.03,
     seed: int = 0,
+    startup_m: float = DEFAULT_STARTUP_M,
     rake_fn: RakeFunction = _default_rake,
     progress: Callable[[str], None] = print,
 ) -> list[ConvergenceRow]:
-    """Run the free and the object run at each cell size (``base`` gives everything else)."""
+    """Run the free and the object run at each cell size (``base`` gives everything else);
+    the second onset is looked for after ``startup_m`` of travel."""
     rows = []
     for voxel in voxel_sizes_m:
         settings = dataclasses.replace(base, voxel_size_m=float(voxel))
@@ -117,17 +121,15 @@ def convergence_study(
         s, ratio, free_drag = rise_profile(free, run, case, settings)
         travel = free.x_m - free.x_m[0] + case.speed_m_per_s * settings.step_s
         steady = float(free_drag[free_drag.size // 2:].mean())
-        reached = np.nonzero(free_drag >= STARTUP_FRACTION * steady)[0]
-        startup = min(float(free.x_m[reached[0]] - free.x_m[0]), TRAVEL_M / 2)
         row = ConvergenceRow(
             voxel_size_m=float(voxel), particles=run.particle_count,
             free_particles=free.particle_count, steps=int(s.size),
             free_drag_n=steady,
             onset_distance_m=onset_distance(s, ratio),
             onset_limit_m=_onset_limit(s, TRAVEL_M / 2),
-            startup_m=startup,
-            onset_after_startup_m=onset_distance(s, ratio, startup_m=startup),
-            onset_after_startup_limit_m=_onset_limit(s, startup),
+            startup_m=startup_m,
+            onset_after_startup_m=onset_distance(s, ratio, startup_m=startup_m),
+            onset_after_startup_limit_m=_onset_limit(s, startup_m),
             ratio_at_2cm=float(np.interp(-0.02, s, ratio)),
             ratio_at_1cm=float(np.interp(-0.01, s, ratio)),
             cpu_s=free.cpu_s + run.cpu_s, wall_s=free.wall_s + run.wall_s,
@@ -173,9 +175,10 @@ def save_figure(rows: Sequence[ConvergenceRow], path: Path, depth_m: float,
     left.set_xlabel("distance from plate front to the cylinder's leading point (cm)")
     left.set_ylabel("force / free drag at the same travel (1)")
     left.set_title(f"towards a {radius_m * 100:g} cm cylinder, {depth_m * 100:g} cm deep "
-                   "(dots: onset after the start-up)")
+                   "(dots: onset)")
     left.legend(fontsize=8)
-    right.axvspan(0.0, 100 * TRAVEL_M / 2, color="0.93", label="start-up (not averaged)")
+    right.axvspan(0.0, 100 * TRAVEL_M / 2, color="0.93",
+                  label="first half: not in the steady mean")
     right.set_xlabel("plate travel (cm)")
     right.set_ylabel("free drag, smoothed (N)")
     right.set_title(f"free sand, {depth_m * 100:g} cm deep")
@@ -227,6 +230,8 @@ def main(argv: Sequence[str] | None = None,
     parser.add_argument("--step-s", type=_length, default=EngineSettings.step_s)
     parser.add_argument("--friction-angle-deg", type=float, default=42.0)
     parser.add_argument("--dilation-angle-deg", type=float, default=12.0)
+    parser.add_argument("--startup-m", type=_length, default=DEFAULT_STARTUP_M,
+                        help="travel after which the second onset is looked for (m)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     if not (0 < args.friction_angle_deg < 90 and 0 <= args.dilation_angle_deg
@@ -245,14 +250,15 @@ def main(argv: Sequence[str] | None = None,
                           dilatancy=dilatancy)
     load = os.getloadavg()
     rows = convergence_study(args.voxel_sizes_m, base, depth_m=args.depth_m,
-                             radius_m=args.radius_m, seed=args.seed, rake_fn=rake_fn,
+                             radius_m=args.radius_m, seed=args.seed,
+                             startup_m=args.startup_m, rake_fn=rake_fn,
                              progress=lambda line: print(line, flush=True))
     meta = {
         "depth_m": args.depth_m, "radius_m": args.radius_m, "lateral_offset_m": 0.0,
         "friction_angle_deg": args.friction_angle_deg,
         "dilation_angle_deg": args.dilation_angle_deg, "step_s": base.step_s,
         "particles_per_cell": base.particles_per_cell, "travel_m": TRAVEL_M,
-        "seed": args.seed, "onset_ratio": 1.1,
+        "seed": args.seed, "onset_ratio": 1.1, "startup_m": args.startup_m,
         "load_average_at_start": list(load), "load_average_at_end": list(os.getloadavg()),
         "cpu_count": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
     }

@@ -53,9 +53,10 @@ def test_the_study_writes_every_cell_size_with_the_known_answer(tmp_path: Path) 
         # The bench's onset looks only after half the travel: it sees the rise from there.
         assert row["onset_limit_m"] == pytest.approx(TRAVEL_M / 2, abs=3e-3)
         assert row["onset_distance_m"] == row["onset_limit_m"] < ONSET_M
-        # No start-up in the synthetic free drag: the onset after it is the jump, blurred by
-        # the smoothing (one cell of travel) by half a window either way.
-        assert row["startup_m"] == 0.0
+        # Looked for after 1 cm of travel, the onset is the jump, blurred by the smoothing
+        # (one cell of travel) by half a window either way.
+        assert row["startup_m"] == 0.01
+        assert row["onset_after_startup_limit_m"] == pytest.approx(TRAVEL_M - 0.01, abs=3e-3)
         assert abs(row["onset_after_startup_m"] - ONSET_M) <= voxel / 2 + 1.5e-3
         assert row["ratio_at_2cm"] == pytest.approx(JUMP)
         assert row["ratio_at_1cm"] == pytest.approx(JUMP)
