@@ -158,12 +158,14 @@ def save_figure(rows: Sequence[ConvergenceRow], path: Path, depth_m: float,
     import matplotlib.pyplot as plt
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(11.0, 4.2))
-    for row in rows:
+    for i, row in enumerate(rows):
         label = f"{row.voxel_size_m * 1000:g} mm cells ({row.particles} particles)"
         distance_cm = -100 * np.asarray(row.s_m)
         (line,) = left.plot(distance_cm, row.ratio, label=label)
         if row.onset_after_startup_m > 0:
-            left.plot([100 * row.onset_after_startup_m], [1.1], "o", color=line.get_color())
+            # Shrinking markers: equal onsets stay visible one inside the other.
+            left.plot([100 * row.onset_after_startup_m], [1.1], "o", color=line.get_color(),
+                      markersize=max(3.0, 10.0 - 2.0 * i), zorder=3 + i)
         right.plot(100 * np.asarray(row.travel_m), row.free_drag_profile_n,
                    color=line.get_color(), label=label)
     left.axhline(1.1, color="0.5", linestyle="--", linewidth=1.0, label="1.1 × free drag")

@@ -27,7 +27,7 @@ def fake_rake(case: RakeCase, settings: EngineSettings, seed: int) -> RakeResult
     dependence to recover), times JUMP from ONSET_M before an object's leading point."""
     step = case.speed_m_per_s * settings.step_s
     n = math.ceil(case.travel_m / step)
-    x = case.start_x_m + step * (np.arange(n) + 1)
+    x = np.asarray(case.start_x_m + step * (np.arange(n) + 1), dtype=np.float64)
     drag = np.full(n, 200.0 * settings.voxel_size_m)
     if case.object_radius_m > 0:
         s = x - (case.object_x_m - case.object_radius_m)
