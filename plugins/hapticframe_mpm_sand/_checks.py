@@ -22,16 +22,16 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hapticframe import UsageError
 
-from ._engine import EngineSettings, RakeCase, rake
+from ._engine import EngineSettings, RakeCase, RakeResult, rake
 from ._library import fit_power_law
 from .build_library import TRAVEL_M, object_case, smooth
 
 __all__ = ["DragDepthCheck", "HeldOutError", "RiseCheck", "drag_depth_check", "held_out_error",
-           "rise_check",
-           "run_physics_checks"]
+           "onset_distance", "rise_check", "rise_profile", "run_physics_checks"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -89,29 +89,51 @@ def drag_depth_check(settings: EngineSettings, depths_m: Sequence[float],
     return DragDepthCheck(tuple(float(d) for d in depths_m), tuple(drags), n, c, particles, cpu)
 
 
+def rise_profile(free: RakeResult, run: RakeResult, case: RakeCase, settings: EngineSettings
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """The smoothed force ratio of ``run`` (towards the object of ``case``) to ``free``.
+
+    Returns ``(s, ratio, free_drag)`` per step of ``run``: ``s`` the plate front's position
+    relative to the object's leading point (m, negative ahead of it), ``ratio`` the force
+    along x over the free drag at the same step, both smoothed over one cell of travel, and
+    the smoothed free drag (N).
+    """
+    window = _window(settings, case)
+    free_drag = smooth(-free.force_n[:, 0], window)
+    ratio = smooth(-run.force_n[:, 0], window) / np.maximum(free_drag, 1e-9)
+    s = run.x_m - (case.start_x_m + TRAVEL_M)
+    return s, ratio, free_drag
+
+
+def onset_distance(s: NDArray[np.float64], ratio: NDArray[np.float64],
+                   threshold: float = 1.1, startup_m: float = TRAVEL_M / 2) -> float:
+    """How far ahead of the leading point ``ratio`` first stays >= ``threshold`` (m).
+
+    Only after the start-up (``startup_m`` of travel past the first step; the bench: half the
+    travel) does the comparison mean anything, and only until TOUCH_MARGIN_M before the
+    leading point: at touch the sand squeezes out (no contact in the engine) and the
+    smoothing window is cut at the run's end. 0 when it never does; the answer cannot exceed
+    ``-(s[0] + startup_m)``, the farthest it looks.
+    """
+    settled = (s >= s[0] + startup_m) & (s <= -TOUCH_MARGIN_M)
+    above = (ratio >= threshold) & settled
+    # The first s from which the ratio stays above the threshold to the end.
+    below = np.nonzero(~above & settled)[0]
+    first = (below[-1] + 1) if below.size else int(np.argmax(settled))
+    return float(-s[first]) if first < s.size and settled[first] else 0.0
+
+
 def rise_check(settings: EngineSettings, depth_m: float = 0.044, radius_m: float = 0.03,
                seed: int = 0) -> RiseCheck:
     """The force ahead of a cylinder on the plate's centre line, against free sand."""
     free = rake(RakeCase(depth_m=depth_m, travel_m=TRAVEL_M), settings, seed=seed)
     case = object_case(depth_m, radius_m, 0.0)
     run = rake(case, settings, seed=seed)
-    window = _window(settings, case)
-    free_drag = smooth(-free.force_n[:, 0], window)
-    ratio = smooth(-run.force_n[:, 0], window) / np.maximum(free_drag, 1e-9)
-    s = run.x_m - (case.start_x_m + TRAVEL_M)
-    # Only after the start-up (half the travel) does the comparison mean anything, and only
-    # until 5 mm before the leading point: at touch the sand squeezes out (no contact in the
-    # engine) and the smoothing window is cut at the run's end.
-    settled = (s >= s[0] + TRAVEL_M / 2) & (s <= -TOUCH_MARGIN_M)
-    above = (ratio >= 1.1) & settled
-    # The first s from which the ratio stays above 1.1 to the end.
-    below = np.nonzero(~above & settled)[0]
-    first = (below[-1] + 1) if below.size else int(np.argmax(settled))
-    rise = float(-s[first]) if first < s.size and settled[first] else 0.0
+    s, ratio, free_drag = rise_profile(free, run, case, settings)
     return RiseCheck(
         depth_m=depth_m, radius_m=radius_m,
         free_drag_n=float(free_drag[free_drag.size // 2:].mean()),
-        rise_distance_m=rise,
+        rise_distance_m=onset_distance(s, ratio),
         ratio_at_2cm=float(np.interp(-0.02, s, ratio)),
         ratio_at_1cm=float(np.interp(-0.01, s, ratio)),
         ratio_at_touch=float(ratio[-1]),
