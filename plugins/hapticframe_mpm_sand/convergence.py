@@ -34,6 +34,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hapticframe import atomic_write
+
 from ._checks import onset_distance, rise_profile
 from ._engine import EngineSettings, RakeCase, RakeResult
 from ._library import material_parameters
@@ -195,8 +197,8 @@ def write_results(out: Path, rows: Sequence[ConvergenceRow], meta: dict[str, Any
     """Write ``convergence.json`` (``meta`` and every row) into ``out``; returns its path."""
     out.mkdir(parents=True, exist_ok=True)
     path = out / "convergence.json"
-    path.write_text(json.dumps({**meta, "rows": [dataclasses.asdict(r) for r in rows]},
-                               indent=2) + "\n")
+    atomic_write(path, json.dumps({**meta, "rows": [dataclasses.asdict(r) for r in rows]},
+                                  indent=2, allow_nan=False) + "\n")
     return path
 
 
@@ -221,6 +223,16 @@ def _length(text: str) -> float:
     return value
 
 
+def _iterations(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from error
+    if not 1 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be in [1, 100000]: {text!r}")
+    return value
+
+
 def main(argv: Sequence[str] | None = None,
          rake_fn: RakeFunction = _default_rake) -> int:
     parser = argparse.ArgumentParser(prog="python -m hapticframe_mpm_sand.convergence",
@@ -234,6 +246,10 @@ def main(argv: Sequence[str] | None = None,
     parser.add_argument("--dilation-angle-deg", type=float, default=12.0)
     parser.add_argument("--startup-m", type=_length, default=DEFAULT_STARTUP_M,
                         help="travel after which the second onset is looked for (m)")
+    parser.add_argument("--max-iterations", type=_iterations,
+                        default=EngineSettings.max_iterations,
+                        help="the solver's iteration cap per step (the library's: 200; "
+                        "docs/physics-world.md: no run is converged in it)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     if not (0 < args.friction_angle_deg < 90 and 0 <= args.dilation_angle_deg
@@ -249,7 +265,7 @@ def main(argv: Sequence[str] | None = None,
             return 2
     friction, dilatancy = material_parameters(args.friction_angle_deg, args.dilation_angle_deg)
     base = EngineSettings(step_s=args.step_s, friction_coefficient=friction,
-                          dilatancy=dilatancy)
+                          dilatancy=dilatancy, max_iterations=args.max_iterations)
     load = os.getloadavg()
     rows = convergence_study(args.voxel_sizes_m, base, depth_m=args.depth_m,
                              radius_m=args.radius_m, seed=args.seed,
@@ -261,6 +277,7 @@ def main(argv: Sequence[str] | None = None,
         "dilation_angle_deg": args.dilation_angle_deg, "step_s": base.step_s,
         "particles_per_cell": base.particles_per_cell, "travel_m": TRAVEL_M,
         "seed": args.seed, "onset_ratio": 1.1, "startup_m": args.startup_m,
+        "max_iterations": base.max_iterations,
         "load_average_at_start": list(load), "load_average_at_end": list(os.getloadavg()),
         "cpu_count": os.cpu_count(), "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()),
     }

@@ -66,6 +66,19 @@ def test_the_study_writes_every_cell_size_with_the_known_answer(tmp_path: Path) 
         assert row["s_m"][0] == pytest.approx(-TRAVEL_M, abs=2e-3)
 
 
+def test_the_iteration_cap_reaches_the_engine_and_the_record(tmp_path: Path) -> None:
+    caps: list[int] = []
+
+    def recording(case: RakeCase, settings: EngineSettings, seed: int) -> RakeResult:
+        caps.append(settings.max_iterations)
+        return fake_rake(case, settings, seed)
+
+    assert main(["--out", str(tmp_path), "--voxel-sizes-m", "0.01", "--max-iterations", "400"],
+                rake_fn=recording) == 0
+    assert caps and set(caps) == {400}
+    assert json.loads((tmp_path / "convergence.json").read_text())["max_iterations"] == 400
+
+
 def test_no_rise_gives_onset_zero(tmp_path: Path) -> None:
     def flat(case: RakeCase, settings: EngineSettings, seed: int) -> RakeResult:
         return fake_rake(RakeCase(depth_m=case.depth_m, travel_m=case.travel_m), settings, seed)
@@ -81,6 +94,8 @@ def test_no_rise_gives_onset_zero(tmp_path: Path) -> None:
     ["--voxel-sizes-m", "ten"],
     ["--depth-m", "0"],
     ["--dilation-angle-deg", "50"],
+    ["--max-iterations", "0"],
+    ["--max-iterations", "many"],
 ])
 def test_bad_input_exits_2_without_running(tmp_path: Path, argv: list[str],
                                             capsys: pytest.CaptureFixture[str]) -> None:
