@@ -100,7 +100,7 @@ GOAL_FOUND_OF_25 = 24
 def calibrated_experiment(data: Mapping[str, Any], model_dir: str | None) -> dict[str, Any]:
     """A search trial's experiment with configuration (b)'s chain: ``drag-ratio-jamming``,
     the ``learned-zone`` sensor model loading ``model_dir`` (None: its bundled model), and
-    the two-phase planner's ``reverse_confirms`` and ``phase1_cross_pass``."""
+    the two-phase planner's ``reverse_confirms`` and ``phase1_second_pass: between``."""
     out = copy.deepcopy(dict(data))
     out["classifiers"] = [{"id": "jamming", "type": "drag-ratio-jamming",
                            "inputs": ["wrist"]}]
@@ -115,9 +115,9 @@ def calibrated_experiment(data: Mapping[str, Any], model_dir: str | None) -> dic
             # A sand calibrated once raises more false alarms than the one the defaults
             # were tuned in: a reverse pass that meets nothing sends phase 1 on.
             # And an object that lies between two phase-1 lines (the engine's sand reacts
-            # less far to the side than the sandbox) is sought across them.
+            # less far to the side than the sandbox) is sought midway between them.
             entry["config"] = {**entry.get("config", {}), "reverse_confirms": True,
-                               "phase1_cross_pass": True}
+                               "phase1_second_pass": "between"}
     return out
 
 

@@ -81,12 +81,13 @@ class TwoPhaseCoverageConfig(CoverageConfig):
         "phase 1 goes on with the next line (the map keeps the evidence). False: phase 2 "
         "starts after the reverse pass whatever it met (the dissertation).",
     )
-    phase1_cross_pass: bool = Field(
-        False,
-        description="When every phase-1 line was raked without an interaction, rake the "
-        "lines at right angles to them (same spacing and order) before giving up: an object "
-        "lying along the lines between two of them is met across its length. False: the "
-        "search ends (the dissertation).",
+    phase1_second_pass: Literal["none", "between", "across"] = Field(
+        "none",
+        description="When every phase-1 line was raked without an interaction, rake a second "
+        "set before giving up: 'between' the lines midway between the first ones (same "
+        "direction, one fewer: the spacing halves), 'across' the lines at right angles "
+        "(same spacing). An object narrower than the gap, lying between two lines, is then "
+        "met. 'none': the search ends (the dissertation).",
     )
     stop_short_m: float | None = Field(
         None, gt=0, le=1.0,

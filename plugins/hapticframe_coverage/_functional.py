@@ -55,13 +55,16 @@ def longer_side_angle_deg(bounds: Sequence[float]) -> float:
 
 
 def parallel_lines(
-    bounds: Sequence[float], angle_deg: float, spacing_m: float, min_length_m: float = 1e-3
+    bounds: Sequence[float], angle_deg: float, spacing_m: float, min_length_m: float = 1e-3,
+    *, between: bool = False,
 ) -> tuple[FloatArray, FloatArray]:
     """Parallel straight lines at ``angle_deg`` covering a rectangle, clipped to it.
 
     The rectangle's extent across the lines is split into ``ceil(width / spacing)`` equal
     strips and one line runs along the middle of each, so neighbouring lines are at most
-    ``spacing_m`` apart and the outermost ones half a strip from the boundary. Every line
+    ``spacing_m`` apart and the outermost ones half a strip from the boundary. With
+    ``between`` the lines run along the borders between neighbouring strips instead (midway
+    between the lines without it; one fewer, none for a single strip). Every line
     runs in the direction ``(cos θ, sin θ)``; lines are ordered by their offset along the
     normal ``(−sin θ, cos θ)``. Corner slivers shorter than ``min_length_m`` are dropped.
 
@@ -83,8 +86,12 @@ def parallel_lines(
     corners = np.array([[x_min, y_min], [x_max, y_min], [x_max, y_max], [x_min, y_max]])
     across = corners @ v
     lo, hi = float(across.min()), float(across.max())
-    count = max(1, math.ceil((hi - lo) / spacing_m - 1e-9))
-    offsets = lo + (np.arange(count) + 0.5) * (hi - lo) / count
+    strips = max(1, math.ceil((hi - lo) / spacing_m - 1e-9))
+    if between:
+        offsets = lo + np.arange(1, strips) * (hi - lo) / strips
+    else:
+        offsets = lo + (np.arange(strips) + 0.5) * (hi - lo) / strips
+    count = offsets.size
     origins = offsets[:, None] * v[None, :]
     t_lo = np.full(count, -np.inf)
     t_hi = np.full(count, np.inf)

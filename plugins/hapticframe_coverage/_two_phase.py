@@ -35,8 +35,9 @@ Readings of the dissertation chosen here (all configurable):
 - *A reverse pass that meets nothing* (``reverse_confirms``, off by default): the first
   pass's interaction was a false alarm; it is dropped and phase 1 goes on, instead of
   phase 2 circling a blob that is not there.
-- *Nothing met* (``phase1_cross_pass``, off by default): the lines at right angles are
-  raked before the search gives up.
+- *Nothing met* (``phase1_second_pass``, off by default): the lines midway between the
+  first ones (``between``) or at right angles to them (``across``) are raked before the
+  search gives up.
 - *Fewer touches* (issue 19 §6, both off by default): ``phase1_reverse: false`` skips the
   reverse pass; ``stop_short_m`` ends each phase-2 movement, once the object was met
   ``stop_short_after`` times, that far before the outline estimate, and such a movement
@@ -147,7 +148,7 @@ class TwoPhaseCoverage(LinePlanner):
     def reset(self) -> None:
         """Start the search again from phase 1."""
         super().reset()
-        self._crossed = False
+        self._second_pass = False
         self._lay_phase1_lines(self.phase1_angle_deg)
         self._phase = "phase1"
         self._reverse_of: ExploratoryMovement | None = None
@@ -170,9 +171,11 @@ class TwoPhaseCoverage(LinePlanner):
         self.found_centroids: list[FloatArray] = []
         self._segments: list[tuple[FloatArray, FloatArray, str]] = []
 
-    def _lay_phase1_lines(self, angle_deg: float) -> None:
-        """Phase 1's lines at ``angle_deg`` and the order they are raked in."""
-        starts, ends = parallel_lines(self.search_bounds, angle_deg, self.config.line_spacing_m)
+    def _lay_phase1_lines(self, angle_deg: float, *, between: bool = False) -> None:
+        """Phase 1's lines at ``angle_deg`` (``between``: midway between those) and the
+        order they are raked in."""
+        starts, ends = parallel_lines(self.search_bounds, angle_deg, self.config.line_spacing_m,
+                                      between=between)
         self.phase1_lines: tuple[FloatArray, FloatArray] = (starts, ends)
         if self.config.phase1_order == "binary":
             self._queue = binary_search_order(len(starts))
@@ -292,12 +295,16 @@ class TwoPhaseCoverage(LinePlanner):
             )
         starts, ends = self.phase1_lines
         while not self._segments:
-            if not self._queue and self.config.phase1_cross_pass and not self._crossed:
-                # Nothing met: the object may lie along the lines, between two of them.
-                self._crossed = True
-                cross_deg = (self.phase1_angle_deg + 90.0) % 180.0
-                self._lay_phase1_lines(cross_deg)
-                self.used_angles_deg.append(cross_deg)
+            second = self.config.phase1_second_pass
+            if not self._queue and second != "none" and not self._second_pass:
+                # Nothing met: the object may lie between two lines.
+                self._second_pass = True
+                if second == "across":
+                    angle = (self.phase1_angle_deg + 90.0) % 180.0
+                    self._lay_phase1_lines(angle)
+                    self.used_angles_deg.append(angle)
+                else:
+                    self._lay_phase1_lines(self.phase1_angle_deg, between=True)
                 starts, ends = self.phase1_lines
             if not self._queue:
                 self._finish()  # every line raked without an interaction

@@ -89,7 +89,7 @@ def test_calibrated_chain_replaces_classifier_and_sensor_model_and_feeds_the_map
                                      "config": {"model_dir": "/models/zone"}}]
     assert all(m["inputs"] == ["zone"] for m in out["maps"])
     assert out["planners"][0]["config"] == {"reverse_confirms": True,
-                                            "phase1_cross_pass": True}
+                                            "phase1_second_pass": "between"}
     assert data["sensor_models"][0]["type"] == "failure-zone-kernel"  # not changed in place
     assert "config" not in calibrated_experiment(data, None)["sensor_models"][0]
     hapticframe.validate_mapping(calibrated_experiment(data, None))

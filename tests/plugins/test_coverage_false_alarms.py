@@ -1,9 +1,12 @@
 """The two-phase planner against false alarms and objects between its lines (issue 32 §5):
-``reverse_confirms`` and ``phase1_cross_pass``."""
+``reverse_confirms`` and ``phase1_second_pass``."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
+import pytest
 
 from hapticframe import RegionConfig
 from hapticframe.kinds import (
@@ -94,16 +97,48 @@ def _rake_everything(p: TwoPhaseCoverage) -> list[ExploratoryMovement]:
     raise AssertionError("the planner kept proposing")
 
 
-def test_the_cross_pass_rakes_the_lines_at_right_angles_once() -> None:
+def _offsets(movements: list[ExploratoryMovement]) -> list[float]:
+    """Each line's offset along its normal (lines of one direction)."""
+    out = []
+    for m in movements:
+        u = np.array([np.cos(m.heading_rad), np.sin(m.heading_rad)])
+        out.append(float(np.round(m.start_m @ np.array([-u[1], u[0]]), 9)))
+    return out
+
+
+def test_the_second_pass_across_rakes_the_lines_at_right_angles_once() -> None:
     plain = _rake_everything(planner())
-    crossed = _rake_everything(planner(phase1_cross_pass=True))
+    crossed = _rake_everything(planner(phase1_second_pass="across"))
     # The first pass is unchanged.
     assert [(tuple(m.start_m), tuple(m.end_m)) for m in crossed[:len(plain)]] == [
         (tuple(m.start_m), tuple(m.end_m)) for m in plain]
     extra = crossed[len(plain):]
-    assert extra, "no cross pass"
+    assert extra, "no second pass"
     first = np.degrees(plain[0].heading_rad) % 180.0
     for movement in extra:
         assert abs((np.degrees(movement.heading_rad) - first) % 180.0 - 90.0) < 1e-6
     # 10 cm lines across the 75 x 50 cm region: 5 one way and 8 the other.
     assert sorted((len(plain), len(extra))) == [5, 8]
+
+
+def test_the_second_pass_between_rakes_midway_between_the_first_lines() -> None:
+    plain = _rake_everything(planner())
+    between = _rake_everything(planner(phase1_second_pass="between"))
+    extra = between[len(plain):]
+    assert len(extra) == len(plain) - 1
+    first, second = sorted(abs(v) for v in _offsets(plain)), sorted(
+        abs(v) for v in _offsets(extra))
+    # Each new line lies midway between two neighbours of the first pass.
+    assert second == pytest.approx([(a + b) / 2 for a, b in itertools.pairwise(first)])
+    assert all(abs(np.sin(m.heading_rad - plain[0].heading_rad)) < 1e-9 for m in extra)
+
+
+def test_parallel_lines_between_lie_on_the_strip_borders() -> None:
+    from hapticframe_coverage._functional import parallel_lines
+
+    starts, _ = parallel_lines(BOX, 0.0, 0.1)
+    mid, _ = parallel_lines(BOX, 0.0, 0.1, between=True)
+    assert np.allclose(starts[:, 1], [0.05, 0.15, 0.25, 0.35, 0.45])
+    assert np.allclose(mid[:, 1], [0.1, 0.2, 0.3, 0.4])
+    single, _ = parallel_lines(BOX, 0.0, 1.0, between=True)
+    assert single.shape == (0, 2)  # one strip: no border inside
