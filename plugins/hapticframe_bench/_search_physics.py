@@ -9,11 +9,12 @@ placements:
 
 (a) today's defaults (``force-rate-jamming``, ``failure-zone-kernel``);
 (b) calibrated in that world by the procedure of ``docs/calibration.md``, unchanged in
-    every world: the ``drag-ratio-jamming`` classifier at its defaults and the
-    ``learned-zone`` sensor model fitted by ``hapticframe train --calibration`` on one
-    recorded search over a known 4 cm circle (:data:`CALIBRATION_OBJECTS`, at none of the
-    scored placements) that rakes on through every interaction for
-    :data:`CALIBRATION_MOVEMENTS` movements;
+    every world: the ``drag-ratio-jamming`` classifier at its defaults, the
+    ``learned-zone`` sensor model fitted by ``hapticframe train --calibration`` on two
+    recorded searches over known 4 cm circles (:data:`CALIBRATION_OBJECTS`, at none of the
+    scored placements) that rake on through every interaction for at most
+    :data:`CALIBRATION_MOVEMENTS` movements, and the planner's ``reverse_confirms`` and
+    ``phase1_second_pass: between``;
 (c) the dissertation's Table 3.1 configuration (role ``thesis-params``);
 (x) cross-world: (b)'s chain with the model calibrated in the *other* world.
 
@@ -79,8 +80,8 @@ QUICK_TRIALS = 2
 CALIBRATION_MOVEMENTS = 12
 #: The known objects of the calibration recordings, one recording each: 4 cm circles, as
 #: wide as the circle sought (in the engine's sand the rise starts further ahead of a wider
-#: object), at none of the scored placements' shapes and sizes but the circle's; the first
-#: is examples/calibrate-learned-zone.yaml's.
+#: object), placed by hand, not drawn like the scored placements; the same two as
+#: examples/calibrate-learned-zone.yaml's.
 CALIBRATION_OBJECTS: tuple[dict[str, Any], ...] = (
     {"shape": "circle", "center_m": [0.25, 0.32], "radius_m": 0.04},
     {"shape": "circle", "center_m": [0.55, 0.16], "radius_m": 0.04},
