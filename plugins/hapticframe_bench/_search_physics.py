@@ -30,6 +30,7 @@ with its trial runs), and ``search-physics.json`` / ``search-physics.md``.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import functools
@@ -158,13 +159,11 @@ def calibrate_in_world(world: str, out_dir: Path, echo: Any = print,
              f"a known {obj['shape']} at {obj['center_m']} m into {recording}")
         experiment = hapticframe.validate_with_overrides(data, (),
                                                          source=f"<calibration {world}>")
-        try:
+        # It rakes on through contact on purpose: no search result (RunInconclusive); the
+        # recording is what is wanted.
+        with contextlib.suppress(hapticframe.RunInconclusive):
             hapticframe.run_experiment(experiment, recording, overwrite=True,
                                        echo=lambda _line: None)
-        except hapticframe.RunInconclusive:
-            # It rakes on through contact on purpose: no search result; the recording is
-            # what is wanted.
-            pass
         recordings.append(recording)
     spec = out_dir / "calibrate.yaml"
     atomic_write(spec, yaml.safe_dump(_calibration_search(world, objects[:1]),

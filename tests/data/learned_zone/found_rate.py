@@ -4,7 +4,9 @@ the placements of ``bench search`` (seed 0; the calibration circle is at none of
 
     python tests/data/learned_zone/found_rate.py --trials 10 --movements 12 --out /tmp/lz-found
 
-Both searches use drag-ratio-jamming at its defaults; only the sensor model differs. Prints
+Both searches use drag-ratio-jamming at its defaults and the learned-zone example's planner
+settings (``reverse_confirms``, ``phase1_second_pass: between``); only the sensor model
+differs. The calibration is one recording over a 4 cm circle. Prints
 a markdown table (found, movements, object interactions, centroid error) per world, shape
 and sensor model, and writes found_rate.json.
 """
@@ -45,7 +47,10 @@ def main() -> int:
     for world in args.worlds:
         common = ["--set", f"robots[0].type={world}", "--set", "run.figures=false",
                   "--set", "run.record=false", "--quiet"]
-        models: dict[str, tuple[Path, list[str]]] = {"failure-zone-kernel": (BASELINE, [])}
+        # The learned-zone example's planner settings, so that only the sensor model differs.
+        planner = ["--set", "planner.reverse_confirms=true",
+                   "--set", "planner.phase1_second_pass=between"]
+        models: dict[str, tuple[Path, list[str]]] = {"failure-zone-kernel": (BASELINE, planner)}
         for n in args.movements:
             rec = args.out / world / f"calibration-{n}"
             _cli("run", str(SEARCH), "--out", str(rec), "--overwrite", *common,
