@@ -2,7 +2,8 @@
 
 A rectangular bed of sand particles (Drucker–Prager: friction, dilatancy; no cohesion) in a
 box; a thin vertical plate, kinematic, raked along +x at constant speed and depth; optionally
-a buried vertical cylinder (kinematic, held still) ahead of it. Each step the impulses the
+a buried vertical prism (kinematic, held still) ahead of it: a cylinder, or an elliptic or
+rectangular prism at a yaw to the raking direction. Each step the impulses the
 solver applied at the plate's collider are summed into the sand's force on the plate. The
 engine models no contact between the two kinematic bodies: once the plate reaches the
 object the sand squeezes out, and the world adds the contact force itself.
@@ -21,7 +22,13 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EngineSettings", "RakeCase", "RakeResult", "engine_available", "rake"]
+__all__ = ["OBJECT_SHAPES", "EngineSettings", "RakeCase", "RakeResult", "engine_available",
+           "object_footprint", "rake"]
+
+#: The buried objects the engine can hold: vertical prisms of these cross-sections.
+OBJECT_SHAPES = ("cylinder", "ellipse", "box")
+#: Points on an ellipse's outline in its prism mesh (a 64-gon is within 0.1 % of its area).
+_ELLIPSE_POINTS = 64
 
 
 def engine_available() -> bool:
@@ -59,9 +66,12 @@ class EngineSettings:
 class RakeCase:
     """One movement: plate at ``depth_m`` from ``start_x_m`` for ``travel_m`` at ``speed``.
 
-    ``object_radius_m`` 0 means free sand; otherwise a vertical cylinder from the floor to
-    ``object_top_below_surface_m`` under the surface, its axis at ``(object_x_m,
-    lateral_offset_m)`` (the plate's centre line is y = 0).
+    ``object_radius_m`` 0 (with ``object_shape`` "cylinder") means free sand; otherwise a
+    vertical prism from the floor to ``object_top_below_surface_m`` under the surface, its
+    axis at ``(object_x_m, lateral_offset_m)`` (the plate's centre line is y = 0): a cylinder
+    of ``object_radius_m``, or an ``ellipse`` (semi-axes) or ``box`` (half-sides) of
+    ``object_half_extents_m`` along its own x and y, its x at ``object_yaw_deg`` to the
+    raking direction (counter-clockwise).
     """
 
     depth_m: float = 0.04
@@ -74,6 +84,67 @@ class RakeCase:
     object_x_m: float = 0.09
     lateral_offset_m: float = 0.0
     object_top_below_surface_m: float = 0.005
+    object_shape: str = "cylinder"
+    object_half_extents_m: tuple[float, float] = (0.0, 0.0)
+    object_yaw_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.object_shape not in OBJECT_SHAPES:
+            raise ValueError(f"object_shape {self.object_shape!r}: one of "
+                             f"{', '.join(OBJECT_SHAPES)}")
+        if self.object_shape != "cylinder" and min(self.object_half_extents_m) <= 0:
+            raise ValueError(f"a {self.object_shape} needs positive object_half_extents_m, "
+                             f"not {self.object_half_extents_m}")
+
+    @property
+    def has_object(self) -> bool:
+        """False for free sand."""
+        return self.object_shape != "cylinder" or self.object_radius_m > 0
+
+
+def object_footprint(case: RakeCase, points: int = _ELLIPSE_POINTS) -> NDArray[np.float64]:
+    """The object's outline about its axis, in the rake's frame (x along the raking): an
+    ``(n, 2)`` array, counter-clockwise (a box gives its four corners)."""
+    if case.object_shape == "cylinder":
+        t = np.linspace(0, 2 * np.pi, points, endpoint=False)
+        return case.object_radius_m * np.column_stack([np.cos(t), np.sin(t)])
+    a, b = case.object_half_extents_m
+    if case.object_shape == "ellipse":
+        t = np.linspace(0, 2 * np.pi, points, endpoint=False)
+        local = np.column_stack([a * np.cos(t), b * np.sin(t)])
+    else:
+        local = np.array([[a, b], [-a, b], [-a, -b], [a, -b]], dtype=np.float64)
+    yaw = math.radians(case.object_yaw_deg)
+    rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    return np.asarray(local @ rotation.T, dtype=np.float64)
+
+
+def _inside_footprint(xy: NDArray[np.float64], outline: NDArray[np.float64]
+                      ) -> NDArray[np.bool_]:
+    """Points inside a convex, counter-clockwise outline (edges' left sides)."""
+    inside = np.ones(len(xy), dtype=bool)
+    for p, q in zip(outline, np.roll(outline, -1, axis=0), strict=True):
+        edge = q - p
+        inside &= edge[0] * (xy[:, 1] - p[1]) - edge[1] * (xy[:, 0] - p[0]) >= 0
+    return inside
+
+
+def _prism_mesh(outline: NDArray[np.float64], height: float
+                ) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+    """Vertices and triangles of a vertical prism over a convex outline, z in [-h/2, h/2]
+    about its centre (caps fanned from the axis, outward normals)."""
+    n = len(outline)
+    half = height / 2
+    ring = np.vstack([np.column_stack([outline, np.full(n, -half)]),
+                      np.column_stack([outline, np.full(n, half)])])
+    vertices = np.vstack([ring, [[0.0, 0.0, -half], [0.0, 0.0, half]]])
+    bottom, top = 2 * n, 2 * n + 1
+    faces = []
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(i, j, n + j), (i, n + j, n + i),  # side
+                  (bottom, j, i), (top, n + i, n + j)]  # caps
+    return vertices, np.asarray(faces, dtype=np.int32).reshape(-1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,19 +169,23 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
     s, c = settings, case
     builder = newton.ModelBuilder()
     SolverImplicitMPM.register_custom_attributes(builder)
+    y0 = s.plate_line_y_m
+    axis_y = y0 + c.lateral_offset_m
+    # The bed reaches at least a cell past the object's axis across the plate, so that an
+    # object far to the side is met in sand, not in the wall.
+    width = max(s.bed_width_m, axis_y + 2 * s.voxel_size_m if c.has_object else 0.0)
     # The box: floor and four walls (static shapes).
     builder.add_ground_plane()
     wall = 0.01
-    half_l, half_w, h = s.bed_length_m / 2, s.bed_width_m / 2, s.bed_height_m * 1.5
+    half_l, half_w, h = s.bed_length_m / 2, width / 2, s.bed_height_m * 1.5
     for px, py, hx, hy in (
         (-wall, half_w, wall, half_w + 2 * wall),
         (s.bed_length_m + wall, half_w, wall, half_w + 2 * wall),
         (half_l, -wall, half_l + 2 * wall, wall),
-        (half_l, s.bed_width_m + wall, half_l + 2 * wall, wall),
+        (half_l, width + wall, half_l + 2 * wall, wall),
     ):
         builder.add_shape_box(-1, xform=wp.transform(wp.vec3(px, py, h / 2), wp.quat_identity()),
                               hx=hx, hy=hy, hz=h / 2)
-    y0 = s.plate_line_y_m
     plate_half_h = (c.depth_m + 0.02) / 2
     plate_z = s.bed_height_m - c.depth_m + plate_half_h
     plate = builder.add_body(
@@ -120,18 +195,23 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
     )
     builder.add_shape_box(plate, hx=c.plate_thickness_m / 2, hy=c.plate_width_m / 2,
                           hz=plate_half_h)
-    if c.object_radius_m > 0:
+    footprint = object_footprint(c)
+    if c.has_object:
         top = s.bed_height_m - c.object_top_below_surface_m
         body = builder.add_body(
-            xform=wp.transform(wp.vec3(c.object_x_m, y0 + c.lateral_offset_m, top / 2),
-                               wp.quat_identity()),
+            xform=wp.transform(wp.vec3(c.object_x_m, axis_y, top / 2), wp.quat_identity()),
             is_kinematic=True,
         )
-        builder.add_shape_cylinder(body, radius=c.object_radius_m, half_height=top / 2)
+        if c.object_shape == "cylinder":
+            builder.add_shape_cylinder(body, radius=c.object_radius_m, half_height=top / 2)
+        else:
+            vertices, faces = _prism_mesh(footprint, top)
+            builder.add_shape_mesh(body, mesh=newton.Mesh(vertices, faces,
+                                                          compute_inertia=False))
     # The sand: a jittered grid of particles filling the box to the bed height, none inside
     # the plate or the object (the engine would expel them: a denser bed around them).
     rng = np.random.default_rng(seed)
-    hi = np.array([s.bed_length_m, s.bed_width_m, s.bed_height_m])
+    hi = np.array([s.bed_length_m, width, s.bed_height_m])
     res = np.ceil(s.particles_per_cell ** (1 / 3) * hi / s.voxel_size_m).astype(int)
     cell = hi / res
     radius = float(np.max(cell) * 0.5)
@@ -144,11 +224,12 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
         & (np.abs(points[:, 1] - y0) <= c.plate_width_m / 2)
         & (points[:, 2] >= s.bed_height_m - c.depth_m)
     )
-    if c.object_radius_m > 0:
-        axis_y = y0 + c.lateral_offset_m
-        inside |= (
-            np.hypot(points[:, 0] - c.object_x_m, points[:, 1] - axis_y) <= c.object_radius_m
-        ) & (points[:, 2] <= s.bed_height_m - c.object_top_below_surface_m)
+    if c.has_object:
+        relative = points[:, :2] - np.array([c.object_x_m, axis_y])
+        within = (np.hypot(relative[:, 0], relative[:, 1]) <= c.object_radius_m
+                  if c.object_shape == "cylinder" else _inside_footprint(relative, footprint))
+        inside |= within & (
+            points[:, 2] <= s.bed_height_m - c.object_top_below_surface_m)
     points = points[~inside]
     count = len(points)
     builder.add_particles(

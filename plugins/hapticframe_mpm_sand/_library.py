@@ -7,6 +7,15 @@ as a ratio of the free drag at the same travel, against ``s``: the plate front's
 relative to the object's leading point along the path (negative ahead of it, 0 at its
 leading point). The y ratio is signed for an object on the +y side of the plate.
 
+A library may also hold *shape tables* (issue 32, §4): engine runs towards elliptic and
+rectangular prisms at yaws ψ of 0–90° to the raking direction, stored per (depth, shape,
+ψ, signed offset u, s) with each shape's outline (about its centre, at ψ = 0) so that a
+world can tell which scene objects a table describes (:meth:`ResponseLibrary.match_shape`).
+Here u is signed: positive with the object on the plate's +y (left) side, and normalised by
+the object's half-extent across the heading at that yaw. Other yaws follow from the
+shapes' mirror symmetry (:meth:`ResponseLibrary.shape_ratio`). A library without them
+(older files) has zero shapes.
+
 Everything in a library file is a float64 or int64 array (``numpy.load`` without pickles);
 ``load_library`` checks shapes and finiteness and says which array is wrong. Interpolation
 is multilinear over (depth, R, u, s) and clamps at the grid's edges; free drag below the
@@ -17,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +35,7 @@ from numpy.typing import NDArray
 from hapticframe.bounded_io import BoundedReadError, open_regular, read_npz
 
 __all__ = ["ResponseLibrary", "fit_power_law", "load_library", "material_parameters",
-           "save_library"]
+           "save_library", "support_function"]
 
 #: Bytes of arrays a library file may declare (ours hold a few hundred kB).
 MAX_LIBRARY_BYTES = 256 * 1024**2
@@ -40,7 +50,38 @@ _ARRAYS = {
     "ratio_x": ("depth", "radius", "offset", "s"),
     "ratio_y": ("depth", "radius", "offset", "s"),
     "settings": ("setting",),
+    "shape_outlines_m": ("shape", "outline_point", "xy"),
+    "shape_yaws_deg": ("yaw",),
+    "shape_offsets_u": ("shape_offset",),
+    "shape_ratio_x": ("depth", "shape", "yaw", "shape_offset", "s"),
+    "shape_ratio_y": ("depth", "shape", "yaw", "shape_offset", "s"),
 }
+#: Arrays an older library file may lack (then it holds no shape tables).
+_OPTIONAL = frozenset(name for name in _ARRAYS if name.startswith("shape_"))
+#: Directions of the support function that matches outlines (5° apart; a quarter turn is
+#: a whole number of them).
+_SUPPORT_DIRECTIONS = 72
+#: Outlines match when their support functions differ by at most this (m) or this
+#: fraction of the entry's size, whichever is larger.
+_MATCH_TOLERANCE_M = 0.003
+_MATCH_TOLERANCE_FRACTION = 0.05
+
+
+def support_function(outline_m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The outline's support function (its extent along each of 72 directions 5° apart,
+    measured from the centre of its bounding box): two shapes with equal support functions
+    have the same convex hull."""
+    points = np.asarray(outline_m, dtype=np.float64)
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    t = np.arange(_SUPPORT_DIRECTIONS) * (2 * np.pi / _SUPPORT_DIRECTIONS)
+    return np.asarray(((points - centre) @ np.vstack([np.cos(t), np.sin(t)])).max(axis=0),
+                      dtype=np.float64)
+
+
+def _empty_shape_arrays(depths: int, s: int) -> dict[str, NDArray[np.float64]]:
+    return {"shape_outlines_m": np.zeros((0, 4, 2)), "shape_yaws_deg": np.zeros(0),
+            "shape_offsets_u": np.zeros(0), "shape_ratio_x": np.zeros((depths, 0, 0, 0, s)),
+            "shape_ratio_y": np.zeros((depths, 0, 0, 0, s))}
 
 
 def material_parameters(friction_angle_deg: float, dilation_angle_deg: float
@@ -84,6 +125,26 @@ def _axis_weights(grid: NDArray[np.float64], value: float) -> tuple[int, int, fl
     return i, j, float((value - grid[i]) / (grid[j] - grid[i]))
 
 
+def _multilinear(tables: Sequence[NDArray[np.float64]],
+                 axes: Sequence[tuple[int, int, float]]) -> tuple[float, ...]:
+    """Each table's multilinear interpolation at the per-axis ``(i, j, w)`` of
+    :func:`_axis_weights` (the tables' leading axes, in order)."""
+    totals = [0.0] * len(tables)
+    for corner in range(1 << len(axes)):
+        index = []
+        weight = 1.0
+        for k, (i, j, w) in enumerate(axes):
+            upper = (corner >> k) & 1
+            index.append(j if upper else i)
+            weight *= w if upper else 1 - w
+        if weight == 0.0:
+            continue
+        at = tuple(index)
+        for n, table in enumerate(tables):
+            totals[n] += weight * float(table[at])
+    return tuple(totals)
+
+
 @dataclasses.dataclass(frozen=True)
 class ResponseLibrary:
     """The arrays of a library (see the module docstring) and lookups into them."""
@@ -99,8 +160,20 @@ class ResponseLibrary:
     #: voxel size (m), particles per cell, step (s), iterations, friction, dilatancy,
     #: density (kg/m³), speed (m/s), build CPU time (s): how it was made.
     settings: NDArray[np.float64]
+    #: Shape tables (module docstring); empty in a library of cylinders only.
+    shape_outlines_m: NDArray[np.float64] = dataclasses.field(
+        default_factory=lambda: np.zeros((0, 4, 2)))
+    shape_yaws_deg: NDArray[np.float64] = dataclasses.field(default_factory=lambda: np.zeros(0))
+    shape_offsets_u: NDArray[np.float64] = dataclasses.field(
+        default_factory=lambda: np.zeros(0))
+    shape_ratio_x: NDArray[np.float64] | None = None
+    shape_ratio_y: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
+        empty = _empty_shape_arrays(self.depths_m.size, self.s_m.size)
+        for name in ("shape_ratio_x", "shape_ratio_y"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, empty[name])
         for name, dims in _ARRAYS.items():
             value = getattr(self, name)
             if value.ndim != len(dims):
@@ -118,8 +191,66 @@ class ResponseLibrary:
             grid = getattr(self, name)
             if grid.size == 0 or np.any(np.diff(grid) <= 0):
                 raise ValueError(f"library grid {name!r} must be non-empty and increasing")
+        if self.shape_count:
+            for name in ("shape_yaws_deg", "shape_offsets_u"):
+                grid = getattr(self, name)
+                if grid.size == 0 or np.any(np.diff(grid) <= 0):
+                    raise ValueError(f"library grid {name!r} must be non-empty and increasing")
+            yaws = self.shape_yaws_deg
+            if yaws[0] < 0 or yaws[-1] > 90:
+                raise ValueError("library grid 'shape_yaws_deg' must lie in 0 ... 90")
+            if self.shape_outlines_m.shape[2] != 2 or self.shape_outlines_m.shape[1] < 3:
+                raise ValueError("library array 'shape_outlines_m' must hold (x, y) outlines "
+                                 "of at least 3 points")
         if np.any(self.free_drag_n <= 0):
             raise ValueError("library array 'free_drag_n' must be positive")
+
+    @property
+    def shape_count(self) -> int:
+        """How many shapes have tables (0: every object is met as its equivalent cylinder)."""
+        return int(self.shape_outlines_m.shape[0])
+
+    def match_shape(self, outline_m: NDArray[np.float64]) -> tuple[int, float] | None:
+        """The shape table that describes an object, and how it is turned.
+
+        ``outline_m`` is the object's outline in its own frame (before its orientation).
+        Returns ``(index, turn_deg)``: the object's outline is the table's outline turned
+        by ``turn_deg`` (a multiple of 90°), so its yaw to a heading is its orientation plus
+        ``turn_deg`` minus the heading. None when no table matches (within 3 mm or 5 % of
+        its size on every direction of the support function).
+        """
+        target = support_function(outline_m)
+        quarter = _SUPPORT_DIRECTIONS // 4
+        for index in range(self.shape_count):
+            entry = support_function(self.shape_outlines_m[index])
+            tolerance = max(_MATCH_TOLERANCE_M, _MATCH_TOLERANCE_FRACTION * float(entry.max()))
+            for turn in range(4):
+                if np.max(np.abs(np.roll(entry, turn * quarter) - target)) <= tolerance:
+                    return index, 90.0 * turn
+        return None
+
+    def shape_ratio(self, depth_m: float, shape: int, yaw_deg: float, offset_u: float,
+                    s_m: float) -> tuple[float, float]:
+        """Force / free drag along x and y towards shape ``shape`` at yaw ``yaw_deg`` (any
+        angle) and signed offset ``offset_u`` (+: the object on the plate's left).
+
+        The shapes are symmetric about both their axes: a yaw ψ is the yaw ψ + 180°, and
+        mirrored across the heading it is -ψ with the offset and the y force reversed.
+        """
+        yaw = (yaw_deg + 90.0) % 180.0 - 90.0  # in [-90, 90)
+        sign = 1.0
+        if yaw < 0:
+            yaw, offset_u, sign = -yaw, -offset_u, -1.0
+        assert self.shape_ratio_x is not None and self.shape_ratio_y is not None
+        axes = [
+            _axis_weights(self.depths_m, depth_m),
+            (shape, shape, 0.0),
+            _axis_weights(self.shape_yaws_deg, yaw),
+            _axis_weights(self.shape_offsets_u, offset_u),
+            _axis_weights(self.s_m, s_m),
+        ]
+        rx, ry = _multilinear((self.shape_ratio_x, self.shape_ratio_y), axes)
+        return rx, sign * ry
 
     @property
     def drag_law(self) -> tuple[float, float]:
@@ -152,19 +283,7 @@ class ResponseLibrary:
             _axis_weights(self.offsets_u, offset_u),
             _axis_weights(self.s_m, s_m),
         ]
-        rx = ry = 0.0
-        for corner in range(16):
-            index = []
-            weight = 1.0
-            for k, (i, j, w) in enumerate(axes):
-                upper = (corner >> k) & 1
-                index.append(j if upper else i)
-                weight *= w if upper else 1 - w
-            if weight == 0.0:
-                continue
-            t = tuple(index)
-            rx += weight * float(self.ratio_x[t])
-            ry += weight * float(self.ratio_y[t])
+        rx, ry = _multilinear((self.ratio_x, self.ratio_y), axes)
         return rx, ry
 
 
@@ -190,9 +309,11 @@ def load_library(path: Path) -> ResponseLibrary:
                          "python -m hapticframe_mpm_sand.build_library)") from None
     except BoundedReadError as error:
         raise ValueError(f"{path}: cannot read the response library ({error})") from None
-    missing = sorted(set(_ARRAYS) - set(data))
+    missing = sorted(set(_ARRAYS) - set(data) - _OPTIONAL)
     if missing:
         raise ValueError(f"{path}: library lacks array(s) {', '.join(missing)}")
+    if not _OPTIONAL <= set(data):  # an older library: cylinders only
+        data = {**data, **_empty_shape_arrays(data["depths_m"].size, data["s_m"].size)}
     arrays = {}
     for name in _ARRAYS:
         if data[name].dtype.kind not in "iuf":

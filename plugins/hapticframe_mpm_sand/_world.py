@@ -8,10 +8,14 @@ its public :meth:`~hapticframe_sandbox.SandboxRobot.build_world`:
 
 - free drag: the library's engine drag at the movement's depth and the plate's travel
   (start-up included), times a slow random fluctuation;
-- each buried object is met as its *equivalent cylinder*: radius the object's half-extent
+- a buried object whose outline the library has shape tables for (an ellipse or a box run
+  in the engine at yaws of 0–90°) is met as itself: the table's force ratio at (depth, the
+  object's yaw to the heading, signed lateral offset / (its half-extent across the heading
+  + plate half-width), plate front − its foremost point) adds its excess over 1 (x and y);
+- any other object is met as its *equivalent cylinder*: radius the object's half-extent
   across the heading, centred on that extent, leading point the object's foremost point
-  along the heading; the library's force ratio at (depth, radius, |lateral offset| / (radius
-  + plate half-width), plate front − leading point) adds its excess over 1 (x and y);
+  along the heading; the library's cylinder ratio at (depth, radius, |lateral offset| /
+  (radius + plate half-width), plate front − leading point) adds its excess;
 - the engine adds no contact force (its bodies only follow paths), so the world does: a
   spring on the distance the plate's face has gone past the object's outline within its
   band (``contact_stiffness_n_per_m``).
@@ -113,6 +117,23 @@ class MpmSandWorld(World):
         self.library = library
         self._rng = rng
         self._outlines = [np.asarray(obj.outline(512), dtype=np.float64) for obj in scene.objects]
+        # Which objects the library's shape tables describe: (table, yaw of the table's
+        # outline in the map frame), or None for an equivalent cylinder.
+        self._shapes: list[tuple[int, float] | None] = []
+        for obj, outline in zip(scene.objects, self._outlines, strict=True):
+            turn = math.radians(obj.orientation_deg)
+            rotation = np.array([[math.cos(turn), math.sin(turn)],
+                                 [-math.sin(turn), math.cos(turn)]])
+            local = (outline - np.asarray(obj.center_m)) @ rotation.T
+            match = library.match_shape(local) if library.shape_count else None
+            self._shapes.append(None if match is None
+                                else (match[0], obj.orientation_deg + match[1]))
+
+    @property
+    def shape_tables(self) -> list[int | None]:
+        """Per scene object, the library shape table it is met by (None: its equivalent
+        cylinder)."""
+        return [None if match is None else match[0] for match in self._shapes]
 
     def begin(self, movement: PlateMovement) -> None:
         cfg, rng = self.config, self._rng
@@ -128,6 +149,7 @@ class MpmSandWorld(World):
         # and across it (+ to the left).
         dx, dy = movement.direction
         sx, sy = movement.start_m
+        self._heading_deg = math.degrees(math.atan2(dy, dx))
         frames = []
         for outline in self._outlines:
             rx, ry = outline[:, 0] - sx, outline[:, 1] - sy
@@ -150,9 +172,10 @@ class MpmSandWorld(World):
         across = -(position[0] - sx) * dy + (position[1] - sy) * dx
         half = movement.plate_width_m / 2
         u_max = float(library.offsets_u[-1])
+        shape_u_max = float(library.shape_offsets_u[-1]) if library.shape_count else 0.0
         excess_x = excess_y = 0.0
         penetration = 0.0
-        for a, c in self._frames:
+        for (a, c), shape in zip(self._frames, self._shapes, strict=True):
             s_m = along - float(a.min())
             if along > float(a.max()) or s_m < float(library.s_m[0]):
                 continue  # past the object, or farther ahead than any engine run saw it
@@ -160,12 +183,22 @@ class MpmSandWorld(World):
             radius = (c_high - c_low) / 2
             offset = across - (c_low + c_high) / 2
             u = abs(offset) / (radius + half)
-            taper = 1.0 - max(0.0, u - u_max) / cfg.offset_taper_u
-            if taper > 0.0:
-                rx, ry = library.ratio(depth, radius, min(u, u_max), min(0.0, s_m))
-                excess_x += (rx - 1.0) * taper
-                # ratio_y is for an object on the +across side; mirror for the other side.
-                excess_y += ry * taper * (1.0 if offset <= 0 else -1.0)
+            if shape is not None:
+                # The tables' offset is signed, + with the object on the plate's left.
+                taper = 1.0 - max(0.0, u - shape_u_max) / cfg.offset_taper_u
+                if taper > 0.0:
+                    signed_u = math.copysign(min(u, shape_u_max), -offset)
+                    rx, ry = library.shape_ratio(depth, shape[0], shape[1] - self._heading_deg,
+                                                 signed_u, min(0.0, s_m))
+                    excess_x += (rx - 1.0) * taper
+                    excess_y += ry * taper
+            else:
+                taper = 1.0 - max(0.0, u - u_max) / cfg.offset_taper_u
+                if taper > 0.0:
+                    rx, ry = library.ratio(depth, radius, min(u, u_max), min(0.0, s_m))
+                    excess_x += (rx - 1.0) * taper
+                    # ratio_y is for an object on the +across side; mirror for the other side.
+                    excess_y += ry * taper * (1.0 if offset <= 0 else -1.0)
             band = np.abs(c - across) <= half
             if band.any():
                 front = float(a[band].min())

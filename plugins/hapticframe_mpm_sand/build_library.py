@@ -15,6 +15,9 @@ offset) towards a buried cylinder, and stores the forces as ratios of the free d
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
+import dataclasses
+import multiprocessing
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -23,10 +26,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ._engine import EngineSettings, RakeCase, rake
+from ._engine import EngineSettings, RakeCase, RakeResult, object_footprint, rake
 from ._library import ResponseLibrary, material_parameters, save_library
 
-__all__ = ["build_library", "main", "object_case", "smooth"]
+__all__ = ["ShapeSpec", "build_library", "main", "object_case", "parse_shape", "shape_case",
+           "smooth"]
 
 #: Plate front's travel in every run, and where the object's leading point sits ahead of the
 #: start; the s grid spans that approach at the grid's spacing.
@@ -57,6 +61,93 @@ def object_case(depth_m: float, radius_m: float, offset_u: float) -> RakeCase:
     )
 
 
+@dataclasses.dataclass(frozen=True)
+class ShapeSpec:
+    """A shape the library holds tables for: ``kind`` "ellipse" (semi-axes) or "box"
+    (half-sides), ``half_extents_m`` along its own x and y."""
+
+    kind: str
+    half_extents_m: tuple[float, float]
+
+    def outline(self, points: int = 64) -> NDArray[np.float64]:
+        """Its outline about its centre at yaw 0 (``points`` points; a box's perimeter
+        sampled evenly, corners included)."""
+        case = RakeCase(object_shape=self.kind, object_half_extents_m=self.half_extents_m)
+        corners = object_footprint(case, points)
+        if self.kind == "ellipse":
+            return corners
+        closed = np.vstack([corners, corners[:1]])
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0),
+                                                               axis=1))])
+        t = np.linspace(0, arc[-1], points, endpoint=False)
+        return np.column_stack([np.interp(t, arc, closed[:, 0]),
+                                np.interp(t, arc, closed[:, 1])])
+
+
+def parse_shape(text: str) -> ShapeSpec:
+    """``kind:a,b`` (metres), e.g. ``ellipse:0.035,0.025`` or ``box:0.035,0.025``."""
+    kind, _, sizes = text.partition(":")
+    values = _floats(sizes) if sizes else []
+    if kind not in ("ellipse", "box") or len(values) != 2 or min(values) <= 0:
+        raise ValueError(f"shape {text!r}: give kind:a,b with kind ellipse or box and two "
+                         "positive half-extents in metres (e.g. ellipse:0.035,0.025)")
+    return ShapeSpec(kind, (values[0], values[1]))
+
+
+def shape_case(depth_m: float, shape: ShapeSpec, yaw_deg: float, offset_u: float) -> RakeCase:
+    """The run towards ``shape`` at ``yaw_deg`` whose foremost point is TRAVEL_M ahead and
+    whose across-heading extent is centred ``offset_u`` (>= 0) half-widths to the left
+    (half-width: the object's half-extent across the heading plus the plate's)."""
+    if offset_u < 0:
+        raise ValueError("shape_case takes offsets >= 0 (the right side is the mirror)")
+    probe = RakeCase(object_shape=shape.kind, object_half_extents_m=shape.half_extents_m,
+                     object_yaw_deg=yaw_deg)
+    footprint = object_footprint(probe)
+    across_low, across_high = float(footprint[:, 1].min()), float(footprint[:, 1].max())
+    half_across = (across_high - across_low) / 2
+    start = RakeCase().start_x_m
+    return dataclasses.replace(
+        probe, depth_m=depth_m, travel_m=TRAVEL_M,
+        object_x_m=start + TRAVEL_M - float(footprint[:, 0].min()),
+        lateral_offset_m=offset_u * (half_across + PLATE_HALF_WIDTH_M)
+        - (across_low + across_high) / 2,
+    )
+
+
+def _signed_offsets(offsets_u: Sequence[float]) -> NDArray[np.float64]:
+    magnitudes = sorted({abs(float(u)) for u in offsets_u})
+    # + 0.0: no -0.0 on the grid (its key would differ from 0's).
+    return np.asarray(sorted({-u for u in magnitudes} | set(magnitudes)), dtype=np.float64) + 0.0
+
+
+def _rake_job(job: tuple[str, RakeCase, EngineSettings, int]) -> tuple[str, RakeResult]:
+    """One engine run in a worker process (top level: the pool pickles it)."""
+    key, case, settings, seed = job
+    return key, rake(case, settings, seed=seed)
+
+
+def _run_all(jobs: list[tuple[str, RakeCase, EngineSettings, int]], workers: int,
+             progress: Callable[[str], None]) -> dict[str, RakeResult]:
+    """Every job's result by key, ``workers`` engine processes at a time, a line per run."""
+    results: dict[str, RakeResult] = {}
+
+    def report(key: str, result: RakeResult) -> None:
+        results[key] = result
+        progress(f"[{len(results)}/{len(jobs)}] {key}: {result.particle_count} particles, "
+                 f"{result.cpu_s:.1f} s CPU")
+
+    if workers <= 1:
+        for job in jobs:
+            report(*_rake_job(job))
+        return results
+    # Spawned, not forked: Warp's runtime must not be shared between processes.
+    with concurrent.futures.ProcessPoolExecutor(
+            workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for key, result in pool.map(_rake_job, jobs):
+            report(key, result)
+    return results
+
+
 def build_library(
     depths_m: Sequence[float],
     radii_m: Sequence[float],
@@ -64,35 +155,80 @@ def build_library(
     settings: EngineSettings,
     progress: Callable[[str], None] = print,
     seed: int = 0,
+    shapes: Sequence[ShapeSpec] = (),
+    yaws_deg: Sequence[float] = (0.0, 45.0, 90.0),
+    shape_offsets_u: Sequence[float] = (0.0, 0.5, 1.0, 1.5),
+    workers: int = 1,
 ) -> ResponseLibrary:
-    """Run the engine on the grid and return the library (CPU time in ``settings[-1]``)."""
-    start_cpu = time.process_time()
+    """Run the engine on the grid and return the library.
+
+    ``shapes`` adds shape tables at ``yaws_deg`` (0–90°) and the offsets ``shape_offsets_u``
+    on both sides (the right side run as the mirrored case, except at 0° and 90° where it is
+    the mirror of the left). The summed CPU time of the runs is ``settings[-1]``.
+    """
+    if any(not 0 <= yaw <= 90 for yaw in yaws_deg):
+        raise ValueError("shape yaws must lie in 0 ... 90 degrees (the rest are mirrors)")
     window = max(1, round(settings.voxel_size_m / (RakeCase().speed_m_per_s * settings.step_s)))
     s_grid = np.arange(-TRAVEL_M + S_SPACING_M, 1e-12, S_SPACING_M)
+    signed = _signed_offsets(shape_offsets_u)
+    yaws = np.asarray(sorted(set(float(y) for y in yaws_deg)), dtype=np.float64)
+    jobs: list[tuple[str, RakeCase, EngineSettings, int]] = []
+    for depth in depths_m:
+        jobs.append((f"free d{depth:g}", RakeCase(depth_m=depth, travel_m=TRAVEL_M),
+                     settings, seed))
+        for radius in radii_m:
+            for offset in offsets_u:
+                jobs.append((f"cylinder d{depth:g} r{radius:g} u{offset:g}",
+                             object_case(depth, radius, offset), settings, seed))
+        for n, shape in enumerate(shapes):
+            for yaw in yaws:
+                symmetric = yaw in (0.0, 90.0)
+                for offset in signed:
+                    if symmetric and offset < 0:
+                        continue
+                    # The right side (offset < 0) is the mirrored case: yaw and offset negated.
+                    case = (shape_case(depth, shape, yaw, offset) if offset >= 0 else
+                            shape_case(depth, shape, -yaw, -offset))
+                    jobs.append((f"shape{n} d{depth:g} yaw{yaw:g} u{offset:g}", case,
+                                 settings, seed))
+    results = _run_all(jobs, workers, progress)
     free_rows = []
     travel = None
-    shape = (len(depths_m), len(radii_m), len(offsets_u), s_grid.size)
-    ratio_x, ratio_y = np.ones(shape), np.zeros(shape)
+    grid = (len(depths_m), len(radii_m), len(offsets_u), s_grid.size)
+    ratio_x, ratio_y = np.ones(grid), np.zeros(grid)
+    table = (len(depths_m), len(shapes), yaws.size, signed.size, s_grid.size)
+    shape_x, shape_y = np.ones(table), np.zeros(table)
+
+    def ratios(run: RakeResult, drag: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        s = run.x_m - (RakeCase().start_x_m + TRAVEL_M)
+        fx = smooth(-run.force_n[:, 0], window)
+        fy = smooth(-run.force_n[:, 1], window)
+        return np.interp(s_grid, s, fx / drag), np.interp(s_grid, s, fy / drag)
+
     for i, depth in enumerate(depths_m):
-        free = rake(RakeCase(depth_m=depth, travel_m=TRAVEL_M), settings, seed=seed)
+        free = results[f"free d{depth:g}"]
         travelled = free.x_m - free.x_m[0] + RakeCase().speed_m_per_s * settings.step_s
         drag = np.maximum(smooth(-free.force_n[:, 0], window), 1e-6)
         travel = travelled if travel is None else travel
         free_rows.append(np.interp(travel, travelled, drag))
-        progress(f"free sand, depth {depth * 100:.1f} cm: {free.particle_count} particles, "
-                 f"steady drag {drag[drag.size // 2:].mean():.3f} N ({free.cpu_s:.1f} s CPU)")
         for j, radius in enumerate(radii_m):
             for k, offset in enumerate(offsets_u):
-                run = rake(object_case(depth, radius, offset), settings, seed=seed)
-                s = run.x_m - (RakeCase().start_x_m + TRAVEL_M)
-                fx = smooth(-run.force_n[:, 0], window)
-                fy = smooth(-run.force_n[:, 1], window)
-                ratio_x[i, j, k] = np.interp(s_grid, s, fx / drag)
-                ratio_y[i, j, k] = np.interp(s_grid, s, fy / drag)
-                progress(f"  object r {radius * 100:.1f} cm, offset u {offset:.2f}: ratio at "
-                         f"1 cm {np.interp(-0.01, s, fx / drag):.2f} ({run.cpu_s:.1f} s CPU)")
+                run = results[f"cylinder d{depth:g} r{radius:g} u{offset:g}"]
+                ratio_x[i, j, k], ratio_y[i, j, k] = ratios(run, drag)
+        for n in range(len(shapes)):
+            for m, yaw in enumerate(yaws):
+                for k, offset in enumerate(signed):
+                    stored = abs(offset) if yaw in (0.0, 90.0) else offset
+                    rx, ry = ratios(results[f"shape{n} d{depth:g} yaw{yaw:g} u{stored:g}"], drag)
+                    # A mirrored run's y force is the mirror image's, reversed.
+                    mirrored = offset < 0
+                    shape_x[i, n, m, k], shape_y[i, n, m, k] = rx, (-ry if mirrored else ry)
     assert travel is not None
     cfg = settings
+    cpu = sum(result.cpu_s for result in results.values())
+    outlines = (np.stack([spec.outline() for spec in shapes]) if shapes
+                else np.zeros((0, 64, 2)))
     return ResponseLibrary(
         depths_m=np.asarray(depths_m, dtype=np.float64),
         radii_m=np.asarray(radii_m, dtype=np.float64),
@@ -101,8 +237,12 @@ def build_library(
         free_drag_n=np.vstack(free_rows), ratio_x=ratio_x, ratio_y=ratio_y,
         settings=np.array([cfg.voxel_size_m, cfg.particles_per_cell, cfg.step_s,
                            cfg.max_iterations, cfg.friction_coefficient, cfg.dilatancy,
-                           cfg.bulk_density_kg_per_m3,
-                           RakeCase().speed_m_per_s, time.process_time() - start_cpu]),
+                           cfg.bulk_density_kg_per_m3, RakeCase().speed_m_per_s, cpu]),
+        shape_outlines_m=outlines,
+        shape_yaws_deg=yaws if shapes else np.zeros(0),
+        shape_offsets_u=signed if shapes else np.zeros(0),
+        shape_ratio_x=shape_x if shapes else None,
+        shape_ratio_y=shape_y if shapes else None,
     )
 
 
@@ -123,21 +263,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--step-s", type=float, default=EngineSettings.step_s)
     parser.add_argument("--friction-angle-deg", type=float, default=42.0)
     parser.add_argument("--dilation-angle-deg", type=float, default=12.0)
+    parser.add_argument("--max-iterations", type=int, default=EngineSettings.max_iterations,
+                        help="the solver's iteration cap per step (docs/physics-world.md: "
+                        "the engine is not converged in it)")
+    parser.add_argument("--shape", action="append", default=[], metavar="KIND:A,B",
+                        help="add tables for a shape: ellipse:a,b (semi-axes) or box:a,b "
+                        "(half-sides), metres; repeatable")
+    parser.add_argument("--yaws-deg", type=_floats, default=[0.0, 45.0, 90.0])
+    parser.add_argument("--shape-offsets-u", type=_floats, default=[0.0, 0.5, 1.0, 1.5])
+    parser.add_argument("--workers", type=int, default=1,
+                        help="engine processes at once (each single-threaded)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     friction, dilatancy = material_parameters(args.friction_angle_deg, args.dilation_angle_deg)
     settings = EngineSettings(voxel_size_m=args.voxel_size_m,
                               particles_per_cell=args.particles_per_cell, step_s=args.step_s,
+                              max_iterations=args.max_iterations,
                               friction_coefficient=friction, dilatancy=dilatancy)
+    start = time.perf_counter()
     try:
+        shapes = [parse_shape(text) for text in args.shape]
         library = build_library(args.depths_m, args.radii_m, args.offsets_u, settings,
-                                progress=lambda line: print(line, flush=True), seed=args.seed)
+                                progress=lambda line: print(line, flush=True), seed=args.seed,
+                                shapes=shapes, yaws_deg=args.yaws_deg,
+                                shape_offsets_u=args.shape_offsets_u,
+                                workers=max(1, args.workers))
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     save_library(args.out, library)
     c, n = library.drag_law
-    print(f"wrote {args.out}: drag = {c:.4g} d^{n:.2f} N, {library.settings[-1]:.0f} s CPU")
+    print(f"wrote {args.out}: drag = {c:.4g} d^{n:.2f} N, {library.settings[-1]:.0f} s CPU "
+          f"in the runs, {time.perf_counter() - start:.0f} s wall, "
+          f"{args.out.stat().st_size / 1024:.0f} kB")
     return 0
 
 
