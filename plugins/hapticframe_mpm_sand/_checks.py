@@ -28,10 +28,11 @@ from hapticframe import UsageError
 
 from ._engine import EngineSettings, RakeCase, RakeResult, rake
 from ._library import fit_power_law
-from .build_library import TRAVEL_M, object_case, smooth
+from .build_library import TRAVEL_M, ShapeSpec, object_case, shape_case, smooth
 
-__all__ = ["DragDepthCheck", "HeldOutError", "RiseCheck", "drag_depth_check", "held_out_error",
-           "onset_distance", "rise_check", "rise_profile", "run_physics_checks"]
+__all__ = ["DragDepthCheck", "HeldOutError", "Reach", "RiseCheck", "drag_depth_check",
+           "held_out_error", "library_reach", "onset_distance", "rise_check", "rise_profile",
+           "run_physics_checks"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,7 +102,7 @@ def rise_profile(free: RakeResult, run: RakeResult, case: RakeCase, settings: En
     window = _window(settings, case)
     free_drag = smooth(-free.force_n[:, 0], window)
     ratio = smooth(-run.force_n[:, 0], window) / np.maximum(free_drag, 1e-9)
-    s = run.x_m - (case.start_x_m + TRAVEL_M)
+    s = run.x_m - (case.start_x_m + case.travel_m)
     return s, ratio, free_drag
 
 
@@ -197,6 +198,7 @@ class HeldOutError:
     """The library against a direct engine run at one configuration not on its grid."""
 
     depth_m: float
+    #: A cylinder's radius; 0 for a shape table's object (``shape``, ``yaw_deg``).
     radius_m: float
     offset_u: float
     voxel_size_m: float
@@ -208,30 +210,106 @@ class HeldOutError:
     direct_ratio_at_1cm: float
     library_ratio_at_1cm: float
     cpu_s: float
+    shape: int = -1
+    yaw_deg: float = 0.0
 
 
 def held_out_error(library: Any, settings: EngineSettings, depth_m: float, radius_m: float,
-                   offset_u: float, seed: int = 1) -> HeldOutError:
-    """Compare ``library`` with direct runs (free and towards the object) at ``settings``."""
-    free = rake(RakeCase(depth_m=depth_m, travel_m=TRAVEL_M), settings, seed=seed)
-    case = object_case(depth_m, radius_m, offset_u)
+                   offset_u: float, seed: int = 1, shape: ShapeSpec | None = None,
+                   shape_index: int = -1, yaw_deg: float = 0.0) -> HeldOutError:
+    """Compare ``library`` with direct runs (free and towards the object) at ``settings``.
+
+    The object is a cylinder of ``radius_m`` at offset ``offset_u`` (>= 0), or, with
+    ``shape``, that shape at ``yaw_deg`` and signed ``offset_u``, compared with the
+    library's table ``shape_index`` (a run with the object on the right is made as its
+    mirror image, whose y force does not enter the comparison).
+    """
+    # The library's own approach: its s grid starts one spacing after the run's start.
+    travel = float(library.s_m[1] - 2 * library.s_m[0])
+    free = rake(RakeCase(depth_m=depth_m, travel_m=travel), settings, seed=seed)
+    if shape is None:
+        case = object_case(depth_m, radius_m, offset_u, travel)
+    elif offset_u >= 0:
+        case = shape_case(depth_m, shape, yaw_deg, offset_u, travel)
+    else:
+        case = shape_case(depth_m, shape, -yaw_deg, -offset_u, travel)
     run = rake(case, settings, seed=seed)
     window = _window(settings, case)
     free_drag = smooth(-free.force_n[:, 0], window)
     direct = smooth(-run.force_n[:, 0], window)
-    s = run.x_m - (case.start_x_m + TRAVEL_M)
+    s = run.x_m - (case.start_x_m + travel)
     travelled = run.x_m - case.start_x_m
-    predicted_ratio = np.array([library.ratio(depth_m, radius_m, offset_u, v)[0] for v in s])
+    if shape is None:
+        predicted_ratio = np.array([library.ratio(depth_m, radius_m, offset_u, v)[0] for v in s])
+    else:
+        predicted_ratio = np.array([library.shape_ratio(depth_m, shape_index, yaw_deg,
+                                                        offset_u, v)[0] for v in s])
     predicted = predicted_ratio * np.array([library.free_drag(depth_m, t) for t in travelled])
     steady = float(free_drag[free_drag.size // 2:].mean())
     near = s >= -0.04
     direct_ratio = direct / np.maximum(free_drag, 1e-9)
     return HeldOutError(
-        depth_m=depth_m, radius_m=radius_m, offset_u=offset_u,
+        depth_m=depth_m, radius_m=radius_m if shape is None else 0.0, offset_u=offset_u,
         voxel_size_m=settings.voxel_size_m,
         rms_relative=float(np.sqrt(np.mean((predicted[near] - direct[near]) ** 2)) / steady),
         ratio_rms=float(np.sqrt(np.mean((predicted_ratio[near] - direct_ratio[near]) ** 2))),
         direct_ratio_at_1cm=float(np.interp(-0.01, s, direct_ratio)),
         library_ratio_at_1cm=float(np.interp(-0.01, s, predicted_ratio)),
-        cpu_s=free.cpu_s + run.cpu_s,
+        cpu_s=free.cpu_s + run.cpu_s, shape=shape_index if shape is not None else -1,
+        yaw_deg=yaw_deg,
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class Reach:
+    """How far a library's objects act on the plate: for one table row (a cylinder's
+    radius, or a shape at a yaw) at one depth."""
+
+    depth_m: float
+    #: "cylinder r=…" or "shape N yaw …".
+    label: str
+    #: How far ahead of the leading point the x ratio first stays >= the threshold, dead
+    #: ahead (offset 0); the library's whole approach when it already is at its start.
+    ahead_m: float
+    #: True when the ratio is at or above the threshold at the library's farthest point
+    #: (the reach is at least its approach; longer runs would tell more).
+    ahead_at_edge: bool
+    #: The largest offset u (either side) at which the x ratio reaches the threshold
+    #: anywhere on the approach; the library's widest when it does there.
+    lateral_u: float
+    lateral_at_edge: bool
+
+
+def library_reach(library: Any, threshold: float = 1.1) -> list[Reach]:
+    """Measured reach of every table of ``library`` (cylinders and shapes), per depth."""
+    # As the onset check: up to TOUCH_MARGIN_M before the leading point (where the engine's
+    # squeezed sand, not jamming, sets the force).
+    keep = np.asarray(library.s_m) <= -TOUCH_MARGIN_M
+    s = np.asarray(library.s_m)[keep]
+    rows: list[Reach] = []
+
+    def one(depth: float, label: str, offsets: NDArray[np.float64],
+            ratio: NDArray[np.float64]) -> Reach:
+        # ratio: (offset, s); the dead-ahead row is the offset nearest 0.
+        ratio = ratio[:, keep]
+        centre = int(np.argmin(np.abs(offsets)))
+        above = ratio[centre] >= threshold
+        below = np.nonzero(~above)[0]
+        first = below[-1] + 1 if below.size else 0
+        ahead = float(-s[first]) if first < s.size else 0.0
+        reaching = np.nonzero((ratio >= threshold).any(axis=1))[0]
+        lateral = float(np.abs(offsets[reaching]).max()) if reaching.size else 0.0
+        widest = float(np.abs(offsets).max())
+        return Reach(depth, label, ahead, bool(above[0]), lateral,
+                     bool(reaching.size and lateral >= widest))
+
+    for i, depth in enumerate(library.depths_m):
+        for j, radius in enumerate(library.radii_m):
+            rows.append(one(float(depth), f"cylinder r={radius * 100:g} cm",
+                            np.asarray(library.offsets_u), library.ratio_x[i, j]))
+        for n in range(library.shape_count):
+            for m, yaw in enumerate(library.shape_yaws_deg):
+                rows.append(one(float(depth), f"shape {n} yaw {yaw:g} deg",
+                                np.asarray(library.shape_offsets_u),
+                                library.shape_ratio_x[i, n, m]))
+    return rows

@@ -174,13 +174,15 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
     # The bed reaches at least a cell past the object's axis across the plate, so that an
     # object far to the side is met in sand, not in the wall.
     width = max(s.bed_width_m, axis_y + 2 * s.voxel_size_m if c.has_object else 0.0)
+    # And at least 4.5 cm past the end of the travel (a longer run gets a longer bed).
+    length = max(s.bed_length_m, c.start_x_m + c.travel_m + 0.045)
     # The box: floor and four walls (static shapes).
     builder.add_ground_plane()
     wall = 0.01
-    half_l, half_w, h = s.bed_length_m / 2, width / 2, s.bed_height_m * 1.5
+    half_l, half_w, h = length / 2, width / 2, s.bed_height_m * 1.5
     for px, py, hx, hy in (
         (-wall, half_w, wall, half_w + 2 * wall),
-        (s.bed_length_m + wall, half_w, wall, half_w + 2 * wall),
+        (length + wall, half_w, wall, half_w + 2 * wall),
         (half_l, -wall, half_l + 2 * wall, wall),
         (half_l, width + wall, half_l + 2 * wall, wall),
     ):
@@ -211,7 +213,7 @@ def rake(case: RakeCase, settings: EngineSettings, seed: int = 0) -> RakeResult:
     # The sand: a jittered grid of particles filling the box to the bed height, none inside
     # the plate or the object (the engine would expel them: a denser bed around them).
     rng = np.random.default_rng(seed)
-    hi = np.array([s.bed_length_m, width, s.bed_height_m])
+    hi = np.array([length, width, s.bed_height_m])
     res = np.ceil(s.particles_per_cell ** (1 / 3) * hi / s.voxel_size_m).astype(int)
     cell = hi / res
     radius = float(np.max(cell) * 0.5)

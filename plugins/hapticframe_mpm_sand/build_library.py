@@ -51,12 +51,13 @@ def smooth(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
     return np.asarray(total / count, dtype=np.float64)
 
 
-def object_case(depth_m: float, radius_m: float, offset_u: float) -> RakeCase:
-    """The run towards a cylinder of ``radius_m`` whose leading point is TRAVEL_M ahead."""
+def object_case(depth_m: float, radius_m: float, offset_u: float,
+                travel_m: float = TRAVEL_M) -> RakeCase:
+    """The run towards a cylinder of ``radius_m`` whose leading point is ``travel_m`` ahead."""
     start = RakeCase().start_x_m
     return RakeCase(
-        depth_m=depth_m, travel_m=TRAVEL_M, object_radius_m=radius_m,
-        object_x_m=start + TRAVEL_M + radius_m,
+        depth_m=depth_m, travel_m=travel_m, object_radius_m=radius_m,
+        object_x_m=start + travel_m + radius_m,
         lateral_offset_m=offset_u * (radius_m + PLATE_HALF_WIDTH_M),
     )
 
@@ -94,8 +95,9 @@ def parse_shape(text: str) -> ShapeSpec:
     return ShapeSpec(kind, (values[0], values[1]))
 
 
-def shape_case(depth_m: float, shape: ShapeSpec, yaw_deg: float, offset_u: float) -> RakeCase:
-    """The run towards ``shape`` at ``yaw_deg`` whose foremost point is TRAVEL_M ahead and
+def shape_case(depth_m: float, shape: ShapeSpec, yaw_deg: float, offset_u: float,
+               travel_m: float = TRAVEL_M) -> RakeCase:
+    """The run towards ``shape`` at ``yaw_deg`` whose foremost point is ``travel_m`` ahead and
     whose across-heading extent is centred ``offset_u`` (>= 0) half-widths to the left
     (half-width: the object's half-extent across the heading plus the plate's)."""
     if offset_u < 0:
@@ -107,8 +109,8 @@ def shape_case(depth_m: float, shape: ShapeSpec, yaw_deg: float, offset_u: float
     half_across = (across_high - across_low) / 2
     start = RakeCase().start_x_m
     return dataclasses.replace(
-        probe, depth_m=depth_m, travel_m=TRAVEL_M,
-        object_x_m=start + TRAVEL_M - float(footprint[:, 0].min()),
+        probe, depth_m=depth_m, travel_m=travel_m,
+        object_x_m=start + travel_m - float(footprint[:, 0].min()),
         lateral_offset_m=offset_u * (half_across + PLATE_HALF_WIDTH_M)
         - (across_low + across_high) / 2,
     )
@@ -159,27 +161,30 @@ def build_library(
     yaws_deg: Sequence[float] = (0.0, 45.0, 90.0),
     shape_offsets_u: Sequence[float] = (0.0, 0.5, 1.0, 1.5),
     workers: int = 1,
+    travel_m: float = TRAVEL_M,
 ) -> ResponseLibrary:
     """Run the engine on the grid and return the library.
 
     ``shapes`` adds shape tables at ``yaws_deg`` (0–90°) and the offsets ``shape_offsets_u``
     on both sides (the right side run as the mirrored case, except at 0° and 90° where it is
-    the mirror of the left). The summed CPU time of the runs is ``settings[-1]``.
+    the mirror of the left). Every run rakes ``travel_m`` up to the object's foremost
+    point, so the tables reach that far ahead. The summed CPU time of the runs is
+    ``settings[-1]``.
     """
     if any(not 0 <= yaw <= 90 for yaw in yaws_deg):
         raise ValueError("shape yaws must lie in 0 ... 90 degrees (the rest are mirrors)")
     window = max(1, round(settings.voxel_size_m / (RakeCase().speed_m_per_s * settings.step_s)))
-    s_grid = np.arange(-TRAVEL_M + S_SPACING_M, 1e-12, S_SPACING_M)
+    s_grid = np.arange(-travel_m + S_SPACING_M, 1e-12, S_SPACING_M)
     signed = _signed_offsets(shape_offsets_u)
     yaws = np.asarray(sorted(set(float(y) for y in yaws_deg)), dtype=np.float64)
     jobs: list[tuple[str, RakeCase, EngineSettings, int]] = []
     for depth in depths_m:
-        jobs.append((f"free d{depth:g}", RakeCase(depth_m=depth, travel_m=TRAVEL_M),
+        jobs.append((f"free d{depth:g}", RakeCase(depth_m=depth, travel_m=travel_m),
                      settings, seed))
         for radius in radii_m:
             for offset in offsets_u:
                 jobs.append((f"cylinder d{depth:g} r{radius:g} u{offset:g}",
-                             object_case(depth, radius, offset), settings, seed))
+                             object_case(depth, radius, offset, travel_m), settings, seed))
         for n, shape in enumerate(shapes):
             for yaw in yaws:
                 symmetric = yaw in (0.0, 90.0)
@@ -187,8 +192,8 @@ def build_library(
                     if symmetric and offset < 0:
                         continue
                     # The right side (offset < 0) is the mirrored case: yaw and offset negated.
-                    case = (shape_case(depth, shape, yaw, offset) if offset >= 0 else
-                            shape_case(depth, shape, -yaw, -offset))
+                    case = (shape_case(depth, shape, yaw, offset, travel_m) if offset >= 0
+                            else shape_case(depth, shape, -yaw, -offset, travel_m))
                     jobs.append((f"shape{n} d{depth:g} yaw{yaw:g} u{offset:g}", case,
                                  settings, seed))
     results = _run_all(jobs, workers, progress)
@@ -201,7 +206,7 @@ def build_library(
 
     def ratios(run: RakeResult, drag: NDArray[np.float64]
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        s = run.x_m - (RakeCase().start_x_m + TRAVEL_M)
+        s = run.x_m - (RakeCase().start_x_m + travel_m)
         fx = smooth(-run.force_n[:, 0], window)
         fy = smooth(-run.force_n[:, 1], window)
         return np.interp(s_grid, s, fx / drag), np.interp(s_grid, s, fy / drag)
@@ -271,6 +276,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         "(half-sides), metres; repeatable")
     parser.add_argument("--yaws-deg", type=_floats, default=[0.0, 45.0, 90.0])
     parser.add_argument("--shape-offsets-u", type=_floats, default=[0.0, 0.5, 1.0, 1.5])
+    parser.add_argument("--travel-m", type=float, default=TRAVEL_M,
+                        help="each run's approach to the object (the tables' reach ahead)")
     parser.add_argument("--workers", type=int, default=1,
                         help="engine processes at once (each single-threaded)")
     parser.add_argument("--seed", type=int, default=0)
@@ -287,13 +294,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 progress=lambda line: print(line, flush=True), seed=args.seed,
                                 shapes=shapes, yaws_deg=args.yaws_deg,
                                 shape_offsets_u=args.shape_offsets_u,
-                                workers=max(1, args.workers))
+                                workers=max(1, args.workers), travel_m=args.travel_m)
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     save_library(args.out, library)
-    c, n = library.drag_law
-    print(f"wrote {args.out}: drag = {c:.4g} d^{n:.2f} N, {library.settings[-1]:.0f} s CPU "
+    law = ""
+    if library.depths_m.size >= 2:
+        c, n = library.drag_law
+        law = f"drag = {c:.4g} d^{n:.2f} N, "
+    print(f"wrote {args.out}: {law}{library.settings[-1]:.0f} s CPU "
           f"in the runs, {time.perf_counter() - start:.0f} s wall, "
           f"{args.out.stat().st_size / 1024:.0f} kB")
     return 0

@@ -188,3 +188,19 @@ def test_bad_shape_specs_and_cases_are_refused():
         RakeCase(object_shape="torus")
     with pytest.raises(ValueError, match="positive object_half_extents_m"):
         RakeCase(object_shape="box")
+
+
+def test_the_reach_of_each_table_is_read_from_the_library():
+    from hapticframe_mpm_sand._checks import library_reach
+
+    shape_x = np.ones((2, 2, 3, 3, 3))
+    shape_x[1, 0, 0, 1] = [1.2, 1.5, 1.0]  # ellipse, yaw 0, dead ahead: from the start
+    shape_x[1, 0, 1, 2] = [1.0, 1.3, 1.0]  # ellipse, yaw 45, left: from 2 cm, to the side
+    reach = {(r.depth_m, r.label): r for r in library_reach(_library(shape_x))}
+    ahead = reach[(0.044, "shape 0 yaw 0 deg")]
+    assert ahead.ahead_m == pytest.approx(0.04) and ahead.ahead_at_edge
+    assert ahead.lateral_u == 0.0 and not ahead.lateral_at_edge
+    side = reach[(0.044, "shape 0 yaw 45 deg")]
+    assert side.ahead_m == 0.0
+    assert side.lateral_u == 1.0 and side.lateral_at_edge
+    assert reach[(0.02, "cylinder r=3 cm")].ahead_m == 0.0
