@@ -204,3 +204,21 @@ def test_the_reach_of_each_table_is_read_from_the_library():
     assert side.ahead_m == 0.0
     assert side.lateral_u == 1.0 and side.lateral_at_edge
     assert reach[(0.02, "cylinder r=3 cm")].ahead_m == 0.0
+
+
+def test_the_held_out_set_reads_the_librarys_shapes_and_settings():
+    from hapticframe_mpm_sand.held_out import default_configurations, settings_of, spec_of
+
+    assert spec_of(ELLIPSE.outline()) == ELLIPSE
+    assert spec_of(BOX.outline()) == BOX
+    library = _library()
+    configs = default_configurations(library)
+    shapes = [c for c in configs if "shape" in c]
+    assert [c["shape"] for c in shapes] == [ELLIPSE, ELLIPSE, BOX, BOX]
+    # Every held-out configuration is off the library's grid.
+    for config in configs:
+        assert config["depth_m"] not in library.depths_m
+        if "shape" in config:
+            assert config["yaw_deg"] not in library.shape_yaws_deg
+    settings = settings_of(library)
+    assert (settings.step_s, settings.max_iterations) == (0.0075, 200)
