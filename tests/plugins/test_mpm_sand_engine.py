@@ -46,3 +46,22 @@ def test_the_force_rises_ahead_of_a_buried_cylinder():
     assert check.ratio_at_1cm > 1.1
     assert check.ratio_at_1cm > check.ratio_at_2cm > 0.9
     assert check.rise_distance_m > 0.005
+
+
+def test_a_box_ahead_raises_the_force_and_one_far_to_the_side_does_not():
+    from hapticframe_mpm_sand._engine import EngineSettings, RakeCase, rake
+    from hapticframe_mpm_sand.build_library import ShapeSpec, shape_case, smooth
+
+    settings = EngineSettings(**TINY)  # type: ignore[arg-type]
+    box = ShapeSpec("box", (0.03, 0.02))
+    free = rake(RakeCase(depth_m=0.044, travel_m=0.055), settings)
+    ahead = rake(shape_case(0.044, box, 30.0, 0.0), settings)
+    aside = rake(shape_case(0.044, box, 30.0, 2.5), settings)
+
+    def ratio_at_1cm(run):  # type: ignore[no-untyped-def]
+        s = run.x_m - (RakeCase().start_x_m + 0.055)
+        ratio = smooth(-run.force_n[:, 0], 3) / smooth(-free.force_n[:, 0], 3)
+        return float(np.interp(-0.01, s, ratio))
+
+    assert ratio_at_1cm(ahead) > 1.1
+    assert abs(ratio_at_1cm(aside) - 1.0) < 0.1
