@@ -10,7 +10,6 @@ from pydantic import ValidationError
 from hapticframe.kinds import LocatedMeasurement
 from hapticframe_learned_zone import LearnedZoneConfig
 from hapticframe_learned_zone._functional import observation_weights
-
 from tests.plugins.test_learned_zone import CLASSES, _approaches, _zone
 
 FREE, JAMMING = np.eye(3)[0], np.eye(3)[1]
