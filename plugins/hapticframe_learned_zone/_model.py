@@ -50,6 +50,7 @@ from ._functional import (
     observation_weights,
     onset_window,
     place,
+    survival_background,
     travel_thinning,
 )
 
@@ -115,24 +116,32 @@ class LearnedZone(SensorModel):
             self.config.depth_prior_strength)
         self._model = model
         self._columns: dict[tuple[str, ...], NDArray[np.intp]] = {}
+        self._survival: tuple[FloatArray, FloatArray] | None = None
+        if self.config.background_likelihood == "survival":
+            self._survival = survival_background(
+                self._counts[0].sum(axis=0), self.p_free[-1][:, 0], self.class_marginal[0],
+                self.config.prior_strength, (self.ahead_m.size, self.aside_m.size))
 
     def cell_maps(self, probabilities: Sequence[float], depth_m: float = math.nan
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """For one report (class probabilities in the model's class order) at ``depth_m``
         (NaN: pooled over depths), per cell (``ahead × aside``): the map's target σ(log LR),
-        the log likelihood ratio and the weight. A report whose most probable class is the
-        background's carries :meth:`background_samples` times its ratio."""
+        the log likelihood ratio and the weight. With ``background_likelihood: survival`` a
+        report of the background class alone takes its ratio from
+        :func:`~._functional.survival_background` (at every depth)."""
         band = int(depth_band([depth_m], self.depth_edges_m)[0])
         row = len(self.depth_edges_m) + 1 if band < 0 else band
         q = np.asarray(probabilities, dtype=np.float64)
         q = q / q.sum() if q.sum() > 0 else np.full(q.size, 1.0 / q.size)
-        ratio = log_ratio(self.p_occupied[row], self.p_free[row], q)
-        if int(np.argmax(q)) == 0:
-            ratio = self.background_samples() * ratio
-        # A sparse band's likelihoods are mostly the pooled ones (it is shrunk towards
-        # them), so their evidence is the samples pooled over depths.
-        weights = observation_weights(ratio, self.occupied_samples[-1],
-                                      self.config.prior_strength,
+        if self._survival is not None and q[0] == 1.0:
+            # The background's survival estimate (depths pooled) and its samples.
+            ratio, samples = (a.copy() for a in self._survival)
+        else:
+            ratio = log_ratio(self.p_occupied[row], self.p_free[row], q)
+            # A sparse band's likelihoods are mostly the pooled ones (it is shrunk towards
+            # them), so their evidence is the samples pooled over depths.
+            samples = self.occupied_samples[-1]
+        weights = observation_weights(ratio, samples, self.config.prior_strength,
                                       self.config.full_weight_log_ratio)
         # The target is the posterior from an even prior, σ(log LR): the map fits soft
         # labels (it averages targets, it does not add log odds), and the calibration
@@ -140,23 +149,6 @@ class LearnedZone(SensorModel):
         targets = 1.0 / (1.0 + np.exp(-np.clip(ratio, -700.0, 700.0)))
         shape = (self.ahead_m.size, self.aside_m.size)
         return targets.reshape(shape), ratio.reshape(shape), weights.reshape(shape)
-
-    def background_samples(self) -> float:
-        """How many fitted samples a report of the background class stands for: 1
-        (``background_evidence: per-sample``), or the fit's samples in the travel between
-        two placed reports, ``observation_spacing_m / fit_spacing_m`` and at least 1
-        (``per-travel``).
-
-        The fit counts one sample per ``fit_spacing_m`` of travel, and a searching plate
-        reports the background class all along its free travel, but only one report per
-        ``observation_spacing_m`` is placed; the map averages the targets it gets, so the
-        evidence of the samples between two placed reports is carried by the one placed.
-        A report of another class halts a search's movement and stands for itself.
-        """
-        cfg = self.config
-        if cfg.background_evidence == "per-sample" or cfg.observation_spacing_m <= 0:
-            return 1.0
-        return max(1.0, cfg.observation_spacing_m / cfg.fit_spacing_m)
 
     def _columns_of(self, classes: tuple[str, ...]) -> NDArray[np.intp]:
         """Column of each model class in a measurement's classes (cached per tuple)."""
