@@ -78,6 +78,16 @@ class LearnedZoneConfig(PluginConfig):
         description="A report is placed on the map every this much travel, and whenever "
         "the reported class changes (0: every sample).",
     )
+    background_likelihood: Literal["shrunk", "survival"] = Field(
+        "shrunk",
+        description="A report of the background class (the first, 'free'): 'shrunk' its "
+        "likelihoods per cell and depth band as every class's; 'survival' p(background | "
+        "occupied) shrunk along the plate's heading towards the cells farther ahead, never "
+        "rising as the object nears (depths pooled): the cells nearest the plate and those "
+        "it passed, rarely seen occupied because a search halts, are cleared at least as "
+        "surely as the nearest seen (docs/calibration.md, 'The sandbox's blurred "
+        "outlines').",
+    )
     min_log_ratio: float = Field(
         0.2, ge=0.0, le=20.0,
         description="Cells whose log odds the report changes by less than this (its log "

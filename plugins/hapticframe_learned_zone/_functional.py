@@ -27,6 +27,7 @@ __all__ = [
     "observation_weights",
     "onset_window",
     "place",
+    "survival_background",
     "travel_thinning",
 ]
 
@@ -202,3 +203,50 @@ def observation_weights(odds_change: FloatArray, samples: FloatArray, strength: 
     size = np.minimum(np.abs(odds_change) / full_weight_change, 1.0)
     weights: FloatArray = size * samples / (samples + strength)
     return weights
+
+
+def survival_background(n_occ: ArrayLike, p_free_cell: ArrayLike, marginal: float,
+                        strength: float, shape: tuple[int, int]
+                        ) -> tuple[FloatArray, FloatArray]:
+    """The background class's log likelihood ratio per cell, estimated as a survival.
+
+    A search halts at its first report of another class, so the calibration rarely saw
+    the cells nearest the plate (and never those it had passed) occupied: shrunk towards
+    the class frequencies, their p(background | occupied) stays near the frequency of
+    the background and a background report says little about them, although an object
+    there would have been felt at least as surely as one farther ahead. Here, along each
+    column of the grid (``shape`` = (ahead, aside), ahead-major cells, ``ahead`` rising),
+    p(background | occupied) is shrunk, from the farthest cell towards the plate, towards
+    the estimate of the next cell farther ahead (the farthest towards ``marginal``), and
+    kept at most that: it does not rise as the object nears, and a cell seen rarely
+    takes the evidence of the nearest cell farther ahead that was seen. ``n_occ`` are the
+    depth-pooled counts ``(cells, classes)`` with the cell occupied, class 0 the
+    background; ``p_free_cell`` the depth-pooled p(background | cell free) per cell.
+
+    Returns
+    -------
+    ratio : ndarray, (cells,)
+        log p(background | occupied) − log p(background | free), at most 0.
+    samples : ndarray, (cells,)
+        The occupied samples the estimate leans on: the most of the cell and of the cells
+        farther ahead in its column.
+    """
+    occ = np.asarray(n_occ, dtype=np.float64)
+    n_ahead, n_aside = shape
+    total = occ.sum(axis=-1).reshape(n_ahead, n_aside)
+    background = occ[:, 0].reshape(n_ahead, n_aside)
+    free_rate = np.asarray(p_free_cell, dtype=np.float64).reshape(n_ahead, n_aside)
+    estimate = np.empty((n_ahead, n_aside))
+    samples = np.empty((n_ahead, n_aside))
+    prior = np.full(n_aside, float(marginal))
+    prior_samples = np.zeros(n_aside)
+    for i in range(n_ahead - 1, -1, -1):
+        estimate[i] = np.minimum((background[i] + strength * prior) / (total[i] + strength),
+                                 prior)
+        samples[i] = np.maximum(total[i], prior_samples)
+        prior = estimate[i]
+        prior_samples = samples[i]
+    tiny = np.finfo(np.float64).tiny
+    ratio = np.minimum(np.log(np.maximum(estimate, tiny)) - np.log(np.maximum(free_rate, tiny)),
+                       0.0)
+    return ratio.ravel(), samples.ravel()

@@ -50,6 +50,7 @@ from ._functional import (
     observation_weights,
     onset_window,
     place,
+    survival_background,
     travel_thinning,
 )
 
@@ -115,21 +116,32 @@ class LearnedZone(SensorModel):
             self.config.depth_prior_strength)
         self._model = model
         self._columns: dict[tuple[str, ...], NDArray[np.intp]] = {}
+        self._survival: tuple[FloatArray, FloatArray] | None = None
+        if self.config.background_likelihood == "survival":
+            self._survival = survival_background(
+                self._counts[0].sum(axis=0), self.p_free[-1][:, 0], self.class_marginal[0],
+                self.config.prior_strength, (self.ahead_m.size, self.aside_m.size))
 
     def cell_maps(self, probabilities: Sequence[float], depth_m: float = math.nan
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """For one report (class probabilities in the model's class order) at ``depth_m``
         (NaN: pooled over depths), per cell (``ahead × aside``): the map's target σ(log LR),
-        the log likelihood ratio and the weight."""
+        the log likelihood ratio and the weight. With ``background_likelihood: survival`` a
+        report of the background class alone takes its ratio from
+        :func:`~._functional.survival_background` (at every depth)."""
         band = int(depth_band([depth_m], self.depth_edges_m)[0])
         row = len(self.depth_edges_m) + 1 if band < 0 else band
         q = np.asarray(probabilities, dtype=np.float64)
         q = q / q.sum() if q.sum() > 0 else np.full(q.size, 1.0 / q.size)
-        ratio = log_ratio(self.p_occupied[row], self.p_free[row], q)
-        # A sparse band's likelihoods are mostly the pooled ones (it is shrunk towards
-        # them), so their evidence is the samples pooled over depths.
-        weights = observation_weights(ratio, self.occupied_samples[-1],
-                                      self.config.prior_strength,
+        if self._survival is not None and q[0] == 1.0:
+            # The background's survival estimate (depths pooled) and its samples.
+            ratio, samples = (a.copy() for a in self._survival)
+        else:
+            ratio = log_ratio(self.p_occupied[row], self.p_free[row], q)
+            # A sparse band's likelihoods are mostly the pooled ones (it is shrunk towards
+            # them), so their evidence is the samples pooled over depths.
+            samples = self.occupied_samples[-1]
+        weights = observation_weights(ratio, samples, self.config.prior_strength,
                                       self.config.full_weight_log_ratio)
         # The target is the posterior from an even prior, σ(log LR): the map fits soft
         # labels (it averages targets, it does not add log odds), and the calibration
