@@ -8,7 +8,10 @@ from hapticframe_sandbox import SandboxRobotConfig
 
 __all__ = ["BUNDLED_LIBRARIES", "MpmSandRobotConfig"]
 
-#: The libraries shipped in ``data/``, by the engine's voxel size (m) they were built at.
+#: The libraries shipped in ``data/``, by the engine's voxel size (m) they were built at:
+#: 7.5 mm cells at 7.5 ms steps with shape tables (issue 32), and the first library's
+#: 10 mm companion (30 ms steps, cylinders only). The first 7.5 mm library (30 ms steps)
+#: is shipped as ``response-library-7.5mm-30ms.npz`` for ``library_path``.
 BUNDLED_LIBRARIES = {0.0075: "response-library.npz", 0.01: "response-library-10mm.npz"}
 
 
@@ -23,8 +26,9 @@ class MpmSandRobotConfig(SandboxRobotConfig):
 
     voxel_size_m: float = Field(
         0.0075, gt=0, le=0.1,
-        description="The engine's grid cell of the bundled library to use (0.0075 or 0.01 m); "
-        "ignored when library_path is set.",
+        description="The engine's grid cell of the bundled library to use: 0.0075 (7.5 ms "
+        "steps, ellipse and box tables) or 0.01 m (30 ms steps, cylinders only); ignored when "
+        "library_path is set.",
     )
     library_path: str | None = Field(
         None, max_length=4096,

@@ -175,6 +175,9 @@ class MpmSandWorld(World):
         shape_u_max = float(library.shape_offsets_u[-1]) if library.shape_count else 0.0
         excess_x = excess_y = 0.0
         penetration = 0.0
+        # An object adds to the drag, never takes from it: the library's ratios below 1
+        # (down to 0.72, far to the side) come from object runs in a wider bed than the free
+        # run's (docs/physics-world.md), not from the sand.
         for (a, c), shape in zip(self._frames, self._shapes, strict=True):
             s_m = along - float(a.min())
             if along > float(a.max()) or s_m < float(library.s_m[0]):
@@ -190,13 +193,13 @@ class MpmSandWorld(World):
                     signed_u = math.copysign(min(u, shape_u_max), -offset)
                     rx, ry = library.shape_ratio(depth, shape[0], shape[1] - self._heading_deg,
                                                  signed_u, min(0.0, s_m))
-                    excess_x += (rx - 1.0) * taper
+                    excess_x += max(0.0, rx - 1.0) * taper
                     excess_y += ry * taper
             else:
                 taper = 1.0 - max(0.0, u - u_max) / cfg.offset_taper_u
                 if taper > 0.0:
                     rx, ry = library.ratio(depth, radius, min(u, u_max), min(0.0, s_m))
-                    excess_x += (rx - 1.0) * taper
+                    excess_x += max(0.0, rx - 1.0) * taper
                     # ratio_y is for an object on the +across side; mirror for the other side.
                     excess_y += ry * taper * (1.0 if offset <= 0 else -1.0)
             band = np.abs(c - across) <= half

@@ -3,13 +3,19 @@
 ::
 
     OMP_NUM_THREADS=1 nice -n 10 python -m hapticframe_mpm_sand.build_library \\
+        --shape ellipse:0.045,0.025 --shape box:0.035,0.025 --workers 2 \\
         --out plugins/hapticframe_mpm_sand/data/response-library.npz
 
-runs the engine once per depth in free sand and once per (depth, object radius, lateral
-offset) towards a buried cylinder, and stores the forces as ratios of the free drag (see
-:mod:`hapticframe_mpm_sand._library`). ``--voxel-size-m``, ``--particles-per-cell`` and
-``--step-s`` set the resolution; the grid is set by ``--depths-m``, ``--radii-m`` and
-``--offsets-u`` (comma-separated). One line of progress per run.
+runs the engine once per depth in free sand, once per (depth, object radius, lateral
+offset) towards a buried cylinder and, for each ``--shape``, once per (depth, yaw, signed
+offset) towards that elliptic or rectangular prism, and stores the forces as ratios of the
+free drag (see :mod:`hapticframe_mpm_sand._library`). ``--voxel-size-m``,
+``--particles-per-cell``, ``--step-s`` and ``--max-iterations`` set the resolution (the
+defaults are the bundled library's: 7.5 mm cells, 7.5 ms steps, 200 iterations; see
+docs/physics-world.md for why the step, not the cell, got the CPU); the grid is set by
+``--depths-m``, ``--radii-m``, ``--offsets-u``, ``--yaws-deg``, ``--shape-offsets-u`` and
+``--travel-m`` (comma-separated lists). ``--workers`` runs that many engine processes.
+One line of progress per run.
 """
 
 from __future__ import annotations
@@ -37,6 +43,10 @@ __all__ = ["ShapeSpec", "build_library", "main", "object_case", "parse_shape", "
 TRAVEL_M = 0.055
 S_SPACING_M = 0.0025
 PLATE_HALF_WIDTH_M = 0.01
+#: The bundled library's step and approach (the checks and the convergence study keep
+#: EngineSettings' 30 ms and TRAVEL_M, which their documented tables were measured at).
+LIBRARY_STEP_S = 0.0075
+LIBRARY_TRAVEL_M = 0.075
 
 
 def smooth(values: NDArray[np.float64], window: int) -> NDArray[np.float64]:
@@ -171,6 +181,8 @@ def build_library(
     point, so the tables reach that far ahead. The summed CPU time of the runs is
     ``settings[-1]``.
     """
+    if not 2 * S_SPACING_M <= travel_m <= 0.5:
+        raise ValueError(f"travel_m {travel_m:g}: between {2 * S_SPACING_M:g} and 0.5 m")
     if any(not 0 <= yaw <= 90 for yaw in yaws_deg):
         raise ValueError("shape yaws must lie in 0 ... 90 degrees (the rest are mirrors)")
     window = max(1, round(settings.voxel_size_m / (RakeCase().speed_m_per_s * settings.step_s)))
@@ -260,12 +272,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--depths-m", type=_floats, default=[0.02, 0.03, 0.044])
-    parser.add_argument("--radii-m", type=_floats, default=[0.015, 0.03])
-    parser.add_argument("--offsets-u", type=_floats, default=[0.0, 0.5, 1.0])
+    parser.add_argument("--radii-m", type=_floats, default=[0.015, 0.04])
+    parser.add_argument("--offsets-u", type=_floats, default=[0.0, 0.75, 1.5, 2.25])
     parser.add_argument("--voxel-size-m", type=float, default=EngineSettings.voxel_size_m)
     parser.add_argument("--particles-per-cell", type=float,
                         default=EngineSettings.particles_per_cell)
-    parser.add_argument("--step-s", type=float, default=EngineSettings.step_s)
+    parser.add_argument("--step-s", type=float, default=LIBRARY_STEP_S)
     parser.add_argument("--friction-angle-deg", type=float, default=42.0)
     parser.add_argument("--dilation-angle-deg", type=float, default=12.0)
     parser.add_argument("--max-iterations", type=int, default=EngineSettings.max_iterations,
@@ -275,8 +287,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="add tables for a shape: ellipse:a,b (semi-axes) or box:a,b "
                         "(half-sides), metres; repeatable")
     parser.add_argument("--yaws-deg", type=_floats, default=[0.0, 45.0, 90.0])
-    parser.add_argument("--shape-offsets-u", type=_floats, default=[0.0, 0.5, 1.0, 1.5])
-    parser.add_argument("--travel-m", type=float, default=TRAVEL_M,
+    parser.add_argument("--shape-offsets-u", type=_floats, default=[0.0, 0.75, 1.5])
+    parser.add_argument("--travel-m", type=float, default=LIBRARY_TRAVEL_M,
                         help="each run's approach to the object (the tables' reach ahead)")
     parser.add_argument("--workers", type=int, default=1,
                         help="engine processes at once (each single-threaded)")

@@ -222,3 +222,14 @@ def test_the_held_out_set_reads_the_librarys_shapes_and_settings():
             assert config["yaw_deg"] not in library.shape_yaws_deg
     settings = settings_of(library)
     assert (settings.step_s, settings.max_iterations) == (0.0075, 200)
+
+
+def test_the_build_command_refuses_a_bad_grid_with_exit_2(capsys: pytest.CaptureFixture[str]):
+    from hapticframe_mpm_sand.build_library import main
+
+    assert main(["--out", "x.npz", "--shape", "disc:0.03"]) == 2
+    assert "kind:a,b" in capsys.readouterr().err
+    assert main(["--out", "x.npz", "--travel-m", "0.001"]) == 2
+    assert "travel_m 0.001" in capsys.readouterr().err
+    assert main(["--out", "x.npz", "--yaws-deg", "0,120"]) == 2
+    assert "0 ... 90" in capsys.readouterr().err
