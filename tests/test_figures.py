@@ -313,19 +313,24 @@ def test_the_check_catches_a_proxy_entry_and_a_clipped_title() -> None:
 
 #: The README's sentence stating each engine example's outcome: the number of movements.
 ENGINE_OUTCOMES = {
-    "search-ellipse-physics.yaml": r"It does \*\*not\*\* find the ellipse: (\d+) movements \((\d+) "
-                                   r"in phase 1, (\d+) in phase 2\), (\d+) of them halted",
-    "search-ellipse-physics-drag.yaml": r"example above does not find its ellipse \((\d+) "
-                                        r"movements",
+    "search-ellipse-physics.yaml": r"With\s+the\s+first\s+library\s+it\s+did\s+\*\*not\*\*\s+"
+                                   r"find\s+the\s+ellipse:\s+(\d+)\s+movements\s+\((\d+)\s+in\s+phase\s+1,\s+"
+                                   r"(\d+)\s+in\s+phase\s+2\),\s+(\d+)\s+of\s+them\s+halted",
+    "search-ellipse-physics-drag.yaml": r"with\s+the\s+first\s+library\s+it\s+did\s+not\s+find\s+"
+                                        r"its\s+ellipse\s+\((\d+)\s+movements",
 }
+#: The engine world's first response library (shipped for ``library_path``): the searches
+#: above found nothing in it, which is what this test needs.
+FIRST_LIBRARY = ("robots[0].config.library_path="
+                 "plugins/hapticframe_mpm_sand/data/response-library-7.5mm-30ms.npz")
 
 
 @pytest.mark.parametrize("example", sorted(ENGINE_OUTCOMES))
 def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch,
                                                           example: str) -> None:
-    # The engine's sand: the same search finds no object (README, "sand our models did not
-    # write"); every figure says so, outline.png's title says it has no outline, and the
-    # README states the run's outcome as it is.
+    # The engine's sand with its first library: the same search finds no object (README,
+    # "sand our models did not write"); every figure says so, outline.png's title says it
+    # has no outline, and the README states the run's outcome as it is.
     captured: dict[str, Figure] = {}
     save = plotting.save_figure
 
@@ -334,7 +339,11 @@ def test_every_figure_of_a_run_that_found_nothing_says_so(tmp_path, monkeypatch,
         return save(figure, path)
 
     monkeypatch.setattr(plotting, "save_figure", capture)
-    experiment = validate_file(ROOT / "examples" / example)
+    from hapticframe import validate_with_overrides
+    from hapticframe._config import load_file
+
+    monkeypatch.chdir(ROOT)  # the library path is relative to the repository
+    experiment = validate_with_overrides(load_file(ROOT / "examples" / example), [FIRST_LIBRARY])
     result = run_experiment(experiment, tmp_path, echo=lambda _: None, progress=False)
     assert result["object_found"] is False
     stated = re.search(ENGINE_OUTCOMES[example], (ROOT / "README.md").read_text())

@@ -4,10 +4,12 @@ between the two worlds, and the fit / save / load round trip."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import hapticframe_mpm_sand
 from hapticframe import Circle, Scene
 from hapticframe.kinds import BuildContext, ExploratoryMovement, SampleBatch
 from hapticframe_jamming import (
@@ -152,14 +154,25 @@ def test_one_component_is_read_when_configured():
 # --- the same settings in both worlds ------------------------------------------------------
 
 
+#: The engine world's first response library (7.5 mm, 30 ms steps): the world these
+#: findings were measured in (docs/benchmarks.md, jamming detection). In the second, the
+#: free drag triples over a run's first 7 cm (docs/physics-world.md) and the defaults
+#: alarm in free sand (the strict xfail below).
+FIRST_LIBRARY = str(Path(hapticframe_mpm_sand.__file__).parent / "data"
+                    / "response-library-7.5mm-30ms.npz")
+
+
 def _rake(world: str, depth: float, with_object: bool, seed: int) -> tuple[SampleBatch, np.ndarray,
                                                                           np.ndarray]:
     objects = [Circle(center_m=(0.40, 0.25), radius_m=0.03)] if with_object else [
         Circle(center_m=(0.70, 0.45), radius_m=0.02)]
-    cls, cfg = ((SandboxRobot, SandboxRobotConfig) if world == "sandbox"
-                else (MpmSandRobot, MpmSandRobotConfig))
-    robot = cls(cfg(depth_m=depth), BuildContext(id="arm", rng=np.random.default_rng(seed),
-                                                 scene=Scene(objects=objects)))
+    context = BuildContext(id="arm", rng=np.random.default_rng(seed), scene=Scene(objects=objects))
+    robot: SandboxRobot
+    if world == "sandbox":
+        robot = SandboxRobot(SandboxRobotConfig(depth_m=depth), context)
+    else:
+        library = FIRST_LIBRARY if world == "mpm-sand" else None  # "mpm-sand-2": the bundled
+        robot = MpmSandRobot(MpmSandRobotConfig(depth_m=depth, library_path=library), context)
     robot.begin(ExploratoryMovement((0.05, 0.25), (0.45 if with_object else 0.60, 0.25),
                                     speed_m_per_s=0.05, depth_m=depth))
     while robot.step() is not None:
@@ -182,6 +195,15 @@ def test_the_default_settings_detect_jamming_before_contact_in_both_worlds(world
         assert states[first] == 1, (world, depth, states[first])
         free, _, _ = _rake(world, depth, False, seed=4)
         assert np.all(clf.predict(free) == 0), (world, depth)
+
+
+@pytest.mark.xfail(strict=True, reason="the second library's free drag keeps rising over a "
+                   "run's first 7 cm (the surcharge in the engine's small bed); the warm-up "
+                   "estimate lags it and the defaults alarm in free sand at 2 cm depth")
+def test_the_defaults_stay_quiet_in_free_sand_of_the_second_library():
+    clf = _classifier()
+    free, _, _ = _rake("mpm-sand-2", 0.02, False, seed=4)
+    assert np.all(clf.predict(free) == 0)
 
 
 def test_the_old_absolute_thresholds_do_not_transfer_to_the_engine_world():
