@@ -244,12 +244,13 @@ class ResponseLibrary:
         assert self.shape_ratio_x is not None and self.shape_ratio_y is not None
         axes = [
             _axis_weights(self.depths_m, depth_m),
-            (shape, shape, 0.0),
             _axis_weights(self.shape_yaws_deg, yaw),
             _axis_weights(self.shape_offsets_u, offset_u),
             _axis_weights(self.s_m, s_m),
         ]
-        rx, ry = _multilinear((self.shape_ratio_x, self.shape_ratio_y), axes)
+        # One shape's tables (a view): 16 corners a step, not 32.
+        rx, ry = _multilinear((self.shape_ratio_x[:, shape], self.shape_ratio_y[:, shape]),
+                              axes)
         return rx, sign * ry
 
     @property

@@ -128,7 +128,7 @@ def shape_case(depth_m: float, shape: ShapeSpec, yaw_deg: float, offset_u: float
 
 def _signed_offsets(offsets_u: Sequence[float]) -> NDArray[np.float64]:
     magnitudes = sorted({abs(float(u)) for u in offsets_u})
-    # + 0.0: no -0.0 on the grid (its key would differ from 0's).
+    # + 0.0: no -0.0 on the grid.
     return np.asarray(sorted({-u for u in magnitudes} | set(magnitudes)), dtype=np.float64) + 0.0
 
 
@@ -189,32 +189,45 @@ def build_library(
     s_grid = np.arange(-travel_m + S_SPACING_M, 1e-12, S_SPACING_M)
     signed = _signed_offsets(shape_offsets_u)
     yaws = np.asarray(sorted(set(float(y) for y in yaws_deg)), dtype=np.float64)
-    jobs: list[tuple[str, RakeCase, EngineSettings, int]] = []
-    for depth in depths_m:
-        jobs.append((f"free d{depth:g}", RakeCase(depth_m=depth, travel_m=travel_m),
-                     settings, seed))
-        for radius in radii_m:
-            for offset in offsets_u:
-                jobs.append((f"cylinder d{depth:g} r{radius:g} u{offset:g}",
-                             object_case(depth, radius, offset, travel_m), settings, seed))
+    # Every engine run once, by name; every table cell names the run it reads and whether
+    # it reads its mirror image (the right side: y reversed).
+    cases: dict[str, RakeCase] = {}
+    cylinder_cells: list[tuple[tuple[int, int, int], str]] = []
+    shape_cells: list[tuple[tuple[int, int, int, int], str, bool]] = []
+    for i, depth in enumerate(depths_m):
+        cases[f"free d{depth:g}"] = RakeCase(depth_m=depth, travel_m=travel_m)
+        for j, radius in enumerate(radii_m):
+            for k, offset in enumerate(offsets_u):
+                key = f"cylinder d{depth:g} r{radius:g} u{offset:g}"
+                cases[key] = object_case(depth, radius, offset, travel_m)
+                cylinder_cells.append(((i, j, k), key))
         for n, shape in enumerate(shapes):
-            for yaw in yaws:
-                symmetric = yaw in (0.0, 90.0)
-                for offset in signed:
-                    if symmetric and offset < 0:
-                        continue
-                    # The right side (offset < 0) is the mirrored case: yaw and offset negated.
-                    case = (shape_case(depth, shape, yaw, offset, travel_m) if offset >= 0
-                            else shape_case(depth, shape, -yaw, -offset, travel_m))
-                    jobs.append((f"shape{n} d{depth:g} yaw{yaw:g} u{offset:g}", case,
-                                 settings, seed))
-    results = _run_all(jobs, workers, progress)
+            for m, yaw in enumerate(yaws):
+                for k, offset in enumerate(signed):
+                    mirrored = offset < 0
+                    # At 0 and 90 degrees the right side is the left's mirror image; at other
+                    # yaws it is run as the mirrored case (yaw and offset negated).
+                    run_yaw = yaw if yaw in (0.0, 90.0) or not mirrored else -yaw
+                    key = f"shape{n} d{depth:g} yaw{run_yaw:g} u{abs(offset):g}"
+                    cases.setdefault(key, shape_case(depth, shape, run_yaw, abs(offset),
+                                                     travel_m))
+                    shape_cells.append(((i, n, m, k), key, mirrored))
+    results = _run_all([(key, case, settings, seed) for key, case in cases.items()],
+                       workers, progress)
     free_rows = []
     travel = None
     grid = (len(depths_m), len(radii_m), len(offsets_u), s_grid.size)
     ratio_x, ratio_y = np.ones(grid), np.zeros(grid)
     table = (len(depths_m), len(shapes), yaws.size, signed.size, s_grid.size)
     shape_x, shape_y = np.ones(table), np.zeros(table)
+    drags = []
+    for depth in depths_m:
+        free = results[f"free d{depth:g}"]
+        travelled = free.x_m - free.x_m[0] + RakeCase().speed_m_per_s * settings.step_s
+        drag = np.maximum(smooth(-free.force_n[:, 0], window), 1e-6)
+        travel = travelled if travel is None else travel
+        free_rows.append(np.interp(travel, travelled, drag))
+        drags.append(drag)
 
     def ratios(run: RakeResult, drag: NDArray[np.float64]
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -223,24 +236,11 @@ def build_library(
         fy = smooth(-run.force_n[:, 1], window)
         return np.interp(s_grid, s, fx / drag), np.interp(s_grid, s, fy / drag)
 
-    for i, depth in enumerate(depths_m):
-        free = results[f"free d{depth:g}"]
-        travelled = free.x_m - free.x_m[0] + RakeCase().speed_m_per_s * settings.step_s
-        drag = np.maximum(smooth(-free.force_n[:, 0], window), 1e-6)
-        travel = travelled if travel is None else travel
-        free_rows.append(np.interp(travel, travelled, drag))
-        for j, radius in enumerate(radii_m):
-            for k, offset in enumerate(offsets_u):
-                run = results[f"cylinder d{depth:g} r{radius:g} u{offset:g}"]
-                ratio_x[i, j, k], ratio_y[i, j, k] = ratios(run, drag)
-        for n in range(len(shapes)):
-            for m, yaw in enumerate(yaws):
-                for k, offset in enumerate(signed):
-                    stored = abs(offset) if yaw in (0.0, 90.0) else offset
-                    rx, ry = ratios(results[f"shape{n} d{depth:g} yaw{yaw:g} u{stored:g}"], drag)
-                    # A mirrored run's y force is the mirror image's, reversed.
-                    mirrored = offset < 0
-                    shape_x[i, n, m, k], shape_y[i, n, m, k] = rx, (-ry if mirrored else ry)
+    for (i, j, k), key in cylinder_cells:
+        ratio_x[i, j, k], ratio_y[i, j, k] = ratios(results[key], drags[i])
+    for (i, n, m, k), key, mirrored in shape_cells:
+        rx, ry = ratios(results[key], drags[i])
+        shape_x[i, n, m, k], shape_y[i, n, m, k] = rx, (-ry if mirrored else ry)
     assert travel is not None
     cfg = settings
     cpu = sum(result.cpu_s for result in results.values())

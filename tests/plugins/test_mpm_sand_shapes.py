@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hapticframe import Circle, Ellipse, Polygon, Scene
-from hapticframe.kinds import BuildContext, ExploratoryMovement
+from hapticframe.kinds import BuildContext
 from hapticframe_mpm_sand import (
     MpmSandRobot,
     MpmSandRobotConfig,
@@ -26,6 +26,7 @@ from hapticframe_mpm_sand.build_library import (
     parse_shape,
     shape_case,
 )
+from tests.plugins.test_mpm_sand import _rake
 
 ELLIPSE = ShapeSpec("ellipse", (0.035, 0.025))
 BOX = ShapeSpec("box", (0.035, 0.025))
@@ -116,10 +117,8 @@ def _robot(library_path: Path, scene: Scene) -> MpmSandRobot:
 
 def _forces(robot: MpmSandRobot, start: tuple[float, float], end: tuple[float, float]
             ) -> tuple[np.ndarray, np.ndarray]:
-    robot.begin(ExploratoryMovement(start, end, speed_m_per_s=0.05))
-    while robot.step() is not None:
-        pass
-    return robot.ground_truth.positions_m, robot.ground_truth.forces_n
+    positions, forces, _states = _rake(robot, start, end)
+    return positions, forces
 
 
 def test_the_world_meets_a_matching_object_through_its_table_at_its_yaw(tmp_path: Path):
